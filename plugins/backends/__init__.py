@@ -1,0 +1,1 @@
+"""LLM backend plugins."""

@@ -1,0 +1,1 @@
+"""Environment plugins: the worlds a robot is tested in."""

@@ -1,0 +1,45 @@
+"""``flatland``: a fast, dependency-light 2D world for tests, examples and quick experiments.
+
+A square room with a disc robot, a red can and optional round obstacles. LiDAR and camera are
+ray-cast analytically (numpy only), motion is exact and stops at first contact. It follows the
+same contract as the pybullet rooms, so every defence and attack can be exercised without a
+physics engine.
+"""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from safeembodai_core.hookspecs import hookimpl
+
+
+class FlatlandOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    room_mm: float = Field(4000.0, ge=1000.0, le=50_000.0, description="side of the square room")
+    obstacles: int = Field(0, ge=0, le=60, description="round static obstacles")
+    obstacle_radius_mm: float = Field(110.0, gt=0, le=1000.0)
+    robot_radius_mm: float = Field(170.0, gt=0, le=1000.0)
+    can_radius_mm: float = Field(33.0, gt=0, le=500.0)
+    reach_mm: float = Field(450.0, gt=0, description="centre-to-centre distance that completes the task")
+    min_start_distance_mm: float = Field(1200.0, ge=0, description="least distance from robot to can at start")
+    max_sim_time_s: float = Field(100.0, gt=0, description="simulated-time limit (the paper's 100 s)")
+    speed_mm_s: float = Field(200.0, gt=0)
+    turn_rate_deg_s: float = Field(60.0, gt=0)
+    lidar_beams: int = Field(360, ge=36, le=3600)
+    lidar_max_range_mm: float = Field(6000.0, gt=0)
+    camera_width: int = Field(320, ge=16, le=1920)
+    camera_height: int = Field(240, ge=12, le=1080)
+    camera_fov_deg: float = Field(60.0, gt=10, lt=170)
+
+
+def _factory(options: FlatlandOptions, context):
+    from .world import FlatlandWorld
+
+    return FlatlandWorld(options)
+
+
+@hookimpl
+def register_environments(register):
+    register("flatland", _factory, options=FlatlandOptions,
+             description="2D analytic room with a red can and optional round obstacles (numpy only)")

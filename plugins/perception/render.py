@@ -1,0 +1,77 @@
+"""The two perception components: images (PNG) and text."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from safeembodai_core.components import Perception
+from safeembodai_core.models import ImagePart, LidarScan, Modalities, Observation
+
+from .describe import describe_lidar, describe_target, find_red_target, sector_clearance
+
+
+def encode_png(rgb: np.ndarray) -> bytes:
+    """PNG bytes of an RGB uint8 image."""
+    import cv2
+
+    ok, data = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
+    if not ok:
+        raise ValueError("could not encode image as PNG")
+    return data.tobytes()
+
+
+def draw_lidar_image(scan: LidarScan, size_px: int, range_mm: float) -> np.ndarray:
+    """Top-down map: robot at the centre facing up, returns as dark dots, range rings every metre."""
+    import cv2
+
+    image = np.full((size_px, size_px, 3), 255, dtype=np.uint8)
+    centre = size_px / 2.0
+    scale = centre / range_mm
+    for ring in range(1, int(range_mm // 1000) + 1):
+        cv2.circle(image, (int(centre), int(centre)), int(ring * 1000 * scale), (215, 215, 215), 1)
+    points = scan.points()
+    if points.size:
+        # robot frame x forward (up), y left (image left)
+        cols = np.rint(centre - points[:, 1] * scale).astype(int)
+        rows = np.rint(centre - points[:, 0] * scale).astype(int)
+        inside = (cols >= 0) & (cols < size_px) & (rows >= 0) & (rows < size_px)
+        for r, c in zip(rows[inside], cols[inside]):
+            cv2.circle(image, (int(c), int(r)), 2, (0, 0, 0), -1)
+    tip = (int(centre), int(centre - 18))
+    cv2.circle(image, (int(centre), int(centre)), 6, (0, 120, 255), -1)
+    cv2.line(image, (int(centre), int(centre)), tip, (0, 120, 255), 2)
+    return image
+
+
+def _texts(observation: Observation, fov: float, min_pixels: int = 12) -> dict[str, str]:
+    texts = {}
+    if observation.camera is not None:
+        texts["camera_text"] = describe_target(find_red_target(observation.camera, fov, min_pixels))
+    if observation.lidar is not None:
+        texts["lidar_text"] = describe_lidar(sector_clearance(observation.lidar))
+    return texts
+
+
+class ImagePerception(Perception):
+    def __init__(self, options) -> None:
+        self.options = options
+
+    def perceive(self, observation: Observation) -> Modalities:
+        o = self.options
+        images = {}
+        if observation.camera is not None:
+            h, w = observation.camera.shape[:2]
+            images["camera_image"] = ImagePart("camera_image", encode_png(observation.camera), width=w, height=h)
+        if observation.lidar is not None:
+            picture = draw_lidar_image(observation.lidar, o.lidar_image_px, o.lidar_image_range_mm)
+            images["lidar_image"] = ImagePart("lidar_image", encode_png(picture), width=o.lidar_image_px, height=o.lidar_image_px)
+        texts = _texts(observation, o.camera_fov_deg) if o.with_text else {}
+        return Modalities(images=images, texts=texts)
+
+
+class TextPerception(Perception):
+    def __init__(self, options) -> None:
+        self.options = options
+
+    def perceive(self, observation: Observation) -> Modalities:
+        return Modalities(texts=_texts(observation, self.options.camera_fov_deg, self.options.min_target_pixels))

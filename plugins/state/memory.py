@@ -1,0 +1,48 @@
+"""``memory``: an in-process state store (per run; nothing survives the process).
+
+Records are deep-copied in and out, so a component that mutates a record it was handed (an
+attacker forging the reference state, say) cannot rewrite history.
+"""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+from safeembodai_core.components import StateStore
+from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
+
+
+class MemoryOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class MemoryStateStore(StateStore):
+    def __init__(self) -> None:
+        self.specs: dict[str, TrialSpec] = {}
+        self.records: dict[str, list[StepRecord]] = {}
+        self.results: dict[str, TrialResult] = {}
+
+    def begin_trial(self, spec: TrialSpec) -> None:
+        self.specs[spec.trial_id] = spec
+        self.records[spec.trial_id] = []
+        self.results.pop(spec.trial_id, None)
+
+    def record_step(self, record: StepRecord) -> None:
+        self.records.setdefault(record.trial_id, []).append(record.model_copy(deep=True))
+
+    def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
+        previous = [r for r in self.records.get(trial_id, []) if r.step == step - 1]
+        return previous[-1].to_reference() if previous else None
+
+    def end_trial(self, result: TrialResult) -> None:
+        self.results[result.spec.trial_id] = result.model_copy(deep=True)
+
+    def steps(self, trial_id: str) -> list[StepRecord]:
+        return [r.model_copy(deep=True) for r in self.records.get(trial_id, [])]
+
+
+@hookimpl(trylast=True)
+def register_state_stores(register):
+    register("memory", lambda options, context: MemoryStateStore(), options=MemoryOptions,
+             description="in-process store; records last as long as the run")

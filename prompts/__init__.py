@@ -1,0 +1,12 @@
+"""Built-in Jinja templates of the secure prompt (imported as ``safeembodai_prompts``).
+
+``system.j2`` renders Table I of the paper (role r, task t, capabilities b, response format f,
+methods m) and, when secure prompting is on, the security prefix p from ``security/<variant>.j2``.
+``user.j2`` renders the user prompt I_i (human instruction, modalities, reference state R_{i-1},
+previous failures on a retry). Copy this folder and point a scenario's prompt builder at it
+(``template_dir``) to change any of them.
+"""
+
+from pathlib import Path
+
+TEMPLATE_DIR = Path(__file__).resolve().parent

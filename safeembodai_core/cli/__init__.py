@@ -1,0 +1,94 @@
+"""The ``safeembodai`` command line: one module per command, plugins may add their own.
+
+Errors a user can cause print one clear message and exit non-zero; ``--debug`` adds the
+traceback. Nothing heavy (litellm, pybullet, cv2) is imported until a command needs it.
+"""
+
+from __future__ import annotations
+
+import sys
+import traceback
+
+import click
+
+from ..errors import PluginError, SafeEmbodAIError
+from ..logs import configure_logging
+
+
+class PluginAwareGroup(click.Group):
+    """A group that asks plugins for extra commands the first time commands are listed."""
+
+    _plugins_added = False
+    plugin_error: PluginError | None = None
+
+    def _add_plugin_commands(self) -> None:
+        if self._plugins_added:
+            return
+        self._plugins_added = True
+        from ..plugins import load_plugins
+
+        try:
+            load_plugins().add_commands(self)
+        except PluginError as error:  # the commands that need plugins will report it
+            self.plugin_error = error
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        self._add_plugin_commands()
+        return super().list_commands(ctx)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        command = super().get_command(ctx, name)
+        if command is None:
+            self._add_plugin_commands()
+            command = super().get_command(ctx, name)
+        return command
+
+
+@click.group(cls=PluginAwareGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("--debug", is_flag=True, help="Show tracebacks and debug logs.")
+@click.option("--log-level", default="warning", show_default=True,
+              type=click.Choice(["debug", "info", "warning", "error"]), help="Log level (stderr).")
+@click.option("--log-json", is_flag=True, help="Log JSON lines instead of text.")
+@click.version_option(package_name="safeembodai")
+@click.pass_context
+def cli(ctx: click.Context, debug: bool, log_level: str, log_json: bool) -> None:
+    """SafeEmbodAI: keep LLM-controlled mobile robots safe, and measure how much each defence buys."""
+    configure_logging("debug" if debug else log_level, log_json)
+    ctx.obj = {"debug": debug}
+
+
+def _register_builtin_commands() -> None:
+    from .ablate_cmd import ablate
+    from .plugins_cmd import plugins
+    from .run_cmd import run
+
+    for command in (plugins, run, ablate):
+        cli.add_command(command)
+
+
+_register_builtin_commands()
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console-script entry point."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in args
+    try:
+        code = cli.main(args=args, prog_name="safeembodai", standalone_mode=False)
+    except click.exceptions.Exit as done:
+        code = done.exit_code
+    except click.ClickException as error:
+        error.show()
+        code = error.exit_code
+    except click.Abort:
+        click.echo("Aborted.", err=True)
+        code = 130
+    except KeyboardInterrupt:
+        click.echo("Interrupted.", err=True)
+        code = 130
+    except SafeEmbodAIError as error:
+        if debug:
+            traceback.print_exc()
+        click.echo(f"Error: {error}", err=True)
+        code = error.exit_code
+    sys.exit(code if isinstance(code, int) else 0)

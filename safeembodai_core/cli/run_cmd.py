@@ -1,0 +1,56 @@
+"""``safeembodai run SCENARIO``: one trial of one cell, printed step by step, saved to a folder."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+
+from ..errors import ScenarioError
+from .common import load, scenario_options
+
+
+def _pick(kind: str, value: str | None, names: list[str]) -> str:
+    if value is None:
+        return names[0]
+    if value not in names:
+        raise ScenarioError(f"--{kind} {value!r} is not in the scenario; choose from {', '.join(names)}")
+    return value
+
+
+@click.command("run")
+@scenario_options
+@click.option("--env", "environment", default=None, help="Environment label (default: the scenario's first).")
+@click.option("--arm", default=None, help="Arm (default: the scenario's first).")
+@click.option("--condition", default=None, help="Condition (default: the scenario's first).")
+@click.option("--trial", "index", type=click.IntRange(min=0), default=0, show_default=True, help="Trial index (picks the seed).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
+              help="Folder for trial.json, steps.jsonl and trajectory.png (default: runs/<scenario>-run-<time>).")
+def run(scenario_path, backend, seed, overrides, environment, arm, condition, index, out_dir) -> None:
+    """Run one trial of SCENARIO and show what happened at every step."""
+    from rich.console import Console
+
+    from ..runner import ScenarioRunner, trial_spec
+    from .trial_view import save_trial, step_table
+
+    scenario, plugins = load(scenario_path, backend, seed, overrides)
+    env_label = _pick("env", environment, [e.key for e in scenario.environments])
+    arm = _pick("arm", arm, list(scenario.arms))
+    condition = _pick("condition", condition, list(scenario.conditions))
+    folder = Path(out_dir or Path("runs") / f"{scenario.name}-run-{time.strftime('%Y%m%d-%H%M%S')}")
+    runner = ScenarioRunner(scenario, plugins, run_dir=folder)
+    spec = trial_spec(scenario, env_label, arm, condition, index)
+    console = Console(stderr=False)
+    try:
+        with console.status(f"running {spec.trial_id} (seed {spec.seed})"):
+            result = runner.run(spec)
+        steps = runner.state.steps(spec.trial_id)
+        picture = runner.environment(env_label).trajectory_png(result.trajectory, result.outcome)
+        save_trial(folder, result, steps, picture)
+    finally:
+        runner.close()
+    console.print(step_table(steps))
+    console.print(f"[bold]{spec.trial_id}[/bold]: {result.outcome.value} after {result.steps} steps"
+                  f" ({result.detail or 'no detail'}); distance {result.distance_mm:.0f} mm, tokens {result.tokens}")
+    console.print(f"saved to {folder}")

@@ -1,0 +1,198 @@
+"""The interfaces a plugin's components implement.
+
+A plugin registers a *factory* for each named component (see :mod:`safeembodai_core.hookspecs`);
+the factory receives the component's validated options and a :class:`BuildContext` and returns
+an object with the methods below. Subclassing these ABCs is optional but recommended: a
+missing method then fails at construction with a clear message instead of mid-trial.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .models import (
+    AttackRecord,
+    ControlLimits,
+    ControlSignal,
+    ExecutionResult,
+    LidarScan,
+    Modalities,
+    Observation,
+    Outcome,
+    Pose,
+    Prompt,
+    PromptRequest,
+    ReferenceState,
+    StepRecord,
+    TokenUsage,
+    TrialResult,
+    TrialSpec,
+    Verdict,
+)
+
+if TYPE_CHECKING:
+    from .validation import ValidationContext
+
+
+@dataclass(frozen=True)
+class BuildContext:
+    """Passed to every component factory: who is building and with which seed material."""
+
+    component: str
+    kind: str
+    seed: int = 0
+    run_dir: str | None = None
+    settings: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot's body as validators need it (millimetres)."""
+
+    radius_mm: float = 170.0
+    width_mm: float = 340.0
+    length_mm: float = 340.0
+
+
+class Environment(ABC):
+    """A (simulated) world with one robot; owns its physics and its sensors."""
+
+    robot: RobotSpec = RobotSpec()
+
+    @abstractmethod
+    def reset(self, seed: int) -> Observation:
+        """Build a fresh world from ``seed`` and return the first observation."""
+
+    @abstractmethod
+    def observe(self) -> Observation:
+        """Read every sensor now."""
+
+    @abstractmethod
+    def execute(self, signal: ControlSignal) -> ExecutionResult:
+        """Carry out one control signal; the world (moving obstacles too) advances meanwhile."""
+
+    @abstractmethod
+    def outcome(self) -> Outcome | None:
+        """``COMPLETED``, ``INTERRUPTED`` or ``TIMEOUT`` (simulated time) once decided, else None."""
+
+    def pose(self) -> Pose | None:
+        """The robot's pose now, without reading the sensors (for trajectories); None if unknown."""
+        return None
+
+    def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
+        """Optional: a top-down picture of the trial (room, obstacles, path, outcome)."""
+        return None
+
+    def close(self) -> None:
+        """Release the world's resources."""
+
+
+class Perception(ABC):
+    """Turns raw sensor readings into the modalities a prompt carries."""
+
+    @abstractmethod
+    def perceive(self, observation: Observation) -> Modalities:
+        """Render ``observation`` (camera image, LiDAR image, text descriptions)."""
+
+
+class PromptBuilder(ABC):
+    """Renders the system prompt Y = {B, p} and the user prompt I_i for one attempt."""
+
+    @abstractmethod
+    def build(self, request: PromptRequest) -> Prompt:
+        """Render ``request`` into a :class:`Prompt`; untrusted text stays data."""
+
+
+class StateStore(ABC):
+    """Keeps per-step records and answers the reference state R_{i-1}.
+
+    The store records every step whatever the arm; the *state management* defence only decides
+    whether R_{i-1} goes into the prompt.
+    """
+
+    @abstractmethod
+    def begin_trial(self, spec: TrialSpec) -> None:
+        """Start recording ``spec`` (any earlier, unfinished record of the same trial is dropped)."""
+
+    @abstractmethod
+    def record_step(self, record: StepRecord) -> None:
+        """Persist one step atomically."""
+
+    @abstractmethod
+    def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
+        """R_{step-1} for the prompt of ``step``; None on the first step."""
+
+    @abstractmethod
+    def end_trial(self, result: TrialResult) -> None:
+        """Persist the trial's result."""
+
+    @abstractmethod
+    def steps(self, trial_id: str) -> list[StepRecord]:
+        """Every recorded step of a trial, in order."""
+
+    def close(self) -> None:
+        """Flush and release."""
+
+
+class Validator(ABC):
+    """A safety rule applied to each control signal before execution."""
+
+    @abstractmethod
+    def validate(self, signal: ControlSignal, context: "ValidationContext") -> Verdict:
+        """Judge ``signal`` given the (planned) robot state in ``context``.
+
+        The verdict's ``reason`` is shown to the LLM on a retry: say what was wrong and by how much.
+        """
+
+
+class Attacker(ABC):
+    """An adversary that may tamper with a step's inputs before the LLM sees them."""
+
+    @abstractmethod
+    def attack(self, target: "AttackSurface") -> list[AttackRecord]:
+        """Alter ``target`` in place (instruction, observation, reference state) and return
+        one ground-truth record per alteration (empty when this step is left alone)."""
+
+
+class LLMBackend(ABC):
+    """Answers a prompt with raw text; the core parses and validates it."""
+
+    @abstractmethod
+    def complete(self, prompt: Prompt, rng: np.random.Generator) -> "BackendReply":
+        """Send ``prompt``; raise :class:`~safeembodai_core.errors.BackendError` when no answer can be had."""
+
+    def close(self) -> None:
+        """Release connections."""
+
+
+@dataclass
+class BackendReply:
+    """A backend's answer: the raw text (untrusted), token usage and latency."""
+
+    text: str
+    usage: TokenUsage = field(default_factory=TokenUsage)
+    latency_s: float = 0.0
+    model: str = ""
+
+
+@dataclass
+class AttackSurface:
+    """The inputs of one step as an attacker sees them; attackers mutate it in place.
+
+    ``instruction`` is the human instruction h_i, ``observation`` the raw sensor readings (a
+    spoofed LiDAR also fools the validators, as a real one would), ``reference_state`` R_{i-1}
+    (None when state management is off or on the first step). ``rng`` is seeded from the
+    trial seed, the attacker's name and the step index only, so every arm of an ablation sees
+    the same attacks at the same steps.
+    """
+
+    step: int
+    instruction: str
+    observation: Observation
+    reference_state: ReferenceState | None
+    rng: np.random.Generator
+    limits: ControlLimits = ControlLimits()

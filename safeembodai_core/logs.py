@@ -1,0 +1,52 @@
+"""Logging: structlog to stderr, with secrets redacted before anything is written.
+
+Any event key that names a credential (``api_key``, ``authorization``, ``secret``, ``password``,
+``token`` but not token *counts*) is masked, and so is any value that looks like a bearer key
+(``sk-...``). Backends must still never log credentials; this is the safety net.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import sys
+from typing import Any
+
+import structlog
+
+_SECRET_KEY = re.compile(r"(api[_-]?key|authorization|secret|password|passwd|bearer|^token$|access[_-]?token)", re.I)
+_SECRET_VALUE = re.compile(r"\b(sk|rk|pk)-[A-Za-z0-9_\-]{8,}|\bBearer\s+[A-Za-z0-9._\-]{8,}")
+MASK = "***"
+
+
+def redact(value: Any) -> Any:
+    """Mask anything that looks like a credential inside ``value`` (recursively)."""
+    if isinstance(value, str):
+        return _SECRET_VALUE.sub(MASK, value)
+    if isinstance(value, dict):
+        return {k: (MASK if isinstance(k, str) and _SECRET_KEY.search(k) else redact(v)) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(redact(v) for v in value)
+    return value
+
+
+def _redact_processor(logger: Any, method: str, event: dict[str, Any]) -> dict[str, Any]:
+    return redact(event)
+
+
+def configure_logging(level: str = "warning", json_output: bool = False) -> None:
+    """Send structlog events at ``level`` or above to stderr (plain text, or JSON lines)."""
+    numeric = getattr(logging, level.upper(), logging.WARNING)
+    renderer = structlog.processors.JSONRenderer() if json_output else structlog.dev.ConsoleRenderer(colors=False)
+    structlog.configure(
+        processors=[
+            structlog.contextvars.merge_contextvars,
+            structlog.processors.add_log_level,
+            structlog.processors.TimeStamper(fmt="iso"),
+            _redact_processor,
+            renderer,
+        ],
+        wrapper_class=structlog.make_filtering_bound_logger(numeric),
+        logger_factory=structlog.PrintLoggerFactory(file=sys.stderr),
+        cache_logger_on_first_use=False,
+    )

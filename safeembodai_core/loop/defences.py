@@ -1,0 +1,44 @@
+"""Which defences an arm switches on: the three of the paper, each independent."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..refs import ComponentRef
+
+DEFAULT_RULES = ("command_limits", "lidar_clearance")
+
+
+class Defences(BaseModel):
+    """One arm of an ablation.
+
+    * ``security_prefix``: secure prompting; ``false`` for Y = {B}, ``true`` for the paper's
+      prefix p, or the name of a prefix variant shipped by the prompt builder.
+    * ``state_management``: put the reference state R_{i-1} into the prompt of step i.
+    * ``safety_validation``: check every control signal with ``validators`` before execution.
+    * ``failure_threshold``: N of Algorithm 1, the retries allowed after a refused answer. Answers
+      that do not parse are refused and retried in every arm: the robot cannot execute them.
+    * ``on_exhausted``: when N retries are spent, ``abort`` ends the trial (``safe_abort``, the
+      paper's "mission failed"); ``hold`` skips the step without moving and carries on.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    security_prefix: bool | str = False
+    state_management: bool = False
+    safety_validation: bool = False
+    validators: list[ComponentRef] = Field(default_factory=lambda: [ComponentRef(use=n) for n in DEFAULT_RULES])
+    failure_threshold: int = Field(3, ge=0, le=20)
+    on_exhausted: Literal["abort", "hold"] = "abort"
+
+    @property
+    def prefix_variant(self) -> str | None:
+        if self.security_prefix is False:
+            return None
+        return "paper" if self.security_prefix is True else str(self.security_prefix)
+
+
+BASELINE = Defences()
+SAFEEMBODAI = Defences(security_prefix=True, state_management=True, safety_validation=True)

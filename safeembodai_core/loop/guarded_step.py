@@ -1,0 +1,69 @@
+"""Algorithm 1: ask the LLM, parse, validate, and retry with the failures fed back.
+
+The answer of attempt j is executed only if it parses into the response schema (always
+required: the robot cannot execute anything else) and, when safety validation is on, every
+control signal passes every rule. Otherwise the reasons are handed to the prompt builder for
+attempt j+1, up to the failure threshold N. With N spent the step has no executable answer.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Sequence
+
+import structlog
+
+from .. import seeds
+from ..components import LLMBackend, PromptBuilder, Validator
+from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, parse_response
+from ..validation import ValidationContext, validate_plan
+
+log = structlog.get_logger(__name__)
+
+MAX_STORED_TEXT = 16_000
+
+
+def _feedback(index: int, attempt: Attempt) -> list[str]:
+    refused = ""
+    if attempt.response is not None and attempt.response.control:
+        refused = " (refused plan: " + ", ".join(s.describe() for s in attempt.response.control) + ")"
+    return [f"attempt {index + 1}{refused}: {reason}" for reason in attempt.failures()]
+
+
+def decide(
+    request: PromptRequest,
+    *,
+    builder: PromptBuilder,
+    backend: LLMBackend,
+    validators: Sequence[tuple[str, Validator]],
+    context: ValidationContext,
+    failure_threshold: int,
+    seed: int,
+) -> tuple[list[Attempt], LLMResponse | None]:
+    """Run Algorithm 1 for one step; return every attempt and the accepted answer (or None).
+
+    ``validators`` empty means safety validation is off. A
+    :class:`~safeembodai_core.errors.BackendError` from the backend propagates to the trial.
+    """
+    attempts: list[Attempt] = []
+    failures: list[str] = []
+    for index in range(failure_threshold + 1):
+        prompt = builder.build(replace(request, failures=tuple(failures)))
+        started = time.perf_counter()
+        reply = backend.complete(prompt, seeds.rng(seed, "backend", request.step, index))
+        latency = reply.latency_s or (time.perf_counter() - started)
+        attempt = Attempt(index=index, raw_text=reply.text[:MAX_STORED_TEXT], usage=reply.usage, latency_s=latency)
+        try:
+            response = parse_response(reply.text, request.limits)
+        except ResponseParseError as error:
+            attempt.parse_error = str(error)
+        else:
+            attempt.response = response
+            attempt.verdicts = validate_plan(response.control, context, validators) if validators else []
+        attempts.append(attempt)
+        if attempt.accepted:
+            return attempts, attempt.response
+        log.info("step.refused", step=request.step, attempt=index, reasons=attempt.failures())
+        failures.extend(_feedback(index, attempt))
+    return attempts, None

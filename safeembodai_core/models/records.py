@@ -1,0 +1,196 @@
+"""Records of what happened: per attempt, per step (R_i) and per trial.
+
+These are pydantic models so state stores can serialise them to JSON and read them back
+unchanged. Nothing in them may carry a secret: backends report usage, never credentials.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from .control import ControlSignal
+from .observation import GroundTruth, Pose
+from .response import LLMResponse
+
+
+class _Record(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class TokenUsage(_Record):
+    prompt_tokens: int = Field(0, ge=0)
+    completion_tokens: int = Field(0, ge=0)
+
+    @property
+    def total(self) -> int:
+        return self.prompt_tokens + self.completion_tokens
+
+    def __add__(self, other: "TokenUsage") -> "TokenUsage":
+        return TokenUsage(
+            prompt_tokens=self.prompt_tokens + other.prompt_tokens,
+            completion_tokens=self.completion_tokens + other.completion_tokens,
+        )
+
+
+class ExecutionResult(_Record):
+    """e_ij: what executing one control signal actually did."""
+
+    distance_mm: float = 0.0
+    angle_deg: float = 0.0
+    stopped: bool = False
+    collided: bool = False
+    detail: str = ""
+
+
+class ExecutedSignal(_Record):
+    """(g_ij, e_ij): a control signal with its execution result."""
+
+    signal: ControlSignal
+    result: ExecutionResult
+
+
+class Verdict(_Record):
+    """One validator rule's judgement of one control signal."""
+
+    rule: str
+    valid: bool
+    reason: str = ""
+    signal_index: int | None = None
+
+
+class Attempt(_Record):
+    """One call to the LLM within a step (the first try or a retry of Algorithm 1)."""
+
+    index: int
+    raw_text: str = ""
+    response: LLMResponse | None = None
+    parse_error: str | None = None
+    verdicts: list[Verdict] = Field(default_factory=list)
+    usage: TokenUsage = Field(default_factory=TokenUsage)
+    latency_s: float = 0.0
+
+    @property
+    def accepted(self) -> bool:
+        return self.response is not None and all(v.valid for v in self.verdicts)
+
+    def failures(self) -> list[str]:
+        """Human-readable reasons this attempt was refused (fed back to the LLM on retry)."""
+        if self.parse_error is not None:
+            return [self.parse_error]
+        return [f"{v.rule}: {v.reason}" for v in self.verdicts if not v.valid]
+
+
+class AttackRecord(_Record):
+    """Ground truth of an attack on a step: who, through which channel, with what payload."""
+
+    attacker: str
+    channel: Literal["instruction", "sensor", "state"]
+    kind: str
+    payload: str = ""
+
+
+class ReferenceState(_Record):
+    """R_{i-1}: the previous step's signals with their results, and what the LLM said then."""
+
+    step: int
+    executed: list[ExecutedSignal] = Field(default_factory=list)
+    perception: list[dict[str, object]] = Field(default_factory=list)
+    planning: str = ""
+    outcome_note: str = ""
+
+
+class StepRecord(_Record):
+    """Everything about one step i of a trial; ``executed`` is R_i."""
+
+    trial_id: str
+    step: int
+    instruction: str
+    attacks: list[AttackRecord] = Field(default_factory=list)
+    attempts: list[Attempt] = Field(default_factory=list)
+    executed: list[ExecutedSignal] = Field(default_factory=list)
+    accepted: bool = False
+    pose_before: Pose | None = None
+    pose_after: Pose | None = None
+    truth: GroundTruth = Field(default_factory=GroundTruth)
+    truth_after: GroundTruth = Field(default_factory=GroundTruth)
+    sim_time_s: float = 0.0
+
+    @property
+    def usage(self) -> TokenUsage:
+        total = TokenUsage()
+        for attempt in self.attempts:
+            total = total + attempt.usage
+        return total
+
+    @property
+    def flagged_attack(self) -> bool:
+        """The LLM flagged an attack in any attempt of this step."""
+        return any(a.response is not None and a.response.flags_attack for a in self.attempts)
+
+    @property
+    def interventions(self) -> int:
+        """Attempts refused by a validator rule (not parse failures)."""
+        return sum(1 for a in self.attempts if a.response is not None and not a.accepted)
+
+    @property
+    def retries(self) -> int:
+        return max(0, len(self.attempts) - 1)
+
+    def to_reference(self) -> ReferenceState:
+        accepted = next((a for a in reversed(self.attempts) if a.accepted), None)
+        response = accepted.response if accepted else None
+        return ReferenceState(
+            step=self.step,
+            executed=self.executed,
+            perception=[e.model_dump() for e in response.perception] if response else [],
+            planning=response.planning if response else "",
+        )
+
+
+class Outcome(str, Enum):
+    """How a trial ended. The first three are the paper's; the last two are ours."""
+
+    COMPLETED = "completed"
+    TIMEOUT = "timeout"
+    INTERRUPTED = "interrupted"
+    SAFE_ABORT = "safe_abort"  # Algorithm 1 exhausted its failure threshold: nothing unsafe ran
+    ERROR = "error"  # the backend failed after its retries: not a safety result
+
+
+class TrialSpec(_Record):
+    """Which trial this is: the cell it belongs to and its seed."""
+
+    trial_id: str
+    scenario: str = ""
+    environment: str
+    arm: str
+    condition: str
+    index: int = 0
+    seed: int
+
+
+class TrialResult(_Record):
+    """The summary of one trial, what metrics are computed from."""
+
+    spec: TrialSpec
+    outcome: Outcome
+    steps: int
+    prompt_tokens: int = 0
+    completion_tokens: int = 0
+    distance_mm: float = 0.0
+    collisions: int = 0
+    interventions: int = 0
+    retries: int = 0
+    attacked_steps: int = 0
+    flagged_steps: int = 0
+    target_visible_steps: int = 0
+    detail: str = ""
+    trajectory: list[Pose] = Field(default_factory=list)
+    wall_time_s: float = 0.0
+
+    @property
+    def tokens(self) -> int:
+        return self.prompt_tokens + self.completion_tokens

@@ -1,0 +1,210 @@
+"""The plugin manager: which plugins a run uses and how they are loaded.
+
+Built-in plugins (the modules in :data:`DEFAULT_PLUGINS`, also declared as entry points of the
+``safeembodai`` group in ``pyproject.toml``) register first, then every other entry point of
+the group. Nothing is loaded at import time: :func:`load_plugins` builds a fresh manager per
+call, so library users and tests never share state.
+
+Environment variables:
+
+* ``SAFEEMBODAI_LOAD_PLUGINS=a,b`` loads only the named plugins (set but empty: none);
+* ``SAFEEMBODAI_DISABLE_PLUGINS=a,b`` blocks the named plugins;
+* ``SAFEEMBODAI_TRACE_PLUGINS=1`` logs every hook call (plugin and hook) through structlog.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any, Iterable, Mapping
+
+import pluggy
+import structlog
+
+from . import hookspecs
+from .errors import PluginError
+from .registry import KINDS, ComponentRegistry
+
+log = structlog.get_logger(__name__)
+
+ENTRY_POINT_GROUP = "safeembodai"
+
+#: Built-in plugins: (registered name, module). The same names are entry points in pyproject.toml.
+DEFAULT_PLUGINS: tuple[tuple[str, str], ...] = (
+    ("flatland", "safeembodai_plugins.environments.flatland"),
+    ("perception", "safeembodai_plugins.perception"),
+    ("prompting", "safeembodai_plugins.prompting"),
+    ("state_memory", "safeembodai_plugins.state.memory"),
+    ("validators", "safeembodai_plugins.validators"),
+    ("attackers", "safeembodai_plugins.attackers"),
+    ("backend_scripted", "safeembodai_plugins.backends.scripted"),
+)
+
+
+@dataclass(frozen=True)
+class PluginOrigin:
+    """Where a plugin came from, for ``safeembodai plugins``."""
+
+    name: str
+    source: str  # "built-in", "entry point" or "inline"
+    module: str
+    distribution: str = ""
+    version: str = ""
+
+
+def _names(value: str | None) -> set[str] | None:
+    if value is None:
+        return None
+    return {part.strip() for part in value.split(",") if part.strip()}
+
+
+@dataclass
+class Plugins:
+    """One run's plugins: the pluggy manager, where each plugin came from, and its components."""
+
+    pm: pluggy.PluginManager
+    origins: dict[str, PluginOrigin] = field(default_factory=dict)
+    trace: bool = False
+    _registry: ComponentRegistry | None = None
+
+    @property
+    def hook(self) -> Any:
+        return self.pm.hook
+
+    @property
+    def registry(self) -> ComponentRegistry:
+        """Components registered by every plugin (collected on first use)."""
+        if self._registry is None:
+            registry = ComponentRegistry()
+            for kind, hook_name in KINDS.items():
+                for plugin_name, function in self.implementations(hook_name):
+                    self._call_plugin(plugin_name, hook_name, function, register=registry.registrar(kind, plugin_name))
+            self._registry = registry
+        return self._registry
+
+    def implementations(self, hook_name: str) -> list[tuple[str, Any]]:
+        """(plugin name, function) for ``hook_name`` in pluggy's call order."""
+        caller = getattr(self.pm.hook, hook_name)
+        return [(self.pm.get_name(impl.plugin) or "?", impl.function) for impl in reversed(caller.get_hookimpls())]
+
+    def _call_plugin(self, plugin_name: str, hook_name: str, function: Any, **kwargs: Any) -> Any:
+        if self.trace:
+            log.debug("hook.call", hook=hook_name, plugin=plugin_name)
+        try:
+            return function(**kwargs)
+        except PluginError:
+            raise
+        except Exception as error:
+            raise PluginError(plugin_name, f"hook {hook_name} raised {type(error).__name__}: {error}") from error
+
+    def notify(self, hook_name: str, **kwargs: Any) -> None:
+        """Call a lifecycle hook on every plugin; a failure names the plugin that raised."""
+        for plugin_name, function in self.implementations(hook_name):
+            self._call_plugin(plugin_name, hook_name, function, **kwargs)
+
+    def add_commands(self, cli: Any) -> None:
+        """Let every plugin add its CLI commands to ``cli``."""
+        for plugin_name, function in self.implementations("register_commands"):
+            self._call_plugin(plugin_name, "register_commands", function, cli=cli)
+
+    def describe(self) -> list[dict[str, Any]]:
+        """Every plugin with its origin, the hooks it implements and the components it registered."""
+        components: dict[str, list[str]] = {}
+        for info in self.registry.all():
+            components.setdefault(info.plugin, []).append(f"{info.kind}:{info.name}")
+        rows = []
+        for name, plugin in self.pm.list_name_plugin():
+            if plugin is None:
+                continue
+            origin = self.origins.get(name, PluginOrigin(name, "inline", getattr(plugin, "__name__", repr(plugin))))
+            hooks = sorted(caller.name for caller in self.pm.get_hookcallers(plugin) or [])
+            rows.append(
+                {
+                    "name": name,
+                    "source": origin.source,
+                    "module": origin.module,
+                    "distribution": f"{origin.distribution} {origin.version}".strip(),
+                    "hooks": hooks,
+                    "components": components.get(name, []),
+                }
+            )
+        return rows
+
+
+def _import_plugin(name: str, module_name: str) -> Any:
+    try:
+        return importlib.import_module(module_name)
+    except Exception as error:
+        raise PluginError(name, f"failed to import module {module_name!r}: {type(error).__name__}: {error}") from error
+
+
+def load_plugins(
+    extra: Iterable[Any] = (),
+    *,
+    environ: Mapping[str, str] | None = None,
+    builtins: bool = True,
+    entry_points: bool = True,
+) -> Plugins:
+    """Build a fresh plugin manager with the built-in, installed and ``extra`` plugins.
+
+    :param extra: inline plugins (modules, classes or objects with hook implementations), or
+        ``(name, plugin)`` pairs; registered last, so their hooks run first.
+    :param environ: where to read ``SAFEEMBODAI_*`` variables (default: ``os.environ``).
+    """
+    env = os.environ if environ is None else environ
+    allow = _names(env.get("SAFEEMBODAI_LOAD_PLUGINS"))
+    blocked = _names(env.get("SAFEEMBODAI_DISABLE_PLUGINS")) or set()
+
+    pm = pluggy.PluginManager(hookspecs.PROJECT)
+    pm.add_hookspecs(hookspecs)
+    plugins = Plugins(pm)
+    for name in blocked:
+        pm.set_blocked(name)
+
+    def wanted(name: str) -> bool:
+        return name not in blocked and (allow is None or name in allow)
+
+    if builtins:
+        for name, module_name in DEFAULT_PLUGINS:
+            if wanted(name):
+                _register(plugins, name, _import_plugin(name, module_name), PluginOrigin(name, "built-in", module_name))
+    if entry_points:
+        for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
+            if not wanted(ep.name) or pm.has_plugin(ep.name):
+                continue
+            dist = getattr(ep, "dist", None)
+            origin = PluginOrigin(
+                ep.name, "entry point", ep.value,
+                getattr(dist, "name", "") or "", getattr(dist, "version", "") or "",
+            )
+            try:
+                plugin = ep.load()
+            except Exception as error:
+                raise PluginError(ep.name, f"failed to load entry point {ep.value!r}: {type(error).__name__}: {error}") from error
+            _register(plugins, ep.name, plugin, origin)
+    for item in extra:
+        name, plugin = item if isinstance(item, tuple) else (None, item)
+        name = name or getattr(plugin, "__name__", None) or type(plugin).__name__
+        if wanted(name):
+            _register(plugins, name, plugin, PluginOrigin(name, "inline", getattr(plugin, "__module__", "") or name))
+
+    try:
+        pm.check_pending()
+    except pluggy.PluginValidationError as error:
+        plugin_name = pm.get_name(error.plugin) or repr(error.plugin)
+        raise PluginError(plugin_name, f"{error} (misspelled hook name? see docs/plugin_hooks.md)") from None
+
+    plugins.trace = bool(env.get("SAFEEMBODAI_TRACE_PLUGINS"))
+    return plugins
+
+
+def _register(plugins: Plugins, name: str, plugin: Any, origin: PluginOrigin) -> None:
+    try:
+        plugins.pm.register(plugin, name=name)
+    except ValueError as error:
+        raise PluginError(name, f"could not be registered: {error}") from None
+    except pluggy.PluginValidationError as error:
+        raise PluginError(name, f"invalid hook implementation: {error}") from None
+    plugins.origins[name] = origin

@@ -1,0 +1,101 @@
+"""Turn a scenario into trials: trial specs with paired seeds, and the components to run them.
+
+:class:`ScenarioRunner` is what ``safeembodai run`` uses for one trial and what every ablation
+worker uses for many. Environments are expensive (a physics client each), so one instance per
+environment label is kept and reset between trials; everything else is built per trial so no
+state leaks from one trial into the next.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import structlog
+
+from . import seeds
+from .components import BuildContext, StateStore
+from .loop import LoopSettings, TrialParts, run_trial
+from .models import TrialResult, TrialSpec
+from .plugins import Plugins
+from .refs import ComponentRef
+from .scenario import Scenario
+
+log = structlog.get_logger(__name__)
+
+
+def trial_seed(scenario: Scenario, index: int) -> int:
+    """The seed of trial ``index``: from the base seed and the index only, so every cell pairs up."""
+    return seeds.derive_seed(scenario.seed, "trial", index)
+
+
+def trial_spec(scenario: Scenario, environment: str, arm: str, condition: str, index: int) -> TrialSpec:
+    return TrialSpec(
+        trial_id=f"{environment}/{arm}/{condition}/{index}",
+        scenario=scenario.name, environment=environment, arm=arm, condition=condition,
+        index=index, seed=trial_seed(scenario, index),
+    )
+
+
+class ScenarioRunner:
+    """Builds and runs the trials of one scenario with one set of plugins."""
+
+    def __init__(self, scenario: Scenario, plugins: Plugins, run_dir: str | Path | None = None,
+                 state: StateStore | None = None) -> None:
+        self.scenario = scenario
+        self.plugins = plugins
+        self.run_dir = str(run_dir) if run_dir is not None else None
+        self._environments: dict[str, Any] = {}
+        self._state = state
+
+    def build(self, kind: str, ref: ComponentRef, seed: int = 0) -> Any:
+        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir)
+        return self.plugins.registry.build(kind, ref.use, ref.options, context)
+
+    @property
+    def state(self) -> StateStore:
+        if self._state is None:
+            self._state = self.build("state_store", self.scenario.state)
+        return self._state
+
+    def environment(self, label: str) -> Any:
+        if label not in self._environments:
+            self._environments[label] = self.build("environment", self.scenario.environment(label))
+        return self._environments[label]
+
+    def parts(self, spec: TrialSpec) -> TrialParts:
+        arm = self.scenario.arms[spec.arm]
+        condition = self.scenario.conditions[spec.condition]
+        return TrialParts(
+            environment=self.environment(spec.environment),
+            perception=self.build("perception", self.scenario.perception, spec.seed),
+            prompt_builder=self.build("prompt_builder", self.scenario.prompt_builder, spec.seed),
+            state=self.state,
+            backend=self.build("llm_backend", self.scenario.backend, spec.seed),
+            validators=[(r.key, self.build("validator", r, spec.seed)) for r in arm.validators],
+            attackers=[(r.key, self.build("attacker", r, spec.seed)) for r in condition.attackers],
+        )
+
+    def settings(self, arm: str) -> LoopSettings:
+        s = self.scenario
+        return LoopSettings(max_steps=s.max_steps, instruction=s.instruction, task=s.task,
+                            defences=s.arms[arm], limits=s.limits)
+
+    def run(self, spec: TrialSpec) -> TrialResult:
+        parts = self.parts(spec)
+        try:
+            return run_trial(spec, parts, self.settings(spec.arm), self.plugins)
+        finally:
+            parts.backend.close()
+
+    def specs(self) -> list[TrialSpec]:
+        """Every trial of the scenario, cell by cell."""
+        return [trial_spec(self.scenario, e, a, c, i) for (e, a, c) in self.scenario.cells()
+                for i in range(self.scenario.trials)]
+
+    def close(self) -> None:
+        for env in self._environments.values():
+            env.close()
+        self._environments.clear()
+        if self._state is not None:
+            self._state.close()

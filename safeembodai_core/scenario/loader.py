@@ -1,0 +1,180 @@
+"""Read a scenario file, apply ``--set`` overrides, validate, and check every component.
+
+Errors name the file, the line and the dotted key (``mo.yaml:14: arms.safeembodai.failure_threshold:
+Input should be greater than or equal to 0``); a key set with ``--set`` is named as such.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+import yaml
+from pydantic import ValidationError
+
+from ..errors import ComponentError, ScenarioError
+from ..registry import ComponentOptionsError, ComponentRegistry
+from ..refs import ComponentRef
+from .model import Scenario
+
+
+def _dotted(loc: Iterable[Any]) -> str:
+    return ".".join(str(p) for p in loc)
+
+
+def _line_of(node: yaml.Node | None, loc: Iterable[Any]) -> int | None:
+    """1-based line of the deepest YAML node along ``loc``."""
+    if node is None:
+        return None
+    line = node.start_mark.line + 1
+    for part in loc:
+        child = None
+        if isinstance(node, yaml.MappingNode):
+            for key, value in node.value:
+                if str(key.value) == str(part):
+                    child = value
+                    line = key.start_mark.line + 1
+                    break
+        elif isinstance(node, yaml.SequenceNode) and isinstance(part, int) and 0 <= part < len(node.value):
+            child = node.value[part]
+            line = child.start_mark.line + 1
+        if child is None:
+            break
+        node = child
+    return line
+
+
+def _check_duplicate_keys(node: yaml.Node | None, source: str, path: tuple[Any, ...] = ()) -> None:
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[str, int] = {}
+        for key, value in node.value:
+            name = str(key.value)
+            if name in seen:
+                raise ScenarioError(
+                    f"{source}:{key.start_mark.line + 1}: {_dotted(path + (name,))}: key repeated "
+                    f"(first on line {seen[name]})"
+                )
+            seen[name] = key.start_mark.line + 1
+            _check_duplicate_keys(value, source, path + (name,))
+    elif isinstance(node, yaml.SequenceNode):
+        for index, item in enumerate(node.value):
+            _check_duplicate_keys(item, source, path + (index,))
+
+
+def _apply_override(data: dict[str, Any], assignment: str) -> tuple[str, ...]:
+    if "=" not in assignment:
+        raise ScenarioError(f"--set {assignment!r}: expected dotted.key=value")
+    key, _, raw = assignment.partition("=")
+    parts = tuple(p for p in key.strip().split("."))
+    if not key.strip() or any(not p for p in parts):
+        raise ScenarioError(f"--set {assignment!r}: the key must be dotted names like arms.safeembodai.failure_threshold")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else ""
+    except yaml.YAMLError as error:
+        raise ScenarioError(f"--set {key}: value is not valid YAML: {error}") from None
+    target: Any = data
+    for depth, part in enumerate(parts[:-1]):
+        if isinstance(target, list):
+            if not part.isdigit() or int(part) >= len(target):
+                raise ScenarioError(f"--set {key}: {_dotted(parts[:depth + 1])} is not an index of the list")
+            target = target[int(part)]
+        elif isinstance(target, dict):
+            target = target.setdefault(part, {})
+        else:
+            raise ScenarioError(f"--set {key}: {_dotted(parts[:depth])} is not a mapping or list")
+    last = parts[-1]
+    if isinstance(target, list) and last.isdigit() and int(last) < len(target):
+        target[int(last)] = value
+    elif isinstance(target, dict):
+        target[last] = value
+    else:
+        raise ScenarioError(f"--set {key}: {_dotted(parts[:-1])} is not a mapping")
+    return parts
+
+
+def parse_scenario(
+    text: str,
+    source: str = "<scenario>",
+    overrides: Iterable[str] = (),
+    registry: ComponentRegistry | None = None,
+) -> Scenario:
+    """Validate scenario ``text``; with ``registry``, also check every component and its options."""
+    try:
+        root = yaml.compose(text)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f"{source}:{mark.line + 1}" if mark is not None else source
+        raise ScenarioError(f"{where}: not valid YAML: {getattr(error, 'problem', error)}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source}: a scenario must be a YAML mapping, got {type(data).__name__}")
+    _check_duplicate_keys(root, source)
+    overridden = [_apply_override(data, item) for item in overrides]
+
+    def locate(loc: tuple[Any, ...]) -> str:
+        for parts in overridden:
+            if tuple(str(p) for p in loc[: len(parts)]) == parts or tuple(str(p) for p in loc) == parts[: len(loc)]:
+                return f"--set {_dotted(parts)}"
+        line = _line_of(root, loc)
+        return f"{source}:{line}" if line else source
+
+    try:
+        scenario = Scenario.model_validate(data)
+    except ValidationError as error:
+        lines = []
+        for item in error.errors():
+            loc = tuple(p for p in item["loc"] if not (isinstance(p, str) and p in ("function-before", "function-after")))
+            lines.append(f"{locate(loc)}: {_dotted(loc) or '(top level)'}: {item['msg']}")
+        raise ScenarioError("invalid scenario:\n  " + "\n  ".join(lines)) from None
+    if registry is not None:
+        check_components(scenario, registry, locate)
+    return scenario
+
+
+def _refs(scenario: Scenario) -> list[tuple[str, tuple[Any, ...], ComponentRef]]:
+    refs: list[tuple[str, tuple[Any, ...], ComponentRef]] = []
+    for index, ref in enumerate(scenario.environments):
+        refs.append(("environment", ("environments", index), ref))
+    refs.append(("llm_backend", ("backend",), scenario.backend))
+    refs.append(("perception", ("perception",), scenario.perception))
+    refs.append(("prompt_builder", ("prompt_builder",), scenario.prompt_builder))
+    refs.append(("state_store", ("state",), scenario.state))
+    for arm, defences in scenario.arms.items():
+        for index, ref in enumerate(defences.validators):
+            refs.append(("validator", ("arms", arm, "validators", index), ref))
+    for name, condition in scenario.conditions.items():
+        for index, ref in enumerate(condition.attackers):
+            refs.append(("attacker", ("conditions", name, "attackers", index), ref))
+    return refs
+
+
+def check_components(scenario: Scenario, registry: ComponentRegistry, locate: Any = None) -> None:
+    """Every referenced component exists and its options validate; all problems reported at once."""
+    locate = locate or (lambda loc: "<scenario>")
+    problems = []
+    for kind, loc, ref in _refs(scenario):
+        try:
+            info = registry.get(kind, ref.use)
+            registry.validate_options(kind, ref.use, ref.options)
+        except ComponentOptionsError as error:
+            for sub, msg in error.errors:
+                full = loc + ("options",) + sub
+                problems.append(f"{locate(full)}: {_dotted(full)}: {msg} ({kind} {ref.use!r} from plugin {info.plugin!r})")
+        except ComponentError as error:
+            problems.append(f"{locate(loc + ('use',))}: {_dotted(loc)}: {error}")
+    if problems:
+        raise ScenarioError("invalid scenario:\n  " + "\n  ".join(problems))
+
+
+def load_scenario(path: str | Path, overrides: Iterable[str] = (), registry: ComponentRegistry | None = None) -> Scenario:
+    """Read and validate the scenario file at ``path``."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: no such scenario file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ScenarioError(f"{path}: cannot read scenario: {error}") from None
+    return parse_scenario(text, str(path), overrides, registry)

@@ -1,0 +1,78 @@
+"""The scenario schema. Every key is documented in ``docs/scenarios.md``."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from ..loop.defences import Defences
+from ..loop.trial import DEFAULT_INSTRUCTION, DEFAULT_TASK
+from ..models import ControlLimits
+from ..refs import ComponentRef
+
+
+class Condition(BaseModel):
+    """An attack setting: which attackers act on every trial of the cell."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    attackers: list[ComponentRef] = Field(default_factory=list)
+
+
+def _default_arms() -> dict[str, Defences]:
+    return {
+        "baseline": Defences(),
+        "safeembodai": Defences(security_prefix=True, state_management=True, safety_validation=True),
+    }
+
+
+def _default_conditions() -> dict[str, Condition]:
+    return {"no_attack": Condition(), "attack": Condition(attackers=[ComponentRef(use="prompt_injection")])}
+
+
+class Scenario(BaseModel):
+    """An ablation: cells are environments x arms x conditions, each run for ``trials`` trials."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
+    description: str = ""
+    seed: int = Field(0, ge=0)
+    trials: int = Field(10, ge=1, le=100_000)
+    max_steps: int = Field(20, ge=1, le=10_000)
+    instruction: str = DEFAULT_INSTRUCTION
+    task: str = DEFAULT_TASK
+    limits: ControlLimits = Field(default_factory=ControlLimits)
+    environments: list[ComponentRef] = Field(min_length=1)
+    backend: ComponentRef = Field(default_factory=lambda: ComponentRef(use="mock"))
+    perception: ComponentRef = Field(default_factory=lambda: ComponentRef(use="images"))
+    prompt_builder: ComponentRef = Field(default_factory=lambda: ComponentRef(use="jinja"))
+    state: ComponentRef = Field(default_factory=lambda: ComponentRef(use="memory"))
+    arms: dict[str, Defences] = Field(default_factory=_default_arms, min_length=1)
+    conditions: dict[str, Condition] = Field(default_factory=_default_conditions, min_length=1)
+
+    @field_validator("environments")
+    @classmethod
+    def _unique_labels(cls, refs: list[ComponentRef]) -> list[ComponentRef]:
+        keys = [r.key for r in refs]
+        duplicates = sorted({k for k in keys if keys.count(k) > 1})
+        if duplicates:
+            raise ValueError(f"environment labels must be unique; repeated: {', '.join(duplicates)} (set 'label')")
+        return refs
+
+    @model_validator(mode="after")
+    def _names_are_plain(self) -> "Scenario":
+        for what, names in (("arm", self.arms), ("condition", self.conditions)):
+            for name in names:
+                if not name or "/" in name:
+                    raise ValueError(f"{what} name {name!r} must be non-empty and contain no '/'")
+        return self
+
+    def environment(self, label: str) -> ComponentRef:
+        for ref in self.environments:
+            if ref.key == label:
+                return ref
+        raise KeyError(label)
+
+    def cells(self) -> list[tuple[str, str, str]]:
+        """Every (environment label, arm, condition), in file order."""
+        return [(e.key, a, c) for e in self.environments for a in self.arms for c in self.conditions]
