@@ -40,6 +40,10 @@ DEFAULT_PLUGINS: tuple[tuple[str, str], ...] = (
     ("validators", "safeembodai_plugins.validators"),
     ("attackers", "safeembodai_plugins.attackers"),
     ("backend_scripted", "safeembodai_plugins.backends.scripted"),
+    ("pybullet_rooms", "safeembodai_plugins.environments.pybullet_rooms"),
+    ("state_sqlite", "safeembodai_plugins.state.sqlite_store"),
+    ("backend_litellm", "safeembodai_plugins.backends.litellm_api"),
+    ("backend_mock", "safeembodai_plugins.backends.mock_pilot"),
 )
 
 

@@ -12,7 +12,6 @@ import traceback
 import click
 
 from ..errors import PluginError, SafeEmbodAIError
-from ..logs import configure_logging
 
 
 class PluginAwareGroup(click.Group):
@@ -53,6 +52,8 @@ class PluginAwareGroup(click.Group):
 @click.pass_context
 def cli(ctx: click.Context, debug: bool, log_level: str, log_json: bool) -> None:
     """SafeEmbodAI: keep LLM-controlled mobile robots safe, and measure how much each defence buys."""
+    from ..logs import configure_logging
+
     configure_logging("debug" if debug else log_level, log_json)
     ctx.obj = {"debug": debug}
 

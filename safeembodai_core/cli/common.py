@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import click
 
-from ..plugins import Plugins, load_plugins
-from ..scenario import Scenario, load_scenario
+if TYPE_CHECKING:
+    from ..plugins import Plugins
+    from ..scenario import Scenario
 
 
 def scenario_options(function: Callable[..., Any]) -> Callable[..., Any]:
@@ -21,8 +22,11 @@ def scenario_options(function: Callable[..., Any]) -> Callable[..., Any]:
     return function
 
 
-def load(scenario_path: str, backend: str | None, seed: int | None, overrides: tuple[str, ...]) -> tuple[Scenario, Plugins]:
+def load(scenario_path: str, backend: str | None, seed: int | None, overrides: tuple[str, ...]) -> tuple["Scenario", "Plugins"]:
     """Load plugins, then the scenario with CLI overrides applied, checked against the registry."""
+    from ..plugins import load_plugins
+    from ..scenario import load_scenario
+
     plugins = load_plugins()
     extra = []
     if backend is not None:

@@ -46,7 +46,7 @@ class Straight(_Signal):
 
     command: Literal["straight"]
     direction: Literal["forward", "backward"]
-    distance: float = Field(gt=0, allow_inf_nan=False, description="millimetres, 0 < d < limit")
+    distance: float = Field(gt=0, strict=True, allow_inf_nan=False, description="millimetres, 0 < d < limit")
     justification: str = Field("", max_length=MAX_TEXT)
 
     @field_validator("distance")
@@ -71,7 +71,7 @@ class Turn(_Signal):
 
     command: Literal["turn"]
     direction: Literal["left", "right"]
-    angle: float = Field(gt=0, allow_inf_nan=False, description="degrees, 0 < angle < limit")
+    angle: float = Field(gt=0, strict=True, allow_inf_nan=False, description="degrees, 0 < angle < limit")
     justification: str = Field("", max_length=MAX_TEXT)
 
     @field_validator("angle")

@@ -42,7 +42,7 @@ class PerceptionEntry(BaseModel):
 
     input: str = Field(max_length=64, description="human_instruction, camera_image, lidar_image, ...")
     result: str = Field(max_length=MAX_TEXT)
-    is_attack: bool = False
+    is_attack: bool = Field(False, strict=True)
 
 
 class LLMResponse(BaseModel):

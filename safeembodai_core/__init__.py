@@ -1,0 +1,55 @@
+"""SafeEmbodAI core: contracts, plugin manager, the guarded control loop and the library API.
+
+Importing this package is cheap: no plugin is loaded and no heavy library (pybullet, litellm,
+cv2) is imported until a run or a :class:`Guard` asks for one.
+
+* Guard your own robot: :class:`Guard` (see ``docs/library.md``).
+* Run the guarded loop around your own parts: :func:`run_guarded_trial`.
+* Write a plugin: :mod:`safeembodai_core.hookspecs` and :data:`hookimpl` (see ``docs/plugins.md``).
+"""
+
+from importlib import import_module
+from typing import TYPE_CHECKING, Any
+
+__version__ = "0.1.0"
+
+#: public name -> module that defines it (imported on first use, PEP 562)
+_EXPORTS = {
+    "Guard": "api", "GuardReport": "api", "run_guarded_trial": "api",
+    "Attacker": "components", "AttackSurface": "components", "BackendReply": "components",
+    "BuildContext": "components", "Environment": "components", "LLMBackend": "components",
+    "Perception": "components", "PromptBuilder": "components", "RobotSpec": "components",
+    "StateStore": "components", "Validator": "components",
+    "BackendError": "errors", "ComponentError": "errors", "PluginError": "errors",
+    "SafeEmbodAIError": "errors", "ScenarioError": "errors", "StateStoreError": "errors",
+    "hookimpl": "hookspecs", "Defences": "loop", "DEFAULT_PLUGINS": "plugins", "load_plugins": "plugins",
+    "ValidationContext": "validation",
+}
+
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'safeembodai_core' has no attribute {name!r}")
+    value = getattr(import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__
+
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .api import Guard, GuardReport, run_guarded_trial  # noqa: F401
+    from .components import (  # noqa: F401
+        Attacker, AttackSurface, BackendReply, BuildContext, Environment, LLMBackend, Perception,
+        PromptBuilder, RobotSpec, StateStore, Validator,
+    )
+    from .errors import BackendError, ComponentError, PluginError, SafeEmbodAIError, ScenarioError, StateStoreError  # noqa: F401
+    from .hookspecs import hookimpl  # noqa: F401
+    from .loop import Defences  # noqa: F401
+    from .plugins import DEFAULT_PLUGINS, load_plugins  # noqa: F401
+    from .validation import ValidationContext  # noqa: F401

@@ -1,0 +1,167 @@
+"""The library API: guard your own robot's commands, or run the guarded loop around your own parts.
+
+Two entry points for agent projects that ``import safeembodai_core``:
+
+* :class:`Guard` validates control signals (or a raw LLM answer) against a LiDAR reading with the
+  registered rules -- no simulator, no LLM::
+
+      guard = Guard(rules=["command_limits", "lidar_clearance"])
+      report = guard.check([{"command": "straight", "direction": "forward", "distance": 300}],
+                           lidar_mm=ranges, max_range_mm=8000)
+      if not report.valid:
+          print(report.reasons)
+
+* :func:`run_guarded_trial` runs Algorithm 1 inside the step loop around *your* environment and
+  backend objects, with built-in (or your own) prompt builder, perception, store and validators.
+
+Components may be given as objects or as registered names (with options). See ``docs/library.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+from pydantic import TypeAdapter, ValidationError
+
+from .components import BuildContext, Environment, LLMBackend, RobotSpec
+from .loop import Defences, LoopSettings, TrialParts, run_trial
+from .models import (
+    DEFAULT_LIMITS,
+    ControlLimits,
+    ControlSignal,
+    LidarScan,
+    LLMResponse,
+    ResponseParseError,
+    StepRecord,
+    TrialResult,
+    TrialSpec,
+    Verdict,
+    parse_response,
+)
+from .plugins import Plugins, load_plugins
+from .refs import ComponentRef, ref
+from .validation import ValidationContext, validate_plan
+
+_SIGNALS = TypeAdapter(list[ControlSignal])
+
+
+@dataclass
+class GuardReport:
+    """The outcome of :meth:`Guard.check`: every verdict, and the parsed signals if they parsed."""
+
+    signals: list[Any] = field(default_factory=list)
+    verdicts: list[Verdict] = field(default_factory=list)
+    response: LLMResponse | None = None
+
+    @property
+    def valid(self) -> bool:
+        return all(v.valid for v in self.verdicts)
+
+    @property
+    def reasons(self) -> list[str]:
+        return [f"{v.rule}: {v.reason}" for v in self.verdicts if not v.valid]
+
+
+def _components(plugins: Plugins, kind: str, items: Iterable[Any]) -> list[tuple[str, Any]]:
+    built = []
+    for item in items:
+        if isinstance(item, (str, dict, ComponentRef)):
+            r = ref(item)
+            built.append((r.key, plugins.registry.build(kind, r.use, r.options, BuildContext(r.use, kind))))
+        else:
+            built.append((getattr(item, "name", type(item).__name__), item))
+    return built
+
+
+class Guard:
+    """Validates robot commands with registered safety rules (see the module docstring)."""
+
+    def __init__(
+        self,
+        rules: Sequence[Any] = ("command_limits", "lidar_clearance"),
+        *,
+        robot: RobotSpec = RobotSpec(),
+        limits: ControlLimits = DEFAULT_LIMITS,
+        plugins: Plugins | None = None,
+    ) -> None:
+        self.plugins = plugins or load_plugins()
+        self.rules = _components(self.plugins, "validator", rules)
+        self.robot = robot
+        self.limits = limits
+
+    def _context(self, lidar_mm: Any, max_range_mm: float) -> ValidationContext:
+        scan = None
+        if lidar_mm is not None:
+            scan = lidar_mm if isinstance(lidar_mm, LidarScan) else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm)
+        return ValidationContext(scan=scan, robot=self.robot, limits=self.limits)
+
+    def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0) -> GuardReport:
+        """Validate ``commands`` (dicts as the LLM writes them, or signal models) in order.
+
+        ``lidar_mm``: ranges in mm, beam k at k*360/N degrees counter-clockwise from the heading
+        (``inf`` = no return, ``nan`` = no reading), or a :class:`LidarScan`. Commands that do not
+        even parse get a ``schema`` verdict and are not judged further.
+        """
+        try:
+            signals = _SIGNALS.validate_python(list(commands), context={"limits": self.limits})
+        except ValidationError as error:
+            reason = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors()[:5])
+            return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=reason)])
+        verdicts = validate_plan(signals, self._context(lidar_mm, max_range_mm), self.rules)
+        return GuardReport(signals=signals, verdicts=verdicts)
+
+    def check_answer(self, text: str, *, lidar_mm: Any = None, max_range_mm: float = 10_000.0) -> GuardReport:
+        """Parse an LLM's raw answer (untrusted) and validate its control signals."""
+        try:
+            response = parse_response(text, self.limits)
+        except ResponseParseError as error:
+            return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))])
+        report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm)
+        report.response = response
+        return report
+
+
+def run_guarded_trial(
+    environment: Environment | str | dict[str, Any],
+    backend: LLMBackend | str | dict[str, Any],
+    *,
+    defences: Defences | dict[str, Any] | None = None,
+    seed: int = 0,
+    max_steps: int = 20,
+    instruction: str | None = None,
+    perception: Any = "images",
+    prompt_builder: Any = "jinja",
+    state: Any = "memory",
+    attackers: Sequence[Any] = (),
+    limits: ControlLimits = DEFAULT_LIMITS,
+    plugins: Plugins | None = None,
+    trial_id: str = "trial",
+) -> tuple[TrialResult, list[StepRecord]]:
+    """Run one guarded trial around your own parts; return the result and every step record.
+
+    Validators come from ``defences.validators`` (names and options, as in a scenario) and run
+    only when ``defences.safety_validation`` is on.
+    """
+    plugins = plugins or load_plugins()
+    defences = defences if isinstance(defences, Defences) else Defences.model_validate(defences or {})
+
+    def one(kind: str, item: Any) -> Any:
+        return _components(plugins, kind, [item])[0][1]
+
+    parts = TrialParts(
+        environment=one("environment", environment),
+        perception=one("perception", perception),
+        prompt_builder=one("prompt_builder", prompt_builder),
+        state=one("state_store", state),
+        backend=one("llm_backend", backend),
+        validators=_components(plugins, "validator", defences.validators),
+        attackers=_components(plugins, "attacker", attackers),
+    )
+    settings = LoopSettings(max_steps=max_steps, defences=defences, limits=limits,
+                            **({"instruction": instruction} if instruction else {}))
+    spec = TrialSpec(trial_id=trial_id, environment=type(parts.environment).__name__, arm="custom",
+                     condition="custom", seed=seed)
+    result = run_trial(spec, parts, settings, plugins)
+    return result, parts.state.steps(trial_id)

@@ -1,0 +1,107 @@
+"""The command line: light start-up, clear errors, one trial saved to disk."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from safeembodai_core.cli import cli
+
+HEAVY = ("litellm", "pybullet", "cv2", "matplotlib", "ray")
+
+
+def test_help_imports_no_heavy_library():
+    code = (
+        "import sys\n"
+        "from safeembodai_core.cli import main\n"
+        "try:\n    main(['--help'])\nexcept SystemExit as done:\n    assert done.code == 0, done.code\n"
+        f"loaded = [m for m in {HEAVY!r} if m in sys.modules]\n"
+        "assert not loaded, loaded\n"
+    )
+    completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert completed.returncode == 0, completed.stderr
+    assert "ablate" in completed.stdout and "plugins" in completed.stdout
+
+
+def test_import_safeembodai_core_is_light():
+    code = "import sys, safeembodai_core\nassert 'numpy' not in sys.modules and 'pydantic' not in sys.modules\n" \
+           "assert safeembodai_core.Guard.__name__ == 'Guard'"
+    completed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert completed.returncode == 0, completed.stderr
+
+
+def test_plugins_command_lists_builtins_with_components(cli_runner):
+    result = cli_runner.invoke(cli, ["plugins", "--json"])
+    assert result.exit_code == 0, result.output
+    rows = {row["name"]: row for row in json.loads(result.output)}
+    assert "validator:lidar_clearance" in rows["validators"]["components"]
+    assert rows["flatland"]["source"] == "built-in"
+
+
+def test_run_saves_a_trial_and_prints_steps(cli_runner, repo, tmp_path):
+    out = tmp_path / "trial"
+    result = cli_runner.invoke(cli, ["run", str(repo / "scenarios/quickstart.yaml"), "--arm", "safeembodai",
+                                     "--condition", "attack", "--trial", "1", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    saved = json.loads((out / "trial.json").read_text())
+    assert saved["spec"]["trial_id"] == "flatland/safeembodai/attack/1"
+    steps = (out / "steps.jsonl").read_text().splitlines()
+    assert len(steps) == saved["steps"] >= 1
+    assert (out / "trajectory.png").read_bytes()[:4] == b"\x89PNG"
+    assert "saved to" in result.output
+
+
+def run_cli(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "safeembodai_core", *args], capture_output=True, text=True, cwd=cwd)
+
+
+def test_bad_scenario_exits_non_zero_with_a_message_and_no_traceback(tmp_path, repo):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text((repo / "scenarios/quickstart.yaml").read_text().replace("rate: 0.3", "rate: 3"))
+    completed = run_cli("run", str(bad))
+    assert completed.returncode == 1
+    assert "bad.yaml:" in completed.stderr and "options.rate" in completed.stderr
+    assert "Traceback" not in completed.stderr
+    debug = run_cli("--debug", "run", str(bad))
+    assert debug.returncode == 1 and "Traceback" in debug.stderr
+
+
+def test_unknown_cell_and_unknown_backend_are_named(tmp_path, repo):
+    scenario = str(repo / "scenarios/quickstart.yaml")
+    completed = run_cli("run", scenario, "--arm", "nope", "--out", str(tmp_path / "x"))
+    assert completed.returncode == 1 and "--arm 'nope' is not in the scenario" in completed.stderr
+    completed = run_cli("run", scenario, "--backend", "gpt-5-turbo", "--out", str(tmp_path / "y"))
+    assert completed.returncode == 1 and "no llm backend named 'gpt-5-turbo'" in completed.stderr
+
+
+def test_set_and_seed_override_the_scenario(cli_runner, repo, tmp_path):
+    out = tmp_path / "trial"
+    result = cli_runner.invoke(cli, ["run", str(repo / "scenarios/quickstart.yaml"), "--seed", "123",
+                                     "--set", "max_steps=1", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    saved = json.loads((out / "trial.json").read_text())
+    assert saved["steps"] == 1
+    from safeembodai_core.seeds import derive_seed
+
+    assert saved["spec"]["seed"] == derive_seed(123, "trial", 0)
+
+
+def test_plugins_can_add_commands():
+    import types
+
+    import click
+
+    from safeembodai_core import hookimpl
+    from safeembodai_core.plugins import load_plugins
+
+    def register_commands(cli):
+        @cli.command("hello")
+        def hello():
+            click.echo("hi from a plugin")
+
+    group = click.Group()
+    load_plugins([types.SimpleNamespace(register_commands=hookimpl(register_commands))], environ={}).add_commands(group)
+    from click.testing import CliRunner
+
+    assert CliRunner().invoke(group, ["hello"]).output == "hi from a plugin\n"

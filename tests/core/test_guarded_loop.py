@@ -1,0 +1,185 @@
+"""Algorithm 1 inside the step loop: retries, defences switched independently, outcomes."""
+
+from __future__ import annotations
+
+import types
+
+import pytest
+
+from safeembodai_core import BackendError, hookimpl, run_guarded_trial
+from safeembodai_core.components import BackendReply, LLMBackend
+from safeembodai_core.loop import Defences
+from safeembodai_core.models import Outcome, Straight, Turn, Verdict
+from safeembodai_core.plugins import load_plugins
+from safeembodai_core.testing import CorridorWorld, answer, straight, turn
+
+SAFE = Defences(security_prefix=True, state_management=True, safety_validation=True)
+
+
+class Recorder(LLMBackend):
+    """Replays answers and keeps every prompt it was sent."""
+
+    def __init__(self, *answers: str, fail_at: int | None = None) -> None:
+        self.answers, self.fail_at, self.prompts = list(answers), fail_at, []
+
+    def complete(self, prompt, rng):
+        self.prompts.append(prompt)
+        if self.fail_at is not None and len(self.prompts) > self.fail_at:
+            raise BackendError("service unavailable (test)")
+        return BackendReply(text=self.answers[min(len(self.prompts) - 1, len(self.answers) - 1)])
+
+
+def run(world, backend, defences=SAFE, **kwargs):
+    return run_guarded_trial(world, backend, defences=defences, **kwargs)
+
+
+def test_unsafe_answer_is_refused_and_the_retry_carries_the_reason():
+    world = CorridorWorld(wall_mm=600)
+    backend = Recorder(answer(straight(399)), answer(straight(100)), answer(turn(45)))
+    result, steps = run(world, backend, max_steps=1)
+    first = steps[0]
+    assert [a.accepted for a in first.attempts] == [False, True]
+    assert not first.attempts[0].verdicts[1].valid and first.attempts[0].verdicts[1].rule == "lidar_clearance"
+    retry_prompt = backend.prompts[1]
+    assert "failures" in retry_prompt.sections and "failures" not in backend.prompts[0].sections
+    assert "lidar_clearance" in retry_prompt.user_text and "straight forward 399 mm" in retry_prompt.user_text
+    assert [s.distance for s in world.executed] == [100]
+    assert result.interventions == 1 and result.retries == 1
+
+
+def test_exhausted_failure_threshold_aborts_safely_without_moving():
+    world = CorridorWorld(wall_mm=600)
+    backend = Recorder(answer(straight(399)))
+    result, steps = run(world, backend, defences=SAFE.model_copy(update={"failure_threshold": 2}))
+    assert result.outcome == Outcome.SAFE_ABORT
+    assert len(backend.prompts) == 3 and len(steps[0].attempts) == 3
+    assert world.executed == [] and not steps[0].accepted
+
+
+def test_hold_skips_the_step_and_carries_on():
+    world = CorridorWorld(wall_mm=600)
+    backend = Recorder(answer(straight(399)))
+    result, steps = run(world, backend, defences=SAFE.model_copy(update={"on_exhausted": "hold", "failure_threshold": 0}),
+                        max_steps=3)
+    assert result.outcome == Outcome.TIMEOUT and result.steps == 3 and world.executed == []
+
+
+def test_without_validation_the_unsafe_command_runs_and_collides():
+    world = CorridorWorld(wall_mm=500)
+    result, steps = run(world, Recorder(answer(straight(399))), defences=Defences())
+    assert result.outcome == Outcome.INTERRUPTED and result.collisions == 1
+    assert steps[0].attempts[0].verdicts == []
+
+
+def test_unparseable_answers_are_retried_in_every_arm_and_never_executed():
+    world = CorridorWorld()
+    backend = Recorder("I think I will go forward a lot", '{"control": "forward 9000"}', answer(turn(20)))
+    result, steps = run(world, backend, defences=Defences(), max_steps=1)
+    attempts = steps[0].attempts
+    assert [a.parse_error is not None for a in attempts] == [True, True, False]
+    assert [type(s) for s in world.executed] == [Turn]
+    assert "no JSON object" in backend.prompts[1].user_text
+
+
+def test_security_prefix_is_present_only_when_switched_on():
+    on, off = Recorder(answer(turn(10))), Recorder(answer(turn(10)))
+    run(CorridorWorld(), on, max_steps=1)
+    run(CorridorWorld(), off, defences=Defences(), max_steps=1)
+    assert "security_prefix" in on.prompts[0].sections and "attackers" in on.prompts[0].system
+    assert "security_prefix" not in off.prompts[0].sections and "attackers" not in off.prompts[0].system
+
+
+def test_reference_state_is_the_previous_step_only_when_state_management_is_on():
+    with_state = Recorder(answer(straight(120), planning="advance carefully"))
+    run(CorridorWorld(), with_state, max_steps=2)
+    without = Recorder(answer(straight(120)))
+    run(CorridorWorld(), without, defences=SAFE.model_copy(update={"state_management": False}), max_steps=2)
+    assert "reference_state" not in with_state.prompts[0].sections
+    second = with_state.prompts[1]
+    assert "reference_state" in second.sections
+    assert "straight forward 120 mm" in second.user_text and "moved 120 mm" in second.user_text
+    assert "advance carefully" in second.user_text
+    assert all("reference_state" not in p.sections for p in without.prompts)
+
+
+def test_plan_is_validated_from_the_planned_pose():
+    """A straight into the wall is unsafe, but not after a planned turn towards the open corridor."""
+    world = CorridorWorld(wall_mm=600, side_mm=3000)
+    blocked = Recorder(answer(straight(390)), answer(turn(10)))
+    _, steps = run(CorridorWorld(wall_mm=600, side_mm=3000), blocked, max_steps=1)
+    assert not steps[0].attempts[0].accepted
+    turned = Recorder(answer(turn(89), straight(390)))
+    _, steps = run(world, turned, max_steps=1)
+    assert steps[0].attempts[0].accepted
+    assert [type(s) for s in world.executed] == [Turn, Straight]
+
+
+def test_backend_failure_ends_the_trial_with_error_and_keeps_earlier_steps():
+    calls = []
+    watcher = types.ModuleType("watcher")
+    watcher.on_step_error = hookimpl(lambda spec, step, error: calls.append((step, str(error))))
+    backend = Recorder(answer(turn(10)), fail_at=2)
+    result, steps = run(CorridorWorld(), backend, plugins=load_plugins([watcher], environ={}), max_steps=5)
+    assert result.outcome == Outcome.ERROR and "service unavailable" in result.detail
+    assert [s.step for s in steps] == [1, 2]
+    assert calls == [(3, "service unavailable (test)")]
+
+
+def test_inline_third_party_validator_and_attacker_are_called_by_the_loop():
+    from pydantic import BaseModel, ConfigDict
+
+    from safeembodai_core.components import Attacker, Validator
+    from safeembodai_core.models import AttackRecord
+
+    class NoOptions(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+
+    class NoBackward(Validator):
+        def validate(self, signal, context):
+            ok = not (isinstance(signal, Straight) and signal.direction == "backward")
+            return Verdict(rule="no_backward", valid=ok, reason="" if ok else "backward is forbidden here")
+
+    class Shouter(Attacker):
+        def attack(self, target):
+            target.instruction = target.instruction.upper()
+            return [AttackRecord(attacker="shouter", channel="instruction", kind="shout")]
+
+    plugin = types.ModuleType("third_party")
+    plugin.register_validators = hookimpl(lambda register: register("no_backward", lambda o, c: NoBackward(), options=NoOptions))
+    plugin.register_attackers = hookimpl(lambda register: register("shouter", lambda o, c: Shouter(), options=NoOptions))
+    backend = Recorder(answer(straight(100, "backward")), answer(turn(15)))
+    defences = Defences(security_prefix=True, state_management=True, safety_validation=True, validators=["no_backward"])
+    result, steps = run_guarded_trial(CorridorWorld(), backend, defences=defences,
+                                      attackers=["shouter"], plugins=load_plugins([plugin], environ={}), max_steps=1)
+    assert steps[0].attempts[0].verdicts[0].reason == "backward is forbidden here"
+    assert steps[0].attacks[0].kind == "shout"
+    assert "FIND THE RED CAN" in backend.prompts[0].user_text
+
+
+def test_lifecycle_hooks_fire_in_order():
+    events = []
+    spy = types.ModuleType("spy")
+    spy.before_trial = hookimpl(lambda spec: events.append("before_trial"))
+    spy.before_step = hookimpl(lambda spec, step, observation: events.append(f"before_step {step}"))
+    spy.after_step = hookimpl(lambda spec, record: events.append(f"after_step {record.step}"))
+    spy.after_trial = hookimpl(lambda spec, result: events.append(f"after_trial {result.outcome.value}"))
+    run(CorridorWorld(), Recorder(answer(turn(10))), plugins=load_plugins([spy], environ={}), max_steps=2)
+    assert events == ["before_trial", "before_step 1", "after_step 1", "before_step 2", "after_step 2", "after_trial timeout"]
+
+
+def test_completion_is_reported_by_the_world():
+    world = CorridorWorld(wall_mm=1200, reach_mm=400)
+    result, _ = run(world, Recorder(answer(straight(390))), max_steps=10)
+    assert result.outcome == Outcome.COMPLETED and result.distance_mm == pytest.approx(780)
+
+
+def test_same_seed_gives_the_same_trial():
+    def once():
+        backend_plugins = load_plugins(environ={})
+        _, steps = run_guarded_trial({"use": "flatland", "options": {"obstacles": 4}},
+                                     {"use": "scripted", "options": {"responses": [answer(turn(40)), answer(straight(300))]}},
+                                     defences=SAFE, attackers=[{"use": "prompt_injection", "options": {"rate": 0.5}}],
+                                     seed=11, max_steps=6, plugins=backend_plugins)
+        return [s.model_dump(exclude={"attempts": {"__all__": {"latency_s"}}}) for s in steps]
+
+    assert once() == once()
