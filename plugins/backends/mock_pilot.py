@@ -1,0 +1,1 @@
+"""``mock``: the offline simulated pilot (work in progress, issue 4)."""

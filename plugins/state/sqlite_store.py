@@ -1,0 +1,1 @@
+"""``sqlite``: a SQLite state store (work in progress, issue 5)."""
