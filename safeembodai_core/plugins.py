@@ -20,14 +20,15 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, Iterable, Mapping
 
+from typing import TYPE_CHECKING
+
 import pluggy
-import structlog
 
 from . import hookspecs
 from .errors import PluginError
-from .registry import KINDS, ComponentRegistry
 
-log = structlog.get_logger(__name__)
+if TYPE_CHECKING:
+    from .registry import ComponentRegistry
 
 ENTRY_POINT_GROUP = "safeembodai"
 
@@ -71,16 +72,18 @@ class Plugins:
     pm: pluggy.PluginManager
     origins: dict[str, PluginOrigin] = field(default_factory=dict)
     trace: bool = False
-    _registry: ComponentRegistry | None = None
+    _registry: "ComponentRegistry | None" = None
 
     @property
     def hook(self) -> Any:
         return self.pm.hook
 
     @property
-    def registry(self) -> ComponentRegistry:
+    def registry(self) -> "ComponentRegistry":
         """Components registered by every plugin (collected on first use)."""
         if self._registry is None:
+            from .registry import KINDS, ComponentRegistry
+
             registry = ComponentRegistry()
             for kind, hook_name in KINDS.items():
                 for plugin_name, function in self.implementations(hook_name):
@@ -95,7 +98,9 @@ class Plugins:
 
     def _call_plugin(self, plugin_name: str, hook_name: str, function: Any, **kwargs: Any) -> Any:
         if self.trace:
-            log.debug("hook.call", hook=hook_name, plugin=plugin_name)
+            import structlog
+
+            structlog.get_logger(__name__).debug("hook.call", hook=hook_name, plugin=plugin_name)
         try:
             return function(**kwargs)
         except PluginError:

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import difflib
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from .components import BuildContext
 from .errors import ComponentError, PluginError
+
+if TYPE_CHECKING:
+    from .components import BuildContext
 
 #: component kind -> registry hook name
 KINDS: dict[str, str] = {
@@ -42,7 +44,7 @@ class ComponentInfo:
     kind: str
     name: str
     plugin: str
-    factory: Callable[[Any, BuildContext], Any]
+    factory: Callable[[Any, "BuildContext"], Any]
     options: type[BaseModel]
     description: str = ""
 
@@ -67,7 +69,7 @@ class ComponentRegistry:
 
         def register(
             name: str,
-            factory: Callable[[Any, BuildContext], Any],
+            factory: Callable[[Any, "BuildContext"], Any],
             *,
             options: type[BaseModel] = NoOptions,
             description: str = "",
@@ -127,11 +129,14 @@ class ComponentRegistry:
                 kind, name, [(tuple(e["loc"]), e["msg"]) for e in error.errors()]
             ) from None
 
-    def build(self, kind: str, name: str, raw_options: Any = None, context: BuildContext | None = None) -> Any:
+    def build(self, kind: str, name: str, raw_options: Any = None, context: "BuildContext | None" = None) -> Any:
         """Validate options and call the factory; a factory that raises is reported by plugin name."""
         info = self.get(kind, name)
         options = self.validate_options(kind, name, raw_options)
-        context = context or BuildContext(component=name, kind=kind)
+        if context is None:
+            from .components import BuildContext
+
+            context = BuildContext(component=name, kind=kind)
         try:
             return info.factory(options, context)
         except (ComponentError, PluginError):

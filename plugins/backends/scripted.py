@@ -8,13 +8,10 @@ no token usage: it sends nothing anywhere.
 
 from __future__ import annotations
 
-import json
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from safeembodai_core.components import BackendReply, LLMBackend
-from safeembodai_core.errors import BackendError
 from safeembodai_core.hookspecs import hookimpl
 
 
@@ -25,25 +22,13 @@ class ScriptedOptions(BaseModel):
     then: Literal["repeat", "fail"] = "repeat"
 
 
-class ScriptedBackend(LLMBackend):
-    def __init__(self, options: ScriptedOptions) -> None:
-        self.answers = [a if isinstance(a, str) else json.dumps(a) for a in options.responses]
-        self.then = options.then
-        self.calls = 0
-        self.prompts: list[Any] = []
+def _factory(options: ScriptedOptions, context):
+    from .scripted_replay import ScriptedBackend
 
-    def complete(self, prompt, rng) -> BackendReply:
-        self.prompts.append(prompt)
-        index = self.calls
-        self.calls += 1
-        if index >= len(self.answers):
-            if self.then == "fail":
-                raise BackendError(f"scripted backend: no answer left after {len(self.answers)}")
-            index = len(self.answers) - 1
-        return BackendReply(text=self.answers[index], model="scripted")
+    return ScriptedBackend(options)
 
 
 @hookimpl
 def register_llm_backends(register):
-    register("scripted", lambda options, context: ScriptedBackend(options), options=ScriptedOptions,
+    register("scripted", _factory, options=ScriptedOptions,
              description="replays answers from its options (tests, demos)")

@@ -1,0 +1,84 @@
+"""The wheel works outside the source tree, and a third-party plugin package is found by entry point.
+
+Slow: builds the project's wheel, installs it into a fresh virtual environment (third-party
+dependencies are borrowed from the running environment through a .pth file, so nothing is
+downloaded), then installs the example plugin package from docs/examples/ into it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import site
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+IGNORE = shutil.ignore_patterns(".git", "runs", "build", "dist", "__pycache__", "*.egg-info", ".venv", ".pytest_cache",
+                                ".hypothesis", "*.sqlite*")
+
+
+def _run(*args, cwd=None, env=None, check=True):
+    completed = subprocess.run([str(a) for a in args], capture_output=True, text=True, cwd=cwd, env=env, timeout=600)
+    if check and completed.returncode != 0:
+        raise AssertionError(f"{args} failed:\n{completed.stdout}\n{completed.stderr}")
+    return completed
+
+
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory, repo):
+    root = tmp_path_factory.mktemp("pkg")
+    source = root / "source"
+    shutil.copytree(repo, source, ignore=IGNORE)
+    _run(sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", root / "wheels", source)
+    wheel = next((root / "wheels").glob("safeembodai-*.whl"))
+    env_dir = root / "venv"
+    venv.create(env_dir, with_pip=True)
+    python = env_dir / "bin" / "python"
+    purelib = Path(_run(python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])").stdout.strip())
+    (purelib / "borrowed_deps.pth").write_text("\n".join(site.getsitepackages()) + "\n")
+    _run(python, "-m", "pip", "install", "-q", "--no-deps", "--no-index", wheel)
+    work = root / "elsewhere"
+    work.mkdir()
+    return python, work
+
+
+def test_wheel_runs_a_scenario_outside_the_source_tree(installed, repo):
+    python, work = installed
+    where = _run(python, "-c", "import safeembodai_core, safeembodai_plugins, safeembodai_prompts; "
+                              "print(safeembodai_core.__file__); print(safeembodai_prompts.TEMPLATE_DIR)", cwd=work).stdout
+    assert str(repo) not in where and "site-packages" in where
+    shutil.copy(repo / "scenarios" / "quickstart.yaml", work / "quickstart.yaml")
+    done = _run(python, "-m", "safeembodai_core", "run", "quickstart.yaml", "--arm", "safeembodai", "--out", "out", cwd=work)
+    assert "saved to" in done.stdout
+    assert json.loads((work / "out" / "trial.json").read_text())["spec"]["environment"] == "flatland"
+
+
+def test_example_plugin_is_found_through_its_entry_point(installed, repo):
+    python, work = installed
+    _run(python, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--no-index",
+         repo / "docs" / "examples" / "safeembodai-example-plugin")
+    listing = json.loads(_run(python, "-m", "safeembodai_core", "plugins", "--json", cwd=work).stdout)
+    example = next(row for row in listing if row["name"] == "example")
+    assert example["source"] == "entry point"
+    assert example["distribution"].startswith("safeembodai-example-plugin")
+    assert {"validator:slow_zone", "attacker:polite_injection"} <= set(example["components"])
+    assert "register_commands" in example["hooks"]
+    assert _run(python, "-m", "safeembodai_core", "example-zones", cwd=work).stdout.startswith('{"zone_mm"')
+    scenario = (repo / "scenarios" / "quickstart.yaml").read_text().replace(
+        "safeembodai: {security_prefix: true, state_management: true, safety_validation: true}",
+        "safeembodai: {safety_validation: true, validators: [slow_zone]}")
+    (work / "zones.yaml").write_text(scenario)
+    _run(python, "-m", "safeembodai_core", "run", "zones.yaml", "--arm", "safeembodai", "--out", "zones", cwd=work)
+    steps = [json.loads(line) for line in (work / "zones" / "steps.jsonl").read_text().splitlines()]
+    rules = {v["rule"] for step in steps for attempt in step["attempts"] for v in attempt["verdicts"]}
+    assert rules == {"slow_zone"}
+    blocked = _run(python, "-m", "safeembodai_core", "plugins", "--json", cwd=work,
+                   env={**os.environ, "SAFEEMBODAI_DISABLE_PLUGINS": "example"}).stdout
+    assert "example" not in {row["name"] for row in json.loads(blocked)}
