@@ -82,7 +82,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
     env, store, defences = parts.environment, parts.state, settings.defences
     validators = parts.validators if defences.safety_validation else []
     totals: dict[str, Any] = {"steps": 0, "prompt": 0, "completion": 0, "distance": 0.0, "collisions": 0,
-                              "interventions": 0, "retries": 0, "attacked": 0, "flagged": 0, "visible": 0}
+                              "interventions": 0, "retries": 0, "attacked": 0, "flagged": 0, "visible": 0,
+                              "first_seen": None, "lost": 0, "caught": 0}
     trajectory = []
     outcome: Outcome | None = None
     detail = ""
@@ -154,7 +155,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         spec=spec, outcome=outcome or Outcome.ERROR, steps=totals["steps"], prompt_tokens=totals["prompt"],
         completion_tokens=totals["completion"], distance_mm=totals["distance"], collisions=totals["collisions"],
         interventions=totals["interventions"], retries=totals["retries"], attacked_steps=totals["attacked"],
-        flagged_steps=totals["flagged"], target_visible_steps=totals["visible"], detail=detail,
+        flagged_steps=totals["flagged"], flagged_attacked_steps=totals["caught"], target_visible_steps=totals["visible"],
+        first_seen_step=totals["first_seen"], lost_after_seen_steps=totals["lost"], detail=detail,
         trajectory=trajectory, wall_time_s=time.perf_counter() - started,
     )
     store.end_trial(result)
@@ -171,7 +173,12 @@ def _accumulate(totals: dict[str, Any], record: StepRecord) -> None:
     totals["retries"] += record.retries
     totals["attacked"] += bool(record.attacks)
     totals["flagged"] += record.flagged_attack
+    totals["caught"] += bool(record.attacks) and record.flagged_attack
     totals["visible"] += record.truth.target_in_view
+    if record.truth.target_in_view and totals["first_seen"] is None:
+        totals["first_seen"] = record.step
+    elif not record.truth.target_in_view and totals["first_seen"] is not None:
+        totals["lost"] += 1
     for item in record.executed:
         if isinstance(item.signal, Straight):
             totals["distance"] += abs(item.result.distance_mm)

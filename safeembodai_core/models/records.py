@@ -186,7 +186,10 @@ class TrialResult(_Record):
     retries: int = 0
     attacked_steps: int = 0
     flagged_steps: int = 0
+    flagged_attacked_steps: int = 0  # steps both attacked (ground truth) and flagged by the LLM
     target_visible_steps: int = 0
+    first_seen_step: int | None = None  # first step whose observation had the target in view
+    lost_after_seen_steps: int = 0  # steps after first_seen_step with the target out of view
     detail: str = ""
     trajectory: list[Pose] = Field(default_factory=list)
     wall_time_s: float = 0.0

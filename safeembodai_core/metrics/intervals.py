@@ -1,0 +1,54 @@
+"""95% confidence intervals: Wilson for proportions, a seeded percentile bootstrap for means."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+Z95 = 1.959963984540054
+BOOTSTRAP_RESAMPLES = 2000
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A point value with its 95% interval; ``value`` is None when there is nothing to estimate."""
+
+    value: float | None
+    low: float | None = None
+    high: float | None = None
+    n: int = 0
+
+    def fmt(self, digits: int = 2) -> str:
+        if self.value is None:
+            return "n/a"
+        if self.low is None or self.high is None:
+            return f"{self.value:.{digits}f}"
+        return f"{self.value:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
+
+
+def wilson(successes: int, trials: int) -> Estimate:
+    """Wilson score interval for a proportion (sensible at 0, 1 and small n)."""
+    if trials <= 0:
+        return Estimate(None, n=0)
+    p = successes / trials
+    denominator = 1 + Z95**2 / trials
+    centre = (p + Z95**2 / (2 * trials)) / denominator
+    half = Z95 * math.sqrt(p * (1 - p) / trials + Z95**2 / (4 * trials**2)) / denominator
+    return Estimate(p, max(0.0, centre - half), min(1.0, centre + half), trials)
+
+
+def bootstrap_mean(values: Sequence[float], seed: int = 0) -> Estimate:
+    """Mean with a percentile-bootstrap 95% interval (seeded: the same data give the same interval)."""
+    data = np.asarray([v for v in values if v is not None], dtype=float)
+    if data.size == 0:
+        return Estimate(None, n=0)
+    mean = float(data.mean())
+    if data.size == 1:
+        return Estimate(mean, mean, mean, 1)
+    rng = np.random.default_rng(seed)
+    samples = rng.choice(data, size=(BOOTSTRAP_RESAMPLES, data.size), replace=True).mean(axis=1)
+    low, high = np.percentile(samples, [2.5, 97.5])
+    return Estimate(mean, float(low), float(high), int(data.size))
