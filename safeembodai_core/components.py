@@ -134,6 +134,19 @@ class StateStore(ABC):
     def steps(self, trial_id: str) -> list[StepRecord]:
         """Every recorded step of a trial, in order."""
 
+    def results(self) -> list[TrialResult]:
+        """Every finished trial's result (what resuming and reports read).
+
+        Stores that do not keep results across processes may leave this unimplemented; an
+        ablation then cannot be resumed from them.
+        """
+        raise NotImplementedError(f"{type(self).__name__} does not keep trial results")
+
+    @property
+    def persistent(self) -> bool:
+        """True when records survive the process (a resumed ablation can read them)."""
+        return False
+
     def close(self) -> None:
         """Flush and release."""
 

@@ -41,10 +41,11 @@ class ScenarioRunner:
     """Builds and runs the trials of one scenario with one set of plugins."""
 
     def __init__(self, scenario: Scenario, plugins: Plugins, run_dir: str | Path | None = None,
-                 state: StateStore | None = None) -> None:
+                 state: StateStore | None = None, save_trajectories: bool = False) -> None:
         self.scenario = scenario
         self.plugins = plugins
         self.run_dir = str(run_dir) if run_dir is not None else None
+        self.save_trajectories = save_trajectories and run_dir is not None
         self._environments: dict[str, Any] = {}
         self._state = state
 
@@ -84,9 +85,26 @@ class ScenarioRunner:
     def run(self, spec: TrialSpec) -> TrialResult:
         parts = self.parts(spec)
         try:
-            return run_trial(spec, parts, self.settings(spec.arm), self.plugins)
+            result = run_trial(spec, parts, self.settings(spec.arm), self.plugins)
         finally:
             parts.backend.close()
+        if self.save_trajectories:
+            self._save_trajectory(parts.environment, result)
+        return result
+
+    def trajectory_path(self, trial_id: str) -> Path:
+        return Path(self.run_dir or ".") / "trajectories" / (trial_id.replace("/", "__") + ".png")
+
+    def _save_trajectory(self, environment: Any, result: TrialResult) -> None:
+        try:
+            picture = environment.trajectory_png(result.trajectory, result.outcome)
+        except Exception as error:  # a picture is a convenience: never lose a trial over it
+            log.warning("trajectory.failed", trial=result.spec.trial_id, error=str(error))
+            return
+        if picture:
+            path = self.trajectory_path(result.spec.trial_id)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(picture)
 
     def specs(self) -> list[TrialSpec]:
         """Every trial of the scenario, cell by cell."""

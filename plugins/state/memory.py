@@ -21,12 +21,12 @@ class MemoryStateStore(StateStore):
     def __init__(self) -> None:
         self.specs: dict[str, TrialSpec] = {}
         self.records: dict[str, list[StepRecord]] = {}
-        self.results: dict[str, TrialResult] = {}
+        self.results_by_id: dict[str, TrialResult] = {}
 
     def begin_trial(self, spec: TrialSpec) -> None:
         self.specs[spec.trial_id] = spec
         self.records[spec.trial_id] = []
-        self.results.pop(spec.trial_id, None)
+        self.results_by_id.pop(spec.trial_id, None)
 
     def record_step(self, record: StepRecord) -> None:
         self.records.setdefault(record.trial_id, []).append(record.model_copy(deep=True))
@@ -36,10 +36,13 @@ class MemoryStateStore(StateStore):
         return previous[-1].to_reference() if previous else None
 
     def end_trial(self, result: TrialResult) -> None:
-        self.results[result.spec.trial_id] = result.model_copy(deep=True)
+        self.results_by_id[result.spec.trial_id] = result.model_copy(deep=True)
 
     def steps(self, trial_id: str) -> list[StepRecord]:
         return [r.model_copy(deep=True) for r in self.records.get(trial_id, [])]
+
+    def results(self) -> list[TrialResult]:
+        return [r.model_copy(deep=True) for r in self.results_by_id.values()]
 
 
 @hookimpl(trylast=True)

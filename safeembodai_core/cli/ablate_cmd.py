@@ -1,10 +1,7 @@
-"""``safeembodai ablate SCENARIO``: every trial of every cell, with progress and a summary."""
+"""``safeembodai ablate SCENARIO``: every trial of every cell, in parallel, resumable, summarised."""
 
 from __future__ import annotations
 
-import json
-import time
-from collections import Counter, defaultdict
 from pathlib import Path
 
 import click
@@ -14,41 +11,58 @@ from .common import load, scenario_options
 
 @click.command("ablate")
 @scenario_options
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
-              help="Run folder (default: runs/<scenario>-<time>).")
-def ablate(scenario_path, backend, seed, overrides, out_dir) -> None:
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Trials in parallel.")
+@click.option("--executor", type=click.Choice(["serial", "process", "ray"]), default=None,
+              help="Where trials run (default: serial for 1 worker, process otherwise).")
+@click.option("--address", default=None, help="Ray cluster address (with --executor ray; default: a local Ray).")
+@click.option("--out", "out_root", type=click.Path(file_okay=False), default="runs", show_default=True,
+              help="Folder that receives the run folder <scenario>-<time>.")
+@click.option("--resume", "resume_dir", type=click.Path(file_okay=False, exists=True), default=None,
+              help="Finish the missing trials of this run folder (same scenario and overrides).")
+@click.option("--no-report", is_flag=True, help="Skip report.md and figures at the end.")
+def ablate(scenario_path, backend, seed, overrides, workers, executor, address, out_root, resume_dir, no_report) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials."""
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-    from rich.table import Table
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from ..runner import ScenarioRunner
+    from ..ablation import Ablation, RunFolder
+    from .summary import summary_table
 
     scenario, plugins = load(scenario_path, backend, seed, overrides)
-    folder = Path(out_dir or Path("runs") / f"{scenario.name}-{time.strftime('%Y%m%d-%H%M%S')}")
-    folder.mkdir(parents=True, exist_ok=True)
-    runner = ScenarioRunner(scenario, plugins, run_dir=folder)
-    specs = runner.specs()
-    outcomes: dict[tuple[str, str, str], Counter] = defaultdict(Counter)
+    folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
     console = Console()
+    ablation = Ablation(scenario, plugins, folder, resume=resume_dir is not None, workers=workers,
+                        executor=executor, address=address)
     try:
-        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                      console=console) as progress, (folder / "trials.jsonl").open("a", encoding="utf-8") as sink:
-            task = progress.add_task("trials", total=len(specs))
-            for spec in specs:
-                progress.update(task, description=spec.trial_id)
-                result = runner.run(spec)
-                sink.write(json.dumps(result.model_dump(mode="json")) + "\n")
-                sink.flush()
-                outcomes[(spec.environment, spec.arm, spec.condition)][result.outcome.value] += 1
-                progress.advance(task)
+        pending = ablation.pending()
+        cells = {(s.environment, s.arm, s.condition) for s in pending}
+        console.print(f"run folder {folder.path}: {len(pending)} trials to run in {len(cells)} cells"
+                      f" ({ablation.executor_name}, {workers} worker{'s' if workers > 1 else ''})")
+        left = {cell: sum(1 for s in pending if (s.environment, s.arm, s.condition) == cell) for cell in cells}
+        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      TimeRemainingColumn(), console=console) as progress:
+            trials = progress.add_task("trials", total=len(pending))
+            finished_cells = progress.add_task("cells", total=len(cells))
+
+            def advance(result) -> None:
+                cell = (result.spec.environment, result.spec.arm, result.spec.condition)
+                left[cell] -= 1
+                progress.update(trials, advance=1, description=f"trials (last: {result.spec.trial_id} {result.outcome.value})")
+                if left[cell] == 0:
+                    progress.advance(finished_cells)
+
+            try:
+                results = ablation.run(advance)
+            except KeyboardInterrupt:
+                console.print(f"[yellow]interrupted[/yellow]: finished trials are recorded; "
+                              f"resume with --resume {folder.path}")
+                raise SystemExit(130) from None
     finally:
-        runner.close()
-    table = Table(title=f"{scenario.name}: outcomes per cell")
-    kinds = ("completed", "timeout", "interrupted", "safe_abort", "error")
-    for column in ("environment", "arm", "condition", *kinds):
-        table.add_column(column)
-    for (env, arm, condition), counts in outcomes.items():
-        table.add_row(env, arm, condition, *(str(counts.get(k, 0)) for k in kinds))
-    console.print(table)
-    console.print(f"results in {folder / 'trials.jsonl'}")
+        ablation.close()
+    console.print(summary_table(scenario, results))
+    if not no_report:
+        from ..report import write_report
+
+        report = write_report(folder.path, scenario, results)
+        console.print(f"report: {report}")
+    console.print(f"run folder: {folder.path}")

@@ -1,0 +1,120 @@
+"""Where trials run: in this process, in a pool of worker processes, or on a Ray cluster.
+
+Every executor yields results as trials finish, in completion order. Results do not depend on the
+executor: a trial's seed comes from the scenario and its index only, and each worker builds its
+own plugins, environments and store from the recorded scenario. Workers load installed plugins
+(entry points), not inline ones.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any, Iterator
+
+from ..errors import SafeEmbodAIError
+from ..models import TrialResult, TrialSpec
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(scenario_json: dict[str, Any], run_dir: str) -> None:
+    from ..logs import configure_logging
+    from ..plugins import load_plugins
+    from ..runner import ScenarioRunner
+    from ..scenario import Scenario
+
+    configure_logging(os.environ.get("SAFEEMBODAI_WORKER_LOG_LEVEL", "warning"))
+    scenario = Scenario.model_validate(scenario_json)
+    _WORKER["runner"] = ScenarioRunner(scenario, load_plugins(), run_dir=run_dir, save_trajectories=True)
+    _WORKER["parent"] = os.getppid()
+
+
+def _run_in_worker(spec_json: dict[str, Any]) -> dict[str, Any]:
+    if os.getppid() != _WORKER["parent"]:  # the coordinator died: do not start trials nobody will record
+        raise SystemExit(1)
+    result = _WORKER["runner"].run(TrialSpec.model_validate(spec_json))
+    return result.model_dump(mode="json")
+
+
+class SerialExecutor:
+    """Runs trials one after another in this process."""
+
+    def __init__(self, runner: Any) -> None:
+        self.runner = runner
+
+    def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
+        for spec in specs:
+            yield self.runner.run(spec)
+
+    def close(self) -> None:
+        self.runner.close()
+
+
+class ProcessExecutor:
+    """A pool of ``workers`` spawned processes, each with one environment per label, reused."""
+
+    def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int) -> None:
+        self.pool = ProcessPoolExecutor(
+            max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+            initializer=_init_worker, initargs=(scenario_json, run_dir),
+        )
+        self.workers = workers
+
+    def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
+        queue = list(specs)
+        running: dict[Any, TrialSpec] = {}
+        try:
+            while queue or running:
+                while queue and len(running) < 2 * self.workers:  # bounded: no burst of futures
+                    spec = queue.pop(0)
+                    running[self.pool.submit(_run_in_worker, spec.model_dump(mode="json"))] = spec
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for future in done:
+                    spec = running.pop(future)
+                    yield TrialResult.model_validate(future.result())
+        except BrokenProcessPool:
+            raise SafeEmbodAIError("a worker process died (killed or out of memory); finished trials are recorded: "
+                                   "resume the run to finish the rest") from None
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class RayExecutor:
+    """One Ray actor per worker on a (local or remote) Ray cluster; needs the ``ray`` extra."""
+
+    def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int, address: str | None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise SafeEmbodAIError('the ray executor needs the ray extra: pip install -e ".[ray]"') from None
+        self.ray = ray
+        if not ray.is_initialized():
+            ray.init(address=address, include_dashboard=False, log_to_driver=False,
+                     ignore_reinit_error=True, configure_logging=False)
+
+        @ray.remote
+        class TrialWorker:
+            def __init__(self, scenario_json, run_dir):
+                _init_worker(scenario_json, run_dir)
+                _WORKER["parent"] = os.getppid()
+
+            def run(self, spec_json):
+                return _WORKER["runner"].run(TrialSpec.model_validate(spec_json)).model_dump(mode="json")
+
+        self.actors = [TrialWorker.remote(scenario_json, run_dir) for _ in range(workers)]
+
+    def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
+        from ray.util import ActorPool
+
+        pool = ActorPool(self.actors)
+        payload = [spec.model_dump(mode="json") for spec in specs]
+        for result in pool.map_unordered(lambda actor, spec: actor.run.remote(spec), payload):
+            yield TrialResult.model_validate(result)
+
+    def close(self) -> None:
+        for actor in self.actors:
+            self.ray.kill(actor)

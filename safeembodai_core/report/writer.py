@@ -1,0 +1,60 @@
+"""Write ``metrics.json``, ``metrics.csv`` and ``report.md`` for a run folder."""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+from ..metrics import CellMetrics, cell_metrics
+from ..models import TrialResult
+from ..scenario import Scenario
+
+ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", "tlr", "tlr_all", "steps",
+             "tokens", "distance_mm", "collisions", "interventions", "retries")
+
+
+def _cells(results: list[TrialResult], budget: int) -> list[CellMetrics]:
+    groups: dict[tuple[str, str, str], list[TrialResult]] = {}
+    for result in results:
+        groups.setdefault((result.spec.environment, result.spec.arm, result.spec.condition), []).append(result)
+    return [cell_metrics(cell, budget) for cell in groups.values()]
+
+
+def _row(m: CellMetrics) -> dict[str, object]:
+    row: dict[str, object] = {"environment": m.environment, "arm": m.arm, "condition": m.condition,
+                              "trials": m.trials, "errors": m.errors, "s_max": m.s_max, "s_max_from": m.s_max_from}
+    row.update({f"outcome_{k}": v for k, v in m.outcomes.items()})
+    for name in ESTIMATES:
+        estimate = getattr(m, name)
+        row[name], row[f"{name}_low"], row[f"{name}_high"], row[f"{name}_n"] = (
+            estimate.value, estimate.low, estimate.high, estimate.n)
+    return row
+
+
+def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResult]) -> Path:
+    """Write the metrics files and report.md into ``folder``; return the report's path."""
+    folder = Path(folder)
+    cells = _cells(results, scenario.max_steps)
+    rows = [_row(m) for m in cells]
+    (folder / "metrics.json").write_text(json.dumps({"scenario": scenario.name, "cells": rows,
+                                                     "trials": [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]},
+                                                    indent=2), encoding="utf-8")
+    with (folder / "metrics.csv").open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(rows[0]) if rows else ["environment"])
+        writer.writeheader()
+        writer.writerows(rows)
+    lines = [f"# {scenario.name}", "", scenario.description or "", "",
+             f"{len(results)} trials, {scenario.trials} per cell, step budget {scenario.max_steps}.", "",
+             "| env | arm | condition | n | MOER | completed | ADR | TLR | steps* | tokens* | distance mm* | errors |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for m in cells:
+        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {m.trials} | {m.moer.fmt()} | {m.completion.fmt()} "
+                     f"| {m.adr.fmt()} | {m.tlr.fmt()} | {m.steps.fmt(1)} | {m.tokens.fmt(0)} | {m.distance_mm.fmt(0)} "
+                     f"| {m.errors} |")
+    lines += ["", "\\* over completed trials. Intervals are 95% (bootstrap for means, Wilson for proportions); "
+              "see docs/metrics.md for every formula."]
+    report = folder / "report.md"
+    report.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return report
