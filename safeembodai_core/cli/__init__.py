@@ -61,9 +61,10 @@ def cli(ctx: click.Context, debug: bool, log_level: str, log_json: bool) -> None
 def _register_builtin_commands() -> None:
     from .ablate_cmd import ablate
     from .plugins_cmd import plugins
+    from .report_cmd import report
     from .run_cmd import run
 
-    for command in (plugins, run, ablate):
+    for command in (plugins, run, ablate, report):
         cli.add_command(command)
 
 

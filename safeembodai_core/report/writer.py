@@ -10,6 +10,8 @@ from pathlib import Path
 from ..metrics import CellMetrics, cell_metrics
 from ..models import TrialResult
 from ..scenario import Scenario
+from .figures import draw_figures
+from .paper import comparison_rows
 
 ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", "tlr", "tlr_all", "steps",
              "tokens", "distance_mm", "collisions", "interventions", "retries")
@@ -54,7 +56,26 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
                      f"| {m.adr.fmt()} | {m.tlr.fmt()} | {m.steps.fmt(1)} | {m.tokens.fmt(0)} | {m.distance_mm.fmt(0)} "
                      f"| {m.errors} |")
     lines += ["", "\\* over completed trials. Intervals are 95% (bootstrap for means, Wilson for proportions); "
-              "see docs/metrics.md for every formula."]
+              "see docs/metrics.md for every formula.", ""]
+    figures = draw_figures(cells, folder / "figures") if cells else []
+    if figures:
+        lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
+    comparison = comparison_rows(cells)
+    lines += ["## Against the paper", ""]
+    if comparison:
+        lines += ["Our value with its 95% interval next to the value read off the paper's figures (GPT-4o, EyeSim). "
+                  "Backends other than GPT-4o simulate or substitute the LLM: agreement is not expected, only comparable scales.", "",
+                  "| env | arm | condition | metric | ours | paper | paper inside our interval |", "|---|---|---|---|---|---|---|"]
+        for row in comparison:
+            interval = f" [{row['low']:.2f}, {row['high']:.2f}]" if row["low"] is not None else ""
+            lines.append(f"| {row['environment']} | {row['arm']} | {row['condition']} | {row['metric']} "
+                         f"| {row['ours']:.2f}{interval} | {row['paper']:g} | {'yes' if row['inside'] else 'no'} |")
+    else:
+        lines.append("No cell of this run matches a cell of the paper (environments OF/SO/DO/MO, arms baseline/safeembodai, "
+                     "conditions no_attack/attack).")
+    trajectories = sorted((folder / "trajectories").glob("*.png")) if (folder / "trajectories").is_dir() else []
+    if trajectories:
+        lines += ["", "## Trajectories", "", f"{len(trajectories)} pictures in `trajectories/` (one per trial)."]
     report = folder / "report.md"
     report.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return report
