@@ -1,0 +1,91 @@
+"""Labbots: the moving obstacles of ``DO`` and ``MO``.
+
+Each Labbot cruises at a constant speed while its heading drifts at random (a random walk of
+``labbot_wander_deg`` per square-root second). Before each move it checks that both its next
+position and a point ``labbot_lookahead_mm`` further ahead keep a clearance from the walls,
+the soccer balls, the can and the other Labbots; if not, it stops and turns on the spot (to a
+side drawn at random, kept until the way ahead is clear). Labbots do not see the robot unless
+``labbots_avoid_robot`` is set: like the paper's, they can run into it, and that ends the
+trial as ``interrupted``.
+
+The motion is plain numpy; the world copies the positions into pybullet, where the robot's
+contact checks see them. All draws come from the generator handed in, in a fixed order.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CLEARANCE_MM = 30.0
+
+
+class LabbotSwarm:
+    """Positions (mm) and headings (deg) of every Labbot, and how they move."""
+
+    def __init__(self, options, xy: np.ndarray, headings_deg: np.ndarray, obstacles: np.ndarray,
+                 rng: np.random.Generator) -> None:
+        self.o = options
+        self.radius = float(getattr(options, "labbot_radius_mm", 0.0))
+        self.xy = np.array(xy, dtype=float).reshape(-1, 2)  # mm, world frame
+        self.heading = np.array(headings_deg, dtype=float).reshape(-1)  # deg, CCW from +x
+        self.turning = np.zeros(len(self.xy))  # -1 / +1 while turning away from something, else 0
+        self._statics = [tuple(map(float, row)) for row in np.asarray(obstacles, dtype=float).reshape(-1, 3)]
+        self.rng = rng
+        self.track: list[np.ndarray] = [self.xy.copy()]
+
+    def __len__(self) -> int:
+        return len(self.xy)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return self.xy.copy(), self.heading.copy(), self.turning.copy()
+
+    def restore(self, state: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        self.xy, self.heading, self.turning = (a.copy() for a in state)
+        self.track[-1] = self.xy.copy()
+
+    def _clear(self, index: int, x: float, y: float, xs: list[float], ys: list[float],
+               robot: tuple[float, float] | None) -> bool:
+        """Would Labbot ``index`` at (x, y) keep its clearance? (plain floats: a handful of bodies)"""
+        reach = self.radius + CLEARANCE_MM
+        if not (reach <= x <= self.o.room_mm - reach and reach <= y <= self.o.room_mm - reach):
+            return False
+        for ox, oy, radius in self._statics:
+            if math.hypot(ox - x, oy - y) - radius < reach:
+                return False
+        for other, (ox, oy) in enumerate(zip(xs, ys)):
+            if other != index and math.hypot(ox - x, oy - y) < reach + self.radius:
+                return False
+        return robot is None or math.hypot(robot[0] - x, robot[1] - y) >= reach + self.o.robot_radius_mm
+
+    def advance(self, dt: float, robot_xy: np.ndarray) -> None:
+        """Move every Labbot for ``dt`` simulated seconds."""
+        if dt <= 0 or not len(self):
+            return
+        o = self.o
+        avoid = (float(robot_xy[0]), float(robot_xy[1])) if o.labbots_avoid_robot else None
+        drift = self.rng.normal(0.0, o.labbot_wander_deg * math.sqrt(dt), size=len(self)).tolist()
+        sides = np.where(self.rng.random(size=len(self)) < 0.5, -1.0, 1.0).tolist()
+        xs, ys = self.xy[:, 0].tolist(), self.xy[:, 1].tolist()
+        headings, turning = self.heading.tolist(), self.turning.tolist()
+        step, lookahead = o.labbot_speed_mm_s * dt, o.labbot_speed_mm_s * dt + o.labbot_lookahead_mm
+        for i in range(len(xs)):
+            if turning[i]:
+                headings[i] += turning[i] * o.labbot_turn_rate_deg_s * dt
+                rad = math.radians(headings[i])
+                if self._clear(i, xs[i] + lookahead * math.cos(rad), ys[i] + lookahead * math.sin(rad), xs, ys, avoid):
+                    turning[i] = 0.0
+            else:
+                headings[i] += drift[i]
+                cos, sin = math.cos(math.radians(headings[i])), math.sin(math.radians(headings[i]))
+                nx, ny = xs[i] + step * cos, ys[i] + step * sin
+                if (self._clear(i, nx, ny, xs, ys, avoid)
+                        and self._clear(i, xs[i] + lookahead * cos, ys[i] + lookahead * sin, xs, ys, avoid)):
+                    xs[i], ys[i] = nx, ny
+                else:
+                    turning[i] = sides[i]
+            headings[i] = (headings[i] + 180.0) % 360.0 - 180.0
+        self.xy = np.column_stack((xs, ys))
+        self.heading, self.turning = np.array(headings), np.array(turning)
+        self.track.append(self.xy.copy())

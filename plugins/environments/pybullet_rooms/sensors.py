@@ -1,0 +1,100 @@
+"""The robot's sensors in a :class:`~.scene.Scene`: LiDAR, front camera and the can's visibility.
+
+* LiDAR: ``lidar_beams`` rays in one ``rayTestBatch`` (single-threaded) from the robot's centre
+  at :data:`LIDAR_HEIGHT_MM`, beam ``k`` at ``k * 360 / N`` degrees counter-clockwise from the
+  heading; ranges in millimetres from the centre, ``inf`` when nothing lies within range.
+* Camera: an RGB ``uint8`` image (TinyRenderer, shadows off) from :data:`CAMERA_HEIGHT_MM` just
+  in front of the robot, looking along the heading; ``camera_fov_deg`` is the horizontal field.
+* Visibility (ground truth, never shown to the LLM): the can is in view when one of three
+  points across it, three quarters up, lies inside the camera's frustum and a ray from the
+  camera reaches it before anything else, or when the lens is within 10 mm of the can's
+  surface (the robot is touching it).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .options import CAN_RADIUS_MM
+from .scene import CAN_HEIGHT_MM, OBSTACLE_GROUP, Scene, _m
+
+LIDAR_HEIGHT_MM = 100.0
+CAMERA_HEIGHT_MM = 150.0
+CAMERA_AHEAD_MM = 5.0  # in front of the robot's surface, so the body never shows in its own image
+TOUCHING_MM = 10.0
+_NEAR_M, _FAR_M = 0.02, 30.0
+
+
+class Sensors:
+    """Reads the scene from the robot's pose; precomputes what does not change between reads."""
+
+    def __init__(self, scene: Scene) -> None:
+        o = scene.o
+        self.scene, self.o, self.p = scene, o, scene.p
+        self.beam_angles = np.radians(np.arange(o.lidar_beams) * (360.0 / o.lidar_beams))
+        aspect = o.camera_width / o.camera_height
+        self.vfov_deg = math.degrees(2 * math.atan(math.tan(math.radians(o.camera_fov_deg / 2)) / aspect))
+        self.projection = self.p.computeProjectionMatrixFOV(self.vfov_deg, aspect, _NEAR_M, _FAR_M,
+                                                            physicsClientId=scene.client)
+
+    def lidar(self, xy: np.ndarray, heading_deg: float) -> np.ndarray:
+        o = self.o
+        angles = self.beam_angles + math.radians(heading_deg)
+        z = _m(LIDAR_HEIGHT_MM)
+        start = np.empty((angles.size, 3))
+        start[:] = (_m(xy[0]), _m(xy[1]), z)
+        reach = _m(o.lidar_max_range_mm)
+        end = np.column_stack((start[:, 0] + reach * np.cos(angles), start[:, 1] + reach * np.sin(angles), start[:, 2]))
+        hits = self.p.rayTestBatch(start.tolist(), end.tolist(), numThreads=1, collisionFilterMask=OBSTACLE_GROUP,
+                                   physicsClientId=self.scene.client)
+        fraction = np.array([hit[2] if hit[0] >= 0 else np.inf for hit in hits])
+        return fraction * o.lidar_max_range_mm
+
+    def camera_pose(self, xy: np.ndarray, heading_deg: float) -> tuple[np.ndarray, np.ndarray]:
+        """Camera position and unit view direction (metres, world frame)."""
+        rad = math.radians(heading_deg)
+        forward = np.array([math.cos(rad), math.sin(rad), 0.0])
+        offset = self.o.robot_radius_mm + CAMERA_AHEAD_MM
+        eye = np.array([_m(xy[0] + offset * forward[0]), _m(xy[1] + offset * forward[1]), _m(CAMERA_HEIGHT_MM)])
+        return eye, forward
+
+    def camera(self, xy: np.ndarray, heading_deg: float) -> np.ndarray:
+        o = self.o
+        eye, forward = self.camera_pose(xy, heading_deg)
+        view = self.p.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), (0.0, 0.0, 1.0),
+                                        physicsClientId=self.scene.client)
+        _, _, rgba, _, _ = self.p.getCameraImage(
+            o.camera_width, o.camera_height, view, self.projection, shadow=0, renderer=self.p.ER_TINY_RENDERER,
+            flags=self.p.ER_NO_SEGMENTATION_MASK, physicsClientId=self.scene.client)
+        pixels = np.asarray(rgba, dtype=np.uint8).reshape(o.camera_height, o.camera_width, 4)
+        return np.ascontiguousarray(pixels[..., :3])
+
+    def can_in_view(self, xy: np.ndarray, heading_deg: float, can_xy: np.ndarray) -> bool:
+        eye, forward = self.camera_pose(xy, heading_deg)
+        to_can = np.array([_m(can_xy[0]), _m(can_xy[1])]) - eye[:2]
+        across = np.array([-to_can[1], to_can[0]]) / max(float(np.hypot(*to_can)), 1e-9)
+        z = _m(0.75 * CAN_HEIGHT_MM)
+        targets = [np.array([_m(can_xy[0]), _m(can_xy[1]), z]) + np.append(across * _m(s * 0.8 * CAN_RADIUS_MM), 0.0)
+                   for s in (0.0, -1.0, 1.0)]
+        half_h, half_v = math.radians(self.o.camera_fov_deg / 2), math.radians(self.vfov_deg / 2)
+        heading = math.atan2(forward[1], forward[0])
+        if float(np.hypot(*to_can)) <= _m(CAN_RADIUS_MM + TOUCHING_MM):
+            return True  # the robot touches the can: it fills the lens (rays from inside it never hit it)
+        framed = []
+        for target in targets:
+            d = target - eye
+            yaw = (math.atan2(d[1], d[0]) - heading + math.pi) % (2 * math.pi) - math.pi
+            ahead = math.hypot(d[0], d[1]) * math.cos(yaw)
+            if ahead <= 0 or abs(yaw) > half_h:
+                continue
+            # pinhole frustum: the vertical angle is taken against the depth along the optical axis
+            if abs(math.atan2(d[2], ahead)) > half_v:
+                continue
+            framed.append(target)
+        if not framed:
+            return False
+        hits = self.p.rayTestBatch([eye.tolist()] * len(framed), [t.tolist() for t in framed], numThreads=1,
+                                   collisionFilterMask=OBSTACLE_GROUP, physicsClientId=self.scene.client)
+        return any(hit[0] == self.scene.can for hit in hits)

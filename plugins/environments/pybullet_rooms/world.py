@@ -1,0 +1,130 @@
+"""A pybullet room as an :class:`~safeembodai_core.components.Environment`.
+
+:class:`PybulletRoom` draws the layout from the seed, places the bodies of its
+:class:`~.scene.Scene`, reads the :class:`~.sensors.Sensors` and decides the outcome; the robot's
+motion comes from :class:`~.motion.KinematicMotion`. Outcomes, checked after every step:
+``interrupted`` once the robot has collided with a wall, a ball or a Labbot; ``completed`` when
+the can is within ``reach_mm`` (centre to centre) and in the camera's view; ``timeout`` when the
+simulated-time limit is spent. The step budget is the core loop's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from safeembodai_core.components import Environment, RobotSpec
+from safeembodai_core.errors import EnvironmentError_
+from safeembodai_core.models import GroundTruth, LidarScan, Observation, Outcome, Pose
+from safeembodai_core.seeds import derive_seed
+
+from .labbots import LabbotSwarm
+from .layout import bearing_deg, draw_layout
+from .motion import KinematicMotion
+from .options import CAN_RADIUS_MM, RoomOptions
+from .quiet import silenced
+from .scene import Scene
+from .sensors import Sensors
+
+
+class PybulletRoom(KinematicMotion, Environment):
+    """One of the paper's rooms (``OF``, ``SO``, ``DO`` or ``MO``) in its own physics client."""
+
+    def __init__(self, kind: str, options: RoomOptions) -> None:
+        self.kind, self.options = kind, options
+        r = options.robot_radius_mm
+        self.robot = RobotSpec(radius_mm=r, width_mm=2 * r, length_mm=2 * r)
+        self.scene = Scene(options)
+        self.sensors = Sensors(self.scene)
+        self.xy = np.zeros(2)
+        self.heading = 0.0
+        self.can_xy = np.zeros(2)
+        self.balls_xy = np.zeros((0, 2))
+        self.swarm: LabbotSwarm | None = None
+        self.sim_time_s = 0.0
+        self.collided = False
+        self.collision_xy: np.ndarray | None = None
+        self._thought = True
+        self._seed: int | None = None
+
+    # -- world construction -------------------------------------------------------------------
+
+    def reset(self, seed: int) -> Observation:
+        if self.scene.closed:
+            raise EnvironmentError_(f"{self.kind}: the environment was closed; build a new one")
+        o = self.options
+        layout = draw_layout(o, np.random.default_rng(seed))
+        self._seed = seed
+        self.xy, self.heading = layout.robot_xy.copy(), layout.robot_heading_deg
+        self.can_xy, self.balls_xy = layout.can_xy.copy(), layout.balls_xy.copy()
+        statics = np.vstack([np.append(self.can_xy, CAN_RADIUS_MM)]
+                            + [np.column_stack((self.balls_xy, np.full(len(self.balls_xy), o.ball_radius_mm)))])
+        self.swarm = LabbotSwarm(o, layout.labbots_xy, layout.labbots_heading_deg, statics,
+                                 np.random.default_rng(derive_seed(seed, "labbots")))
+        self.sim_time_s, self.collided, self.collision_xy = 0.0, False, None
+        self._thought = True  # nothing pending from the previous trial
+        with silenced():
+            self.scene.place_statics(self.can_xy, self.balls_xy)
+            self._sync()
+        return self.observe()
+
+    def _sync(self) -> None:
+        self.scene.place_robot(self.xy, self.heading)
+        self.scene.place_labbots(self.swarm.xy, self.swarm.heading)
+
+    def _require_reset(self) -> None:
+        if self._seed is None:
+            raise EnvironmentError_(f"{self.kind}: call reset(seed) before using the environment")
+        if self.scene.closed:
+            raise EnvironmentError_(f"{self.kind}: the environment was closed")
+
+    # -- sensing ------------------------------------------------------------------------------
+
+    def truth(self) -> GroundTruth:
+        """Where the can is relative to the robot, and whether the camera sees it."""
+        self._require_reset()
+        distance = float(np.hypot(*(self.can_xy - self.xy)))
+        with silenced():
+            visible = self.sensors.can_in_view(self.xy, self.heading, self.can_xy)
+        return GroundTruth(
+            target_in_view=visible, target_bearing_deg=bearing_deg(self.xy, self.heading, self.can_xy),
+            target_distance_mm=distance, extra={"collided": self.collided},
+        )
+
+    def observe(self) -> Observation:
+        self._require_reset()
+        o = self.options
+        with silenced():
+            if not self._thought:  # the last observation's thinking led to no command: it still took time
+                self._thought = True
+                self._wait(o.think_time_s)
+            ranges = self.sensors.lidar(self.xy, self.heading)
+            image = self.sensors.camera(self.xy, self.heading)
+        self._thought = False
+        return Observation(
+            camera=image, lidar=LidarScan(ranges_mm=ranges, max_range_mm=o.lidar_max_range_mm),
+            pose=self.pose(), truth=self.truth(), sim_time_s=self.sim_time_s,
+        )
+
+    def pose(self) -> Pose:
+        return Pose(x_mm=float(self.xy[0]), y_mm=float(self.xy[1]), heading_deg=float(self.heading))
+
+    def outcome(self) -> Outcome | None:
+        self._require_reset()
+        if self.collided:
+            return Outcome.INTERRUPTED
+        truth = self.truth()
+        if truth.target_in_view and truth.target_distance_mm <= self.options.reach_mm:
+            return Outcome.COMPLETED
+        if self.sim_time_s >= self.options.max_sim_time_s - 1e-9:
+            return Outcome.TIMEOUT
+        return None
+
+    # -- pictures and teardown ----------------------------------------------------------------
+
+    def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
+        from .picture import draw_trajectory
+
+        return draw_trajectory(self, poses, outcome)
+
+    def close(self) -> None:
+        self.scene.close()

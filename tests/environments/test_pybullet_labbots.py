@@ -1,0 +1,104 @@
+"""Labbots: they move while the robot moves (and while the LLM thinks, if asked), avoid walls and
+balls, and a Labbot running into the robot interrupts the trial."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from safeembodai_core.models import Outcome
+
+
+def travelled(track: list[np.ndarray]) -> np.ndarray:
+    """Path length of each Labbot along its recorded track."""
+    steps = np.diff(np.stack(track), axis=0)
+    return np.hypot(steps[..., 0], steps[..., 1]).sum(axis=0)
+
+
+def test_labbots_move_while_the_robot_moves(make_env, moves):
+    env = make_env("DO")
+    env.reset(4)
+    start = env.swarm.xy.copy()
+    env.execute(moves.rotate(60))  # one simulated second
+    moved = np.hypot(*(env.swarm.xy - start).T)
+    assert moved.max() > 50.0
+    assert moved.max() <= 150.0 + 1e-6  # never faster than labbot_speed_mm_s
+    # and pybullet sees them where they are: the LiDAR returns from a Labbot's new surface
+    observation = env.observe()
+    pose = observation.pose
+    k = int(np.argmax(moved))
+    bearing = math.degrees(math.atan2(*(env.swarm.xy[k] - env.xy)[::-1])) - pose.heading_deg
+    beam = int(round(bearing)) % 360
+    expected = math.hypot(*(env.swarm.xy[k] - env.xy)) - env.options.labbot_radius_mm
+    assert observation.lidar.ranges_mm[beam] == pytest.approx(expected, abs=10.0)
+
+
+def test_parked_labbots_stand_still(make_env, moves):
+    parked = make_env("DO", labbot_speed_mm_s=0.0)
+    parked.reset(4)
+    start = parked.swarm.xy.copy()
+    parked.execute(moves.rotate(60))
+    np.testing.assert_array_equal(parked.swarm.xy, start)
+
+
+def test_think_time_lets_the_world_move_before_the_first_command(make_env, moves):
+    quick, slow = make_env("DO"), make_env("DO", think_time_s=4.0)
+    quick.reset(8)
+    slow.reset(8)
+    quick.execute(moves.rotate(3))
+    slow.execute(moves.rotate(3))
+    assert travelled(slow.swarm.track).sum() > 10 * travelled(quick.swarm.track).sum()
+    assert slow.sim_time_s == pytest.approx(4.05)
+
+
+def test_labbots_keep_clear_of_walls_balls_the_can_and_each_other(make_env, moves):
+    env = make_env("MO", balls=6, labbots=4, think_time_s=15.0)
+    env.reset(12)
+    o, r = env.options, env.options.labbot_radius_mm
+    for _ in range(12):
+        env.observe()
+        env.execute(moves.rotate(5))
+        xy = env.swarm.xy
+        assert (xy > r).all() and (xy < o.room_mm - r).all()
+        for ball in env.balls_xy:
+            assert (np.hypot(*(xy - ball).T) >= r + o.ball_radius_mm).all()
+        assert (np.hypot(*(xy - env.can_xy).T) >= r + 33.0).all()
+        gaps = [math.hypot(*(xy[i] - xy[j])) for i in range(len(xy)) for j in range(i + 1, len(xy))]
+        assert min(gaps) >= 2 * r
+    steps = np.diff(np.stack(env.swarm.track), axis=0)
+    assert (np.hypot(steps[..., 0], steps[..., 1]) == 0).any()  # some stood to turn away from something
+    assert (travelled(env.swarm.track) > 1000.0).all()
+
+
+def _labbot_charging_the_robot(make_env, **options):
+    env = make_env("DO", labbots=1, labbot_wander_deg=0.0, think_time_s=10.0, **options)
+    observation = env.reset(3)
+    scan = observation.lidar
+    beam = int(np.argmax(scan.ranges_mm))  # the clearest direction
+    direction = math.radians(observation.pose.heading_deg + scan.angles_deg[beam])
+    unit = np.array([math.cos(direction), math.sin(direction)])
+    env.swarm.xy[0] = env.xy + 700.0 * unit
+    env.swarm.heading[0] = math.degrees(direction) + 180.0
+    env.scene.place_labbots(env.swarm.xy, env.swarm.heading)
+    env.observe()
+    return env
+
+
+def test_a_labbot_running_into_the_standing_robot_interrupts(make_env, moves):
+    env = _labbot_charging_the_robot(make_env)
+    result = env.execute(moves.rotate(3))
+    assert result.collided and result.stopped
+    assert "hit Labbot 1 while the robot stood still" in result.detail
+    assert env.outcome() is Outcome.INTERRUPTED
+    gap = math.hypot(*(env.swarm.xy[0] - env.xy)) - env.robot.radius_mm - env.options.labbot_radius_mm
+    assert 0.0 <= gap <= 15.0  # it came right up to the robot, and no further
+
+
+def test_labbots_told_to_avoid_the_robot_do_not_hit_it(make_env, moves):
+    env = _labbot_charging_the_robot(make_env, labbots_avoid_robot=True)
+    result = env.execute(moves.rotate(3))
+    assert not result.collided
+    assert env.outcome() is None
+    assert travelled(env.swarm.track)[0] > 300.0
