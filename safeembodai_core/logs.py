@@ -34,6 +34,18 @@ def _redact_processor(logger: Any, method: str, event: dict[str, Any]) -> dict[s
     return redact(event)
 
 
+def get_logger(name: str) -> Any:
+    """A structlog logger; if nobody configured structlog, first route it to stderr at WARNING.
+
+    structlog's own default prints every level to stdout, which would leak debug chatter into a
+    library user's output (or a CLI's tables). An application that configures structlog itself
+    keeps its configuration.
+    """
+    if not structlog.is_configured():
+        configure_logging("warning")
+    return structlog.get_logger(name)
+
+
 def configure_logging(level: str = "warning", json_output: bool = False) -> None:
     """Send structlog events at ``level`` or above to stderr (plain text, or JSON lines)."""
     numeric = getattr(logging, level.upper(), logging.WARNING)

@@ -98,9 +98,9 @@ class Plugins:
 
     def _call_plugin(self, plugin_name: str, hook_name: str, function: Any, **kwargs: Any) -> Any:
         if self.trace:
-            import structlog
+            from .logs import get_logger
 
-            structlog.get_logger(__name__).debug("hook.call", hook=hook_name, plugin=plugin_name)
+            get_logger(__name__).debug("hook.call", hook=hook_name, plugin=plugin_name)
         try:
             return function(**kwargs)
         except PluginError:

@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import structlog
 
 from . import seeds
 from .components import BuildContext, StateStore
@@ -21,7 +20,9 @@ from .plugins import Plugins
 from .refs import ComponentRef
 from .scenario import Scenario
 
-log = structlog.get_logger(__name__)
+from .logs import get_logger
+
+log = get_logger(__name__)
 
 
 def trial_seed(scenario: Scenario, index: int) -> int:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from typing import Callable
 
-import structlog
 
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult, TrialSpec
@@ -21,7 +20,9 @@ from ..scenario import Scenario
 from .executors import ProcessExecutor, RayExecutor, SerialExecutor
 from .run_folder import RunFolder
 
-log = structlog.get_logger(__name__)
+from ..logs import get_logger
+
+log = get_logger(__name__)
 
 
 class AblationError(SafeEmbodAIError):

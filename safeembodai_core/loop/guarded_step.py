@@ -12,14 +12,15 @@ import time
 from dataclasses import replace
 from typing import Sequence
 
-import structlog
 
 from .. import seeds
 from ..components import LLMBackend, PromptBuilder, Validator
 from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, parse_response
 from ..validation import ValidationContext, validate_plan
 
-log = structlog.get_logger(__name__)
+from ..logs import get_logger
+
+log = get_logger(__name__)
 
 MAX_STORED_TEXT = 16_000
 

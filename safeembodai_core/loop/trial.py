@@ -12,7 +12,6 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-import structlog
 
 from .. import seeds
 from ..components import Attacker, AttackSurface, Environment, LLMBackend, Perception, PromptBuilder, StateStore, Validator
@@ -32,7 +31,9 @@ from ..validation import ValidationContext
 from .defences import Defences
 from .guarded_step import decide
 
-log = structlog.get_logger(__name__)
+from ..logs import get_logger
+
+log = get_logger(__name__)
 
 DEFAULT_INSTRUCTION = "Find the red can in the room and approach it."
 DEFAULT_TASK = "Control the robot to locate and approach a red can in the room."
