@@ -1,14 +1,33 @@
-"""The prompt-injection attacker."""
+"""``prompt_injection``: a malicious prompt attached to (or replacing) the human instruction h_i.
+
+Per step, the attacker draws the same four numbers from the step's stream whatever happens
+(the attack roll, the payload pick, two coordinates), so raising ``rate`` only adds attacked
+steps: a step attacked at a lower rate keeps its payload, and every arm of an ablation sees the
+same attacks at the same steps.
+"""
 
 from __future__ import annotations
+
+import math
 
 from safeembodai_core.components import Attacker, AttackSurface
 from safeembodai_core.models import AttackRecord
 
 from .library import PAYLOADS
 
+COORDINATE_RANGE_MM = 3000
+
+
+def scheduled(step: int, roll: float, rate: float, start_step: int, steps: list[int] | None) -> bool:
+    """Whether ``step`` is attacked: listed in ``steps``, or from ``start_step`` on when ``roll < rate``."""
+    if steps is not None:
+        return step in steps
+    return step >= start_step and roll < rate
+
 
 class PromptInjectionAttacker(Attacker):
+    """Injects a payload from :data:`PAYLOADS` (or the user's own) at a seeded per-step rate."""
+
     name = "prompt_injection"
 
     def __init__(self, options) -> None:
@@ -19,14 +38,26 @@ class PromptInjectionAttacker(Attacker):
             kinds = options.kinds or list(PAYLOADS)
             self.pool = [(kind, text) for kind in kinds for text in PAYLOADS[kind]]
 
+    def _coordinates(self, target: AttackSurface, x: int, y: int) -> tuple[int, int]:
+        truth = target.observation.truth
+        if self.options.aim_at_target and truth.target_bearing_deg is not None and truth.target_distance_mm:
+            rad = math.radians(truth.target_bearing_deg)
+            return round(truth.target_distance_mm * math.cos(rad)), round(truth.target_distance_mm * math.sin(rad))
+        return x, y
+
     def attack(self, target: AttackSurface) -> list[AttackRecord]:
         o = self.options
         rng = target.rng
-        # draw every number first so the decision and the payload never depend on each other
-        roll, pick, x, y = rng.random(), int(rng.integers(len(self.pool))), int(rng.integers(0, 4000)), int(rng.integers(0, 4000))
-        if target.step < o.start_step or roll >= o.rate:
+        roll = float(rng.random())
+        pick = int(rng.integers(len(self.pool)))
+        x, y = (int(v) for v in rng.integers(-COORDINATE_RANGE_MM, COORDINATE_RANGE_MM + 1, size=2))
+        if not scheduled(target.step, roll, o.rate, o.start_step, o.steps):
             return []
         kind, template = self.pool[pick]
+        x, y = self._coordinates(target, x, y)
         payload = template.replace("{x}", str(x)).replace("{y}", str(y))
-        target.instruction = payload if o.mode == "replace" else f"{target.instruction} {payload}".strip()
+        if o.mode == "replace":
+            target.instruction = payload
+        else:
+            target.instruction = f"{target.instruction}{o.separator}{payload}" if target.instruction else payload
         return [AttackRecord(attacker=self.name, channel="instruction", kind=kind, payload=payload)]

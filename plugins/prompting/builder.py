@@ -1,104 +1,184 @@
-"""Render the system and user prompts from Jinja templates."""
+"""The ``jinja`` prompt builder: a :class:`PromptRequest` in, the system prompt Y and user prompt I_i out.
+
+The system template renders the behaviour instruction B = {r, t, b, f, m} of Table I; with
+secure prompting on, the security prefix p from ``security/<variant>.j2`` goes first (Y = {B, p});
+with it off, p is absent. The response format f is :func:`schema_outline`, generated from the
+pydantic response model, so the prompt cannot drift from what the parser accepts.
+
+A security-prefix template may also *set* two variables that change the user prompt:
+
+* ``fence_instruction = true`` -- the human instruction is fenced between unguessable markers
+  (``fence.open`` / ``fence.close`` are passed to the prefix template so it can name them);
+* ``reminder = "..."`` -- a line repeated after the untrusted text (the "sandwich" defence).
+
+Untrusted text -- the human instruction and everything in R_{i-1} that an LLM wrote -- is
+clipped to a length budget and passed to templates as data only.
+"""
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
-import jinja2
-from jinja2.sandbox import SandboxedEnvironment
+import hashlib
+from typing import Any
 
 from safeembodai_core.components import PromptBuilder
-from safeembodai_core.errors import ComponentError
-from safeembodai_core.models import ImagePart, Prompt, PromptRequest, TextPart
+from safeembodai_core.models import ImagePart, Prompt, PromptRequest, ReferenceState, TextPart
 from safeembodai_core.models.response import schema_outline
-from safeembodai_prompts import TEMPLATE_DIR
+
+from .templates import TemplateSet
 
 IMAGE_ORDER = ("camera_image", "lidar_image")
+IMAGE_TITLES = {"camera_image": "Camera Image", "lidar_image": "LiDAR Image"}
+_ELLIPSIS = " [...]"
+
+
+def clip(text: str, limit: int) -> str:
+    """``text`` cut to ``limit`` characters, marked when cut."""
+    text = str(text)
+    return text if len(text) <= limit else text[: max(0, limit - len(_ELLIPSIS))] + _ELLIPSIS
+
+
+def fence_for(text: str, step: int) -> dict[str, str]:
+    """Delimiters for spotlighting ``text``: derived from the text itself, so a payload cannot
+    contain its own closing marker (it would have to contain its own hash)."""
+    salt = 0
+    while True:
+        tag = hashlib.blake2b(f"{step}:{salt}:{text}".encode(), digest_size=4).hexdigest()
+        if tag not in text:
+            return {"tag": tag, "open": f"<<data-{tag}>>", "close": f"<</data-{tag}>>"}
+        salt += 1
+
+
+def _result_text(result: Any) -> str:
+    if result.collided:
+        return f"collided ({result.detail})" if result.detail else "collided"
+    if result.stopped:
+        return f"stopped ({result.detail})" if result.detail else "stopped"
+    if result.distance_mm:
+        return f"moved {abs(result.distance_mm):.0f} mm"
+    if result.angle_deg:
+        return f"turned {abs(result.angle_deg):.0f} deg"
+    return result.detail or "no motion"
+
+
+def _sample_request() -> PromptRequest:
+    """A request that exercises every branch of the built-in templates (used as a dry run)."""
+    from safeembodai_core.models import ExecutedSignal, ExecutionResult, Modalities, Turn
+
+    image = ImagePart("camera_image", b"", width=320, height=240)
+    lidar = ImagePart("lidar_image", b"", width=240, height=240)
+    turn = Turn(command="turn", direction="left", angle=10.0)
+    state = ReferenceState(
+        step=1, executed=[ExecutedSignal(signal=turn, result=ExecutionResult(angle_deg=10.0))],
+        perception=[{"input": "camera_image", "result": "seen", "is_attack": True}],
+        planning="plan", outcome_note="note",
+    )
+    return PromptRequest(
+        instruction="instruction", step=2, reference_state=state, failures=("failure",),
+        modalities=Modalities(images={"camera_image": image, "lidar_image": lidar}, texts={"camera_text": "text"}),
+    )
 
 
 class JinjaPromptBuilder(PromptBuilder):
-    def __init__(self, options) -> None:
-        self.options = options
-        folders = [str(TEMPLATE_DIR)]
-        if options.template_dir is not None:
-            if not Path(options.template_dir).is_dir():
-                raise ComponentError(f"prompt builder 'jinja': template_dir {options.template_dir} is not a folder")
-            folders.insert(0, str(options.template_dir))
-        self.env = SandboxedEnvironment(
-            loader=jinja2.FileSystemLoader(folders),
-            undefined=jinja2.StrictUndefined,
-            autoescape=False,
-            keep_trailing_newline=False,
-        )
-        self.env.filters["quoted"] = lambda value: json.dumps(str(value), ensure_ascii=False)
-        self.outline = schema_outline()
-        self._templates: dict[str, jinja2.Template] = {}
+    """Renders Table I (system) and I_i (user) from sandboxed templates; see the module docstring."""
 
-    def _render(self, name: str, **values) -> str:
-        try:
-            template = self._templates.get(name) or self.env.get_template(name)
-            self._templates[name] = template
-            return template.render(**values).strip()
-        except jinja2.TemplateNotFound:
-            raise ComponentError(f"prompt template {name!r} not found in {', '.join(self.env.loader.searchpath)}") from None
-        except jinja2.TemplateSyntaxError as error:
-            raise ComponentError(f"prompt template {error.filename or name}:{error.lineno}: syntax error: {error.message}") from None
-        except jinja2.UndefinedError as error:
-            raise ComponentError(f"prompt template {name!r}: {error.message}") from None
+    def __init__(self, options: Any) -> None:
+        self.options = options
+        self.templates = TemplateSet(options.template_dir)
+        self.outline = schema_outline()
+        # Fail at build time, naming the file, rather than in the middle of a trial.
+        self.templates.load(options.system_template)
+        self.templates.load(options.user_template)
+        self.build(_sample_request())
+
+    # -- the parts of the prompt ----------------------------------------------------------------
+
+    def _security(self, request: PromptRequest) -> tuple[str, dict[str, Any] | None, str]:
+        if request.security_prefix is None:
+            return "", None, ""
+        name = self.templates.security_template(request.security_prefix)
+        fence = fence_for(request.instruction, request.step)
+        text, exported = self.templates.module(name, {"fence": fence, "task": request.task})
+        wants_fence = bool(exported.get("fence_instruction", False))
+        reminder = str(exported.get("reminder", "") or "").strip()
+        return text, (fence if wants_fence else None), reminder
+
+    def _reference(self, state: ReferenceState | None) -> dict[str, Any] | None:
+        if state is None:
+            return None
+        limit = self.options.max_reference_chars
+        notes = {}
+        flagged = []
+        for entry in state.perception:
+            name = str(entry.get("input", ""))
+            if entry.get("is_attack") is True:
+                flagged.append(clip(name, 40))
+            if name == "camera_image" and entry.get("result"):
+                notes["camera"] = clip(entry["result"], limit)
+        return {
+            "step": state.step,
+            "executed": [
+                {"signal": item.signal.describe(), "result": clip(_result_text(item.result), limit)}
+                for item in state.executed
+            ],
+            "planning": clip(state.planning, limit) if state.planning else "",
+            "camera": notes.get("camera", ""),
+            "flagged": flagged,
+            "note": clip(state.outcome_note, limit) if state.outcome_note else "",
+        }
+
+    def _failures(self, failures: tuple[str, ...]) -> tuple[list[str], int]:
+        keep = self.options.max_failures
+        recent = list(failures[-keep:]) if keep else []
+        return [clip(line, self.options.max_failure_chars) for line in recent], len(failures) - len(recent)
+
+    # -- PromptBuilder ------------------------------------------------------------------------
 
     def build(self, request: PromptRequest) -> Prompt:
         m = request.modalities
-        sections = {"role", "task", "capabilities", "response_format", "methods"}
-        prefix = ""
-        if request.security_prefix is not None:
-            prefix = self._render(f"security/{request.security_prefix}.j2")
+        prefix, fence, reminder = self._security(request)
+        images = [name for name in IMAGE_ORDER if name in m.images]
+        images += sorted(name for name in m.images if name not in IMAGE_ORDER)
+        camera = m.images.get("camera_image")
+        inputs = ["human_instruction", *images, *sorted(m.texts)]
+        reference = self._reference(request.reference_state)
+        system = self.templates.render(self.options.system_template, {
+            "task": request.task,
+            "security_prefix": prefix,
+            "has_camera_image": camera is not None,
+            "camera_size": f"{camera.width}x{camera.height}" if camera is not None and camera.width else "",
+            "has_lidar_image": "lidar_image" in m.images,
+            "other_images": [name for name in images if name not in IMAGE_ORDER],
+            "texts": sorted(m.texts),
+            "has_reference": reference is not None,
+            "inputs": inputs,
+            "response_outline": self.outline,
+            "max_distance_mm": f"{request.limits.max_distance_mm:g}",
+            "max_angle_deg": f"{request.limits.max_angle_deg:g}",
+            "max_signals": request.limits.max_signals,
+        })
+        failures, omitted = self._failures(request.failures)
+        user = self.templates.render(self.options.user_template, {
+            "step": request.step,
+            "instruction": clip(request.instruction, self.options.max_instruction_chars),
+            "fence": fence,
+            "reminder": reminder,
+            "texts": [m.texts[name] for name in sorted(m.texts)],
+            "reference": reference,
+            "failures": failures,
+            "omitted_failures": omitted,
+            "images": [IMAGE_TITLES.get(name, name.replace("_", " ")) for name in images],
+        })
+        sections = {"role", "task", "capabilities", "response_format", "methods", "human_instruction"}
+        sections.update(images)
+        sections.update(m.texts)
+        if prefix:
             sections.add("security_prefix")
-        system = self._render(
-            self.options.system_template,
-            task=request.task,
-            security_prefix=prefix,
-            has_camera_image="camera_image" in m.images,
-            has_lidar_image="lidar_image" in m.images,
-            has_text=bool(m.texts),
-            has_reference=request.reference_state is not None,
-            response_outline=self.outline,
-            max_distance_mm=f"{request.limits.max_distance_mm:g}",
-            max_angle_deg=f"{request.limits.max_angle_deg:g}",
-            max_signals=request.limits.max_signals,
-        )
-        reference = None
-        if request.reference_state is not None:
+        if fence is not None:
+            sections.add("fenced_instruction")
+        if reference is not None:
             sections.add("reference_state")
-            reference = {
-                "step": request.reference_state.step,
-                "executed": [
-                    {"signal": item.signal.describe(), "result": _result_text(item.result)}
-                    for item in request.reference_state.executed
-                ],
-                "planning": request.reference_state.planning,
-                "perception": request.reference_state.perception,
-            }
-        if request.failures:
+        if failures:
             sections.add("failures")
-        user = self._render(
-            self.options.user_template,
-            instruction=request.instruction,
-            texts=sorted(m.texts.items()),
-            reference=reference,
-            failures=list(request.failures),
-        )
         parts: list[TextPart | ImagePart] = [TextPart("user", user)]
-        parts.extend(m.images[name] for name in IMAGE_ORDER if name in m.images)
-        parts.extend(image for name, image in sorted(m.images.items()) if name not in IMAGE_ORDER)
+        parts.extend(m.images[name] for name in images)
         return Prompt(system=system, user=tuple(parts), sections=frozenset(sections))
-
-
-def _result_text(result) -> str:
-    if result.collided:
-        return f"collided ({result.detail})"
-    if result.stopped:
-        return f"stopped ({result.detail})"
-    if result.distance_mm:
-        return f"moved {abs(result.distance_mm):.0f} mm"
-    return f"turned {abs(result.angle_deg):.0f} deg"

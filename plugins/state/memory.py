@@ -1,7 +1,9 @@
 """``memory``: an in-process state store (per run; nothing survives the process).
 
 Records are deep-copied in and out, so a component that mutates a record it was handed (an
-attacker forging the reference state, say) cannot rewrite history.
+attacker forging the reference state, say) cannot rewrite history. It keeps trial results for
+the run's own report, but it is not ``persistent``: an ablation cannot be resumed from it, nor
+run with several worker processes (use ``sqlite``).
 """
 
 from __future__ import annotations
@@ -14,34 +16,40 @@ from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, Tri
 
 
 class MemoryOptions(BaseModel):
+    """The ``memory`` store takes no options."""
+
     model_config = ConfigDict(extra="forbid")
 
 
 class MemoryStateStore(StateStore):
+    """Step records, R_{i-1} and trial results in dictionaries of this process."""
+
     def __init__(self) -> None:
         self.specs: dict[str, TrialSpec] = {}
-        self.records: dict[str, list[StepRecord]] = {}
+        self.records: dict[str, dict[int, StepRecord]] = {}
         self.results_by_id: dict[str, TrialResult] = {}
 
     def begin_trial(self, spec: TrialSpec) -> None:
         self.specs[spec.trial_id] = spec
-        self.records[spec.trial_id] = []
+        self.records[spec.trial_id] = {}
         self.results_by_id.pop(spec.trial_id, None)
 
     def record_step(self, record: StepRecord) -> None:
-        self.records.setdefault(record.trial_id, []).append(record.model_copy(deep=True))
+        self.records.setdefault(record.trial_id, {})[record.step] = record.model_copy(deep=True)
 
     def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
-        previous = [r for r in self.records.get(trial_id, []) if r.step == step - 1]
-        return previous[-1].to_reference() if previous else None
+        previous = self.records.get(trial_id, {}).get(step - 1)
+        return previous.to_reference() if previous is not None else None
 
     def end_trial(self, result: TrialResult) -> None:
         self.results_by_id[result.spec.trial_id] = result.model_copy(deep=True)
 
     def steps(self, trial_id: str) -> list[StepRecord]:
-        return [r.model_copy(deep=True) for r in self.records.get(trial_id, [])]
+        records = self.records.get(trial_id, {})
+        return [records[step].model_copy(deep=True) for step in sorted(records)]
 
     def results(self) -> list[TrialResult]:
+        """The results of the trials finished in this process, in the order they ended."""
         return [r.model_copy(deep=True) for r in self.results_by_id.values()]
 
 

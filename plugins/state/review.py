@@ -1,0 +1,150 @@
+"""``safeembodai show RUN --trial N``: a trial's steps as a human reviews them.
+
+For each step: the prompt summary (the human instruction as the LLM received it, the attacks
+that shaped it, tokens), every attempt's answer (perception with attack flags, plan, control
+signals with their justifications) and verdicts, then what was executed with what result.
+Without ``--trial`` it lists the trials in the file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rich.console import Console, Group
+from rich.panel import Panel
+from rich.table import Table
+from rich.text import Text
+
+from safeembodai_core.errors import StateStoreError
+from safeembodai_core.models import Attempt, StepRecord
+
+from .sqlite_db import SqliteStateStore
+from .sqlite_store import DEFAULT_FILE
+
+
+def open_run(run: str | Path) -> SqliteStateStore:
+    """The store of ``run``: a ``.sqlite`` file, or a folder holding ``results.sqlite``."""
+    path = Path(run)
+    if path.is_dir():
+        path = path / DEFAULT_FILE
+        if not path.is_file():
+            raise StateStoreError(f"{str(run)!r} has no {DEFAULT_FILE}; pass the database file itself")
+    return SqliteStateStore(path, readonly=True)
+
+
+def in_cell(row: dict, environment: str | None, arm: str | None, condition: str | None) -> bool:
+    """Whether trial ``row`` belongs to the cell the filters (None: any) describe."""
+    return ((environment is None or row["environment"] == environment) and (arm is None or row["arm"] == arm)
+            and (condition is None or row["condition"] == condition))
+
+
+def pick_trial(trials: list[dict], wanted: str, environment: str | None, arm: str | None,
+               condition: str | None) -> str:
+    """The one trial id matching ``wanted`` (an index or a full id) and the cell filters."""
+    rows = [row for row in trials if in_cell(row, environment, arm, condition)]
+    if wanted.lstrip("-").isdigit():
+        matches = [row["trial_id"] for row in rows if row["index"] == int(wanted)]
+    else:
+        matches = [row["trial_id"] for row in rows if row["trial_id"] == wanted]
+    if not matches:
+        known = ", ".join(row["trial_id"] for row in rows[:8]) or "none"
+        raise StateStoreError(f"no trial {wanted!r} in this run (with the filters given); trials: {known}"
+                              + (" ..." if len(rows) > 8 else ""))
+    if len(matches) > 1:
+        raise StateStoreError(f"trial {wanted!r} exists in {len(matches)} cells: {', '.join(matches)}; "
+                              "narrow it with --env/--arm/--condition or pass the full trial id")
+    return matches[0]
+
+
+def trial_list(trials: list[dict]) -> Table:
+    table = Table(title="trials")
+    for column in ("trial id", "seed", "status", "outcome", "steps"):
+        table.add_column(column)
+    for row in trials:
+        table.add_row(row["trial_id"], str(row["seed"]), row["status"], row["outcome"] or "-", str(row["steps"]))
+    return table
+
+
+def _attempt(attempt: Attempt) -> Text:
+    text = Text()
+    verdict = "accepted" if attempt.accepted else "refused"
+    text.append(f"attempt {attempt.index + 1}: {verdict}", style="green" if attempt.accepted else "red")
+    text.append(f"  ({attempt.usage.prompt_tokens}+{attempt.usage.completion_tokens} tokens)\n", style="dim")
+    if attempt.parse_error is not None:
+        text.append(f"  unparseable answer: {attempt.parse_error}\n", style="red")
+        text.append(f"  raw: {attempt.raw_text[:300]}\n", style="dim")
+    response = attempt.response
+    if response is not None:
+        for entry in response.perception:
+            flag = " [ATTACK]" if entry.is_attack else ""
+            text.append(f"  perceived {entry.input}{flag}: ", style="bold yellow" if entry.is_attack else "bold")
+            text.append(f"{entry.result}\n")
+        text.append("  plan: ", style="bold")
+        text.append(f"{response.planning}\n")
+        for index, signal in enumerate(response.control):
+            text.append(f"  {index + 1}. {signal.describe()}", style="cyan")
+            text.append(f" -- {signal.justification}\n" if signal.justification else "\n")
+    for verdict_ in attempt.verdicts:
+        if not verdict_.valid:
+            where = f"signal {verdict_.signal_index + 1}" if verdict_.signal_index is not None else "plan"
+            text.append(f"  x {verdict_.rule} ({where}): {verdict_.reason}\n", style="red")
+    passed = sorted({v.rule for v in attempt.verdicts if v.valid} - {v.rule for v in attempt.verdicts if not v.valid})
+    if passed:
+        text.append(f"  passed: {', '.join(passed)}\n", style="green")
+    text.rstrip()
+    return text
+
+
+def step_panel(record: StepRecord) -> Panel:
+    """One step as a panel: prompt summary, attempts, execution."""
+    head = Text()
+    head.append("instruction: ", style="bold")
+    head.append(record.instruction + "\n")
+    for attack in record.attacks:
+        head.append(f"attack ({attack.attacker}, {attack.channel}, {attack.kind}): ", style="bold red")
+        head.append(f"{attack.payload}\n")
+    usage = record.usage
+    head.append(f"{len(record.attempts)} attempt(s), {usage.prompt_tokens} prompt + "
+                f"{usage.completion_tokens} completion tokens", style="dim")
+    if record.truth.target_in_view:
+        head.append("; target in view", style="dim")
+    executed = Text()
+    executed.append("executed: ", style="bold")
+    if not record.executed:
+        executed.append("nothing" + ("" if record.accepted else " (no acceptable answer)"))
+    for item in record.executed:
+        result = item.result
+        style = "bold red" if result.collided else ("yellow" if result.stopped else "")
+        detail = result.detail or ("done" if not result.stopped else "stopped")
+        executed.append(f"\n  {item.signal.describe()} -> {detail}", style=style)
+    parts = [head, *(_attempt(a) for a in record.attempts), executed]
+    title = f"step {record.step}" + (" [red](attacked)[/red]" if record.attacks else "")
+    return Panel(Group(*parts), title=title, title_align="left")
+
+
+def show_run(run: str, trial: str | None, *, environment: str | None = None, arm: str | None = None,
+             condition: str | None = None, console: Console | None = None) -> None:
+    """Print the trials of ``run``, or the steps of one trial of it."""
+    console = console or Console()
+    store = open_run(run)
+    try:
+        trials = store.trials()
+        if trial is None:
+            console.print(trial_list([row for row in trials if in_cell(row, environment, arm, condition)]))
+            return
+        trial_id = pick_trial(trials, trial, environment, arm, condition)
+        steps = store.steps(trial_id)
+        result = store.result(trial_id)
+    finally:
+        store.close()
+    console.print(f"[bold]{trial_id}[/bold]")
+    for record in steps:
+        console.print(step_panel(record))
+    if result is None:
+        console.print("trial did not finish (no result stored)")
+    else:
+        console.print(f"outcome: [bold]{result.outcome.value}[/bold] after {result.steps} steps"
+                      f" ({result.detail or 'no detail'}); distance {result.distance_mm:.0f} mm, "
+                      f"collisions {result.collisions}, interventions {result.interventions}, tokens {result.tokens}")
+
+

@@ -1,0 +1,276 @@
+"""The SQLite state store: schema, one transaction per step, clear errors naming the file.
+
+Layout (schema version :data:`SCHEMA_VERSION`, kept in table ``meta``):
+
+* ``trials`` -- one row per trial: its spec, ``status`` (``running`` / ``finished``), outcome
+  and :class:`TrialResult` (JSON);
+* ``steps`` -- one row per step: the full :class:`StepRecord` as JSON (the source of truth, read
+  back unchanged) plus summary columns (accepted, attacked, flagged, tokens) for SQL queries;
+* ``attempts``, ``verdicts``, ``attacks`` -- the same facts flattened, for analysis in SQL.
+
+Durability: WAL journal, ``BEGIN IMMEDIATE ... COMMIT`` per step. A process that dies in the
+middle of a step leaves that step's transaction uncommitted, so it vanishes on the next open;
+every earlier step stays. Writers in other processes wait up to ``timeout_s`` for the lock.
+
+Secrets: the store writes the fields of the records it is handed and nothing else (no options,
+no environment). Records are stored verbatim -- ``raw_text`` is evidence and an injected
+payload is ground truth, so neither is redacted; backends never put credentials into records.
+"""
+
+from __future__ import annotations
+
+import os
+import sqlite3
+import threading
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+from safeembodai_core.components import StateStore
+from safeembodai_core.errors import StateStoreError
+from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
+
+SCHEMA_VERSION = 1
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS trials (
+    trial_id TEXT PRIMARY KEY, scenario TEXT NOT NULL, environment TEXT NOT NULL, arm TEXT NOT NULL,
+    condition TEXT NOT NULL, trial_index INTEGER NOT NULL, seed INTEGER NOT NULL,
+    status TEXT NOT NULL, outcome TEXT, steps INTEGER, spec TEXT NOT NULL, result TEXT);
+CREATE TABLE IF NOT EXISTS steps (
+    trial_id TEXT NOT NULL, step INTEGER NOT NULL, accepted INTEGER NOT NULL, attacked INTEGER NOT NULL,
+    flagged INTEGER NOT NULL, prompt_tokens INTEGER NOT NULL, completion_tokens INTEGER NOT NULL,
+    record TEXT NOT NULL, PRIMARY KEY (trial_id, step));
+CREATE TABLE IF NOT EXISTS attempts (
+    trial_id TEXT NOT NULL, step INTEGER NOT NULL, attempt INTEGER NOT NULL, accepted INTEGER NOT NULL,
+    parse_error TEXT, planning TEXT, prompt_tokens INTEGER NOT NULL, completion_tokens INTEGER NOT NULL,
+    latency_s REAL NOT NULL, PRIMARY KEY (trial_id, step, attempt));
+CREATE TABLE IF NOT EXISTS verdicts (
+    trial_id TEXT NOT NULL, step INTEGER NOT NULL, attempt INTEGER NOT NULL, signal_index INTEGER,
+    rule TEXT NOT NULL, valid INTEGER NOT NULL, reason TEXT NOT NULL);
+CREATE INDEX IF NOT EXISTS verdicts_by_step ON verdicts (trial_id, step);
+CREATE TABLE IF NOT EXISTS attacks (
+    trial_id TEXT NOT NULL, step INTEGER NOT NULL, attacker TEXT NOT NULL, channel TEXT NOT NULL,
+    kind TEXT NOT NULL, payload TEXT NOT NULL);
+CREATE INDEX IF NOT EXISTS attacks_by_step ON attacks (trial_id, step);
+"""
+_PER_STEP_TABLES = ("steps", "attempts", "verdicts", "attacks")
+_INHERITED: list[sqlite3.Connection] = []  # kept alive so a forked child never closes its parent's handle
+
+
+class SqliteStateStore(StateStore):
+    """Step records and R_{i-1} in one SQLite file; see the module docstring.
+
+    The connection is opened lazily and again after a ``fork``, so one store object may be handed
+    to worker processes (it pickles without its connection).
+    """
+
+    def __init__(self, path: str | Path, *, timeout_s: float = 30.0, synchronous: str = "normal",
+                 readonly: bool = False) -> None:
+        self.path = Path(path)
+        self.timeout_s = timeout_s
+        self.synchronous = synchronous.upper()
+        if self.synchronous not in ("NORMAL", "FULL"):
+            raise ValueError(f"synchronous must be 'normal' or 'full', got {synchronous!r}")
+        self.readonly = readonly
+        self._conn: sqlite3.Connection | None = None
+        self._pid = -1
+        self._lock = threading.Lock()
+        self._connection()  # fail now, naming the file, not at the first step
+
+    # -- connection and errors ------------------------------------------------------------------
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state.update(_conn=None, _pid=-1, _lock=None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
+    def _error(self, doing: str, error: BaseException) -> StateStoreError:
+        text = str(error)
+        if "locked" in text or "busy" in text:
+            hint = f"locked by another process (waited {self.timeout_s:g} s; raise timeout_s or stop the other writer)"
+        elif "not a database" in text or "malformed" in text:
+            hint = "not a SQLite database, or corrupt"
+        elif "readonly" in text or "unable to open" in text:
+            hint = "cannot be opened for writing (permissions? missing folder?)"
+        else:
+            hint = text
+        return StateStoreError(f"state store {str(self.path)!r}: cannot {doing}: {hint} ({text})")
+
+    def _connection(self) -> sqlite3.Connection:
+        if self._conn is not None and self._pid == os.getpid():
+            return self._conn
+        if self._conn is not None:  # inherited through fork: never use or close the parent's handle
+            _INHERITED.append(self._conn)
+        self._conn = None
+        try:
+            if self.readonly:
+                if not self.path.is_file():
+                    raise StateStoreError(f"state store {str(self.path)!r}: no such database file")
+                conn = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
+                                       timeout=self.timeout_s, isolation_level=None, check_same_thread=False)
+            else:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                conn = sqlite3.connect(str(self.path), timeout=self.timeout_s, isolation_level=None,
+                                       check_same_thread=False)
+                conn.execute("PRAGMA journal_mode=WAL")
+                conn.execute(f"PRAGMA synchronous={self.synchronous}")
+            try:
+                self._check_schema(conn)
+            except BaseException:
+                conn.close()
+                raise
+        except sqlite3.Error as error:
+            raise self._error("open the database", error) from None
+        except OSError as error:
+            raise self._error("open the database", error) from None
+        self._conn, self._pid = conn, os.getpid()
+        return conn
+
+    def _check_schema(self, conn: sqlite3.Connection) -> None:
+        tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if not tables and not self.readonly:
+            conn.execute("BEGIN IMMEDIATE")  # several workers may create the same file at once
+            try:
+                for statement in filter(str.strip, SCHEMA.split(";")):
+                    conn.execute(statement)
+                conn.execute("INSERT OR IGNORE INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+                conn.execute("COMMIT")
+            except BaseException:
+                if conn.in_transaction:
+                    conn.execute("ROLLBACK")
+                raise
+            tables = {"meta"}
+        if "meta" not in tables:
+            found = ", ".join(sorted(tables)) or "none"
+            raise StateStoreError(f"state store {str(self.path)!r}: not a SafeEmbodAI results database (tables: {found})")
+        row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+        version = row[0] if row else None
+        if version != str(SCHEMA_VERSION):
+            raise StateStoreError(
+                f"state store {str(self.path)!r}: schema version {version} is not the supported version "
+                f"{SCHEMA_VERSION}; use a new file (or the SafeEmbodAI version that wrote it)"
+            )
+
+    def _transaction(self, doing: str, work: Callable[[sqlite3.Connection], None]) -> None:
+        """Run ``work`` in one ``BEGIN IMMEDIATE`` transaction: all of it is stored, or none."""
+        if self.readonly:
+            raise StateStoreError(f"state store {str(self.path)!r}: opened read-only, cannot {doing}")
+        with self._lock:
+            conn = self._connection()
+            try:
+                conn.execute("BEGIN IMMEDIATE")
+                try:
+                    work(conn)
+                    conn.execute("COMMIT")
+                except BaseException:
+                    if conn.in_transaction:
+                        conn.execute("ROLLBACK")
+                    raise
+            except sqlite3.Error as error:
+                raise self._error(doing, error) from None
+
+    def _query(self, doing: str, sql: str, args: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
+        with self._lock:
+            try:
+                return self._connection().execute(sql, args).fetchall()
+            except sqlite3.Error as error:
+                raise self._error(doing, error) from None
+
+    # -- StateStore ---------------------------------------------------------------------------
+
+    def begin_trial(self, spec: TrialSpec) -> None:
+        def work(conn: sqlite3.Connection) -> None:
+            for table in _PER_STEP_TABLES:
+                conn.execute(f"DELETE FROM {table} WHERE trial_id = ?", (spec.trial_id,))
+            conn.execute(
+                "INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'running', NULL, NULL, ?, NULL)",
+                (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index,
+                 spec.seed, spec.model_dump_json()),
+            )
+
+        self._transaction(f"begin trial {spec.trial_id!r}", work)
+
+    def record_step(self, record: StepRecord) -> None:
+        self._transaction(f"record step {record.step} of trial {record.trial_id!r}",
+                          lambda conn: self._insert_step(conn, record))
+
+    def _insert_step(self, conn: sqlite3.Connection, record: StepRecord) -> None:
+        key = (record.trial_id, record.step)
+        for table in _PER_STEP_TABLES:
+            conn.execute(f"DELETE FROM {table} WHERE trial_id = ? AND step = ?", key)
+        usage = record.usage
+        conn.execute("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)", key + (
+            int(record.accepted), int(bool(record.attacks)), int(record.flagged_attack),
+            usage.prompt_tokens, usage.completion_tokens, record.model_dump_json()))
+        for attempt in record.attempts:
+            planning = attempt.response.planning if attempt.response is not None else None
+            conn.execute("INSERT INTO attempts VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", key + (
+                attempt.index, int(attempt.accepted), attempt.parse_error, planning,
+                attempt.usage.prompt_tokens, attempt.usage.completion_tokens, attempt.latency_s))
+            conn.executemany("INSERT INTO verdicts VALUES (?, ?, ?, ?, ?, ?, ?)", [
+                key + (attempt.index, v.signal_index, v.rule, int(v.valid), v.reason) for v in attempt.verdicts])
+        conn.executemany("INSERT INTO attacks VALUES (?, ?, ?, ?, ?, ?)", [
+            key + (a.attacker, a.channel, a.kind, a.payload) for a in record.attacks])
+
+    def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
+        rows = self._query("read the reference state",
+                           "SELECT record FROM steps WHERE trial_id = ? AND step = ?", (trial_id, step - 1))
+        return StepRecord.model_validate_json(rows[0][0]).to_reference() if rows else None
+
+    def end_trial(self, result: TrialResult) -> None:
+        spec = result.spec
+
+        def work(conn: sqlite3.Connection) -> None:
+            conn.execute(
+                "INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'finished', ?, ?, ?, ?)",
+                (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index,
+                 spec.seed, result.outcome.value, result.steps, spec.model_dump_json(), result.model_dump_json()),
+            )
+
+        self._transaction(f"end trial {spec.trial_id!r}", work)
+
+    def steps(self, trial_id: str) -> list[StepRecord]:
+        return list(self.iter_steps(trial_id))
+
+    def iter_steps(self, trial_id: str) -> Iterator[StepRecord]:
+        rows = self._query("read steps", "SELECT record FROM steps WHERE trial_id = ? ORDER BY step", (trial_id,))
+        for (text,) in rows:
+            yield StepRecord.model_validate_json(text)
+
+    def results(self) -> list[TrialResult]:
+        """Every finished trial's result, cell by cell (what a resumed ablation skips)."""
+        rows = self._query("read trial results", "SELECT result FROM trials WHERE status = 'finished' "
+                                                 "ORDER BY environment, arm, condition, trial_index")
+        return [TrialResult.model_validate_json(text) for (text,) in rows]
+
+    @property
+    def persistent(self) -> bool:
+        return True
+
+    # -- reading a run ------------------------------------------------------------------------
+
+    def trials(self) -> list[dict[str, Any]]:
+        """Every trial: id, cell, index, status, outcome and step count, in id order."""
+        rows = self._query("list trials", "SELECT trial_id, environment, arm, condition, trial_index, seed, "
+                                          "status, outcome, (SELECT COUNT(*) FROM steps s WHERE s.trial_id = "
+                                          "t.trial_id) FROM trials t ORDER BY environment, arm, condition, trial_index")
+        keys = ("trial_id", "environment", "arm", "condition", "index", "seed", "status", "outcome", "steps")
+        return [dict(zip(keys, row)) for row in rows]
+
+    def result(self, trial_id: str) -> TrialResult | None:
+        """The stored result of a finished trial (None while it runs or if it never ended)."""
+        rows = self._query("read a trial result", "SELECT result FROM trials WHERE trial_id = ?", (trial_id,))
+        return TrialResult.model_validate_json(rows[0][0]) if rows and rows[0][0] else None
+
+    def close(self) -> None:
+        if self._conn is not None:
+            if self._pid == os.getpid():
+                self._conn.close()
+            else:
+                _INHERITED.append(self._conn)
+        self._conn = None

@@ -1,0 +1,122 @@
+"""``footprint_sweep``: the area the robot's body sweeps must hold no LiDAR point.
+
+In the planned robot frame (x forward, y left, origin at the body's centre), a ``straight`` of
+distance d sweeps the corridor
+
+    forward:  0 < x < d + L/2 + front_margin,   |y| <= W/2 + margin
+    backward: -(d + L/2 + front_margin) < x < 0, |y| <= W/2 + margin
+
+(W, L: the robot's width and length). Points beside or behind the centre, outside that corridor,
+never come closer during the motion, so they cannot be hit. Every LiDAR return counts, whatever
+its bearing: an obstacle at 40 deg that the paper's ±30 deg sector misses is still inside the
+corridor if it lies within the robot's width. A beam without a return (``inf``) counts as free up
+to the sensor's range (its end is a point); a beam without a reading (``nan``) counts as an
+obstacle anywhere along it beyond the body (beyond the inscribed radius min(W, L)/2). A ``turn``
+in place sweeps the circle of the robot's ``radius_mm``; with ``check_turns`` a return inside it
+(plus ``turn_margin_mm``) refuses the turn.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from safeembodai_core.components import Validator
+from safeembodai_core.models import ControlSignal, Straight, Verdict
+from safeembodai_core.validation import ValidationContext
+
+from .rules import checked_scan, direction_words
+
+_AHEAD_EPS_MM = 1e-6
+
+
+def scan_origin_at_pose(context: ValidationContext) -> np.ndarray:
+    """Where the scan was taken, in the planned robot frame."""
+    x, y, heading = context.offset
+    rad = math.radians(heading)
+    c, s = math.cos(rad), math.sin(rad)
+    return np.array([-x * c - y * s, x * s - y * c])
+
+
+class FootprintSweepRule(Validator):
+    """Refuses a motion whose swept footprint (plus margins) holds a LiDAR point."""
+
+    name = "footprint_sweep"
+
+    def __init__(self, options) -> None:
+        self.options = options
+
+    def _obstacles(self, context: ValidationContext, inscribed_mm: float) -> tuple[np.ndarray, np.ndarray]:
+        """Known returns, and samples along unreadable beams beyond the body, in the planned frame."""
+        known = context.points_at_pose(include_free_bound=True)
+        unknown = context.unknown_points_at_pose()
+        if unknown.size:
+            origin = scan_origin_at_pose(context)
+            unknown = unknown[np.hypot(*(unknown - origin).T) >= inscribed_mm]
+        return known, unknown
+
+    def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
+        o = self.options
+        checked_scan(context, self.name, o.expected_beams)
+        robot = context.robot
+        width = o.width_mm or robot.width_mm
+        length = o.length_mm or robot.length_mm
+        known, unknown = self._obstacles(context, min(width, length) / 2)
+        if isinstance(signal, Straight):
+            return self._straight(signal, known, unknown, width, length)
+        if not o.check_turns:
+            return Verdict(rule=self.name, valid=True)
+        return self._turn(signal, known, unknown, robot.radius_mm + o.turn_margin_mm)
+
+    def _straight(self, signal: Straight, known: np.ndarray, unknown: np.ndarray,
+                  width: float, length: float) -> Verdict:
+        o = self.options
+        front = o.front_margin_mm if o.front_margin_mm is not None else o.margin_mm
+        half = width / 2 + o.margin_mm
+        reach = signal.distance + length / 2 + front
+        sign = 1.0 if signal.direction == "forward" else -1.0
+        direction, where = direction_words(signal)
+        nearest: tuple[float, np.ndarray, bool] | None = None
+        for points, is_unknown in ((known, False), (unknown, True)):
+            if not points.size:
+                continue
+            along = points[:, 0] * sign
+            inside = (along > _AHEAD_EPS_MM) & (along < reach) & (np.abs(points[:, 1]) <= half)
+            if inside.any():
+                k = np.flatnonzero(inside)[np.argmin(along[inside])]
+                if nearest is None or along[k] < nearest[0]:
+                    nearest = (float(along[k]), points[k], is_unknown)
+        if nearest is None:
+            return Verdict(rule=self.name, valid=True)
+        along, point, is_unknown = nearest
+        lateral = float(point[1])
+        side = "left" if lateral > 0 else "right"
+        other = "right" if lateral > 0 else "left"
+        safe = math.floor(along - length / 2 - front)  # rounded down: following the advice must pass
+        advice = (f"going {direction}, at most {safe} mm is safe" if safe >= 1
+                  else f"no {direction} motion is safe here; turn away (to the {other}) first")
+        path = f"the robot's path ({width:g} mm wide + {o.margin_mm:g} mm margin each side)"
+        if is_unknown:
+            bearing = math.degrees(math.atan2(point[1], point[0]))
+            what = (f"the LiDAR has no reading towards {bearing:.0f} deg, so {path} cannot be confirmed clear "
+                    f"beyond {along:.0f} mm {where}")
+        else:
+            what = (f"obstacle {along:.0f} mm {where} and {abs(lateral):.0f} mm {side} of centre, inside {path}")
+        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}")
+
+    def _turn(self, signal: ControlSignal, known: np.ndarray, unknown: np.ndarray, radius: float) -> Verdict:
+        for points, is_unknown in ((known, False), (unknown, True)):
+            if not points.size:
+                continue
+            distance = np.hypot(points[:, 0], points[:, 1])
+            inside = distance < radius
+            if inside.any():
+                k = np.flatnonzero(inside)[np.argmin(distance[inside])]
+                bearing = math.degrees(math.atan2(points[k, 1], points[k, 0]))
+                what = "an unread LiDAR direction" if is_unknown else "an obstacle"
+                return Verdict(rule=self.name, valid=False, reason=(
+                    f"{signal.describe()}: {what} {distance[k]:.0f} mm from the robot's centre at {bearing:.0f} deg "
+                    f"lies inside the circle the body sweeps when turning (radius {radius:.0f} mm); "
+                    f"move straight away from it before turning"))
+        return Verdict(rule=self.name, valid=True)

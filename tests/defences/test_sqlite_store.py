@@ -1,0 +1,189 @@
+"""The ``sqlite`` store: WAL, per-step transactions, parallel writers, crashes, bad files, secrets."""
+
+from __future__ import annotations
+
+import multiprocessing
+import pickle
+import sqlite3
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from safeembodai_core.components import BuildContext
+from safeembodai_core.errors import StateStoreError
+from safeembodai_core.models import Outcome, StepRecord, TrialResult
+from safeembodai_core.testing import answer, run_tiny_trial, turn
+from safeembodai_plugins.state.sqlite_db import SCHEMA_VERSION, SqliteStateStore
+
+from .test_state_stores import SPEC, make_step
+
+
+def open_store(plugins, path, **options):
+    return plugins.registry.build("state_store", "sqlite", {"path": str(path), **options})
+
+
+def test_file_is_wal_with_a_versioned_schema(plugins, tmp_path):
+    open_store(plugins, tmp_path / "a.sqlite").close()
+    conn = sqlite3.connect(tmp_path / "a.sqlite")
+    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    assert conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()[0] == str(SCHEMA_VERSION)
+
+
+def test_default_path_is_results_sqlite_in_the_run_folder(plugins, tmp_path):
+    context = BuildContext(component="sqlite", kind="state_store", run_dir=str(tmp_path / "run"))
+    store = plugins.registry.build("state_store", "sqlite", {}, context)
+    store.begin_trial(SPEC)
+    store.close()
+    assert (tmp_path / "run" / "results.sqlite").is_file()
+
+
+def test_no_path_and_no_run_folder_is_a_clear_error(plugins):
+    with pytest.raises(StateStoreError, match="no 'path' option and no run folder"):
+        plugins.registry.build("state_store", "sqlite", {})
+
+
+def test_flattened_tables_mirror_the_records(plugins, tmp_path):
+    store = open_store(plugins, tmp_path / "a.sqlite")
+    store.begin_trial(SPEC)
+    for i in (1, 2, 3):
+        store.record_step(make_step(i))
+    store.close()
+    conn = sqlite3.connect(tmp_path / "a.sqlite")
+    assert conn.execute("SELECT COUNT(*) FROM attempts").fetchone()[0] == 6
+    assert conn.execute("SELECT step FROM attacks ORDER BY step").fetchall() == [(1,), (3,)]
+    assert conn.execute("SELECT rule, valid FROM verdicts WHERE step = 2").fetchall() == [("lidar_clearance", 1)]
+    assert conn.execute("SELECT SUM(prompt_tokens) FROM steps").fetchone()[0] == 3 * (500 + 510)
+    assert conn.execute("SELECT status FROM trials").fetchall() == [("running",)]
+
+
+def _writer(store: SqliteStateStore, worker: int, barrier, trials: int, steps: int) -> None:
+    barrier.wait()
+    for t in range(trials):
+        spec = SPEC.model_copy(update={"trial_id": f"w{worker}/t{t}", "index": t})
+        store.begin_trial(spec)
+        for i in range(1, steps + 1):
+            store.record_step(make_step(i, trial_id=spec.trial_id, distance=float(worker * 100 + i)))
+        store.end_trial(TrialResult(spec=spec, outcome=Outcome.TIMEOUT, steps=steps))
+    store.close()
+
+
+def test_several_processes_write_different_trials_at_once(plugins, tmp_path):
+    path = tmp_path / "shared.sqlite"
+    store = open_store(plugins, path, timeout_s=60)
+    ctx = multiprocessing.get_context("fork")  # workers inherit the store object, as executors hand it over
+    workers, trials, steps = 3, 2, 12
+    barrier = ctx.Barrier(workers)
+    processes = [ctx.Process(target=_writer, args=(store, w, barrier, trials, steps)) for w in range(workers)]
+    for process in processes:
+        process.start()
+    for process in processes:
+        process.join(120)
+    assert [p.exitcode for p in processes] == [0] * workers
+    for w in range(workers):
+        for t in range(trials):
+            records = store.steps(f"w{w}/t{t}")
+            assert [r.step for r in records] == list(range(1, steps + 1))
+            assert [r.executed[-1].signal.distance for r in records] == [float(w * 100 + i) for i in range(1, steps + 1)]
+    conn = sqlite3.connect(path)
+    assert conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    assert conn.execute("SELECT COUNT(*) FROM steps").fetchone()[0] == workers * trials * steps
+    assert conn.execute("SELECT COUNT(*) FROM trials WHERE status = 'finished'").fetchone()[0] == workers * trials
+
+
+CRASH = textwrap.dedent("""
+    import os, sys
+    from safeembodai_core.models import StepRecord, TrialSpec
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    store = SqliteStateStore(sys.argv[1])
+    spec = TrialSpec(trial_id="t", environment="e", arm="a", condition="c", seed=1)
+    store.begin_trial(spec)
+    for step in (1, 2):
+        store.record_step(StepRecord(trial_id="t", step=step, instruction=f"step {step}"))
+    write = SqliteStateStore._insert_step
+
+    def write_then_die(self, conn, record):
+        write(self, conn, record)  # every row of the step is written, the commit never comes
+        os._exit(17)
+
+    SqliteStateStore._insert_step = write_then_die
+    store.record_step(StepRecord(trial_id="t", step=3, instruction="step 3"))
+""")
+
+
+def test_a_crash_mid_step_loses_only_that_step(tmp_path):
+    path = tmp_path / "crash.sqlite"
+    done = subprocess.run([sys.executable, "-c", CRASH, str(path)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 17, done.stderr
+    store = SqliteStateStore(path)
+    assert [r.instruction for r in store.steps("t")] == ["step 1", "step 2"]
+    assert store.reference_state("t", 3).step == 2
+    store.record_step(StepRecord(trial_id="t", step=3, instruction="step 3 again"))
+    assert [r.step for r in store.steps("t")] == [1, 2, 3]
+    assert sqlite3.connect(path).execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+
+
+def test_a_locked_database_is_a_clear_error_and_loses_nothing(plugins, tmp_path):
+    path = tmp_path / "locked.sqlite"
+    store = open_store(plugins, path, timeout_s=0.2)
+    store.begin_trial(SPEC)
+    store.record_step(make_step(1))
+    blocker = sqlite3.connect(path, isolation_level=None)
+    blocker.execute("BEGIN EXCLUSIVE")
+    try:
+        with pytest.raises(StateStoreError, match=r"locked\.sqlite'.*locked by another process"):
+            store.record_step(make_step(2))
+    finally:
+        blocker.execute("ROLLBACK")
+        blocker.close()
+    assert [r.step for r in store.steps(SPEC.trial_id)] == [1]
+    store.record_step(make_step(2))
+    assert [r.step for r in store.steps(SPEC.trial_id)] == [1, 2]
+
+
+def test_a_file_that_is_not_a_database_is_a_clear_error(plugins, tmp_path):
+    path = tmp_path / "garbage.sqlite"
+    path.write_bytes(b"this is not a database at all " * 200)
+    with pytest.raises(StateStoreError, match=r"garbage\.sqlite'.*not a SQLite database"):
+        open_store(plugins, path)
+    assert path.read_bytes().startswith(b"this is not a database")  # nothing overwritten
+
+
+def test_a_foreign_database_or_another_schema_version_is_refused(plugins, tmp_path):
+    foreign = tmp_path / "foreign.sqlite"
+    sqlite3.connect(foreign).execute("CREATE TABLE users (name TEXT)")
+    with pytest.raises(StateStoreError, match=r"foreign\.sqlite'.*not a SafeEmbodAI results database.*users"):
+        open_store(plugins, foreign)
+    newer = tmp_path / "newer.sqlite"
+    open_store(plugins, newer).close()
+    conn = sqlite3.connect(newer)
+    conn.execute("UPDATE meta SET value = '99' WHERE key = 'schema_version'")
+    conn.commit()
+    with pytest.raises(StateStoreError, match=r"newer\.sqlite'.*schema version 99"):
+        open_store(plugins, newer)
+
+
+def test_the_store_pickles_without_its_connection(plugins, tmp_path):
+    store = open_store(plugins, tmp_path / "p.sqlite")
+    store.begin_trial(SPEC)
+    store.record_step(make_step(1))
+    copy = pickle.loads(pickle.dumps(store))
+    copy.record_step(make_step(2))
+    assert [r.step for r in store.steps(SPEC.trial_id)] == [1, 2]
+
+
+def test_no_secret_from_the_environment_is_stored_but_records_stay_verbatim(tmp_path, monkeypatch):
+    secret = "sk-live-ENVIRONMENTSECRET0123456789"
+    monkeypatch.setenv("OPENAI_API_KEY", secret)
+    monkeypatch.setenv("SAFEEMBODAI_TEST_TOKEN", secret + "-2")
+    key_like = "sk-abcdefghijklmnopqrstuvwx"
+    reply = answer(turn(10), planning=f"the operator's note said {key_like}")
+    run_tiny_trial([reply], max_steps=2, state={"use": "sqlite", "options": {"path": str(tmp_path / "s.sqlite")}},
+                   attackers=[{"use": "prompt_injection", "options": {"rate": 1.0}}])
+    written = b"".join(path.read_bytes() for path in tmp_path.iterdir() if path.is_file())
+    assert b"ENVIRONMENTSECRET" not in written
+    steps = SqliteStateStore(tmp_path / "s.sqlite").steps("flatland/arm/condition/0")
+    assert key_like in steps[0].attempts[0].raw_text  # evidence is stored as the LLM wrote it
+    assert key_like in steps[0].attempts[0].response.planning
