@@ -69,7 +69,7 @@ def _components(plugins: Plugins, kind: str, items: Iterable[Any]) -> list[tuple
     for item in items:
         if isinstance(item, (str, dict, ComponentRef)):
             r = ref(item)
-            built.append((r.key, plugins.registry.build(kind, r.use, r.options, BuildContext(r.use, kind))))
+            built.append((r.key, plugins.registry.build(kind, r.use, r.options, BuildContext(r.use, kind, label=r.key))))
         else:
             built.append((getattr(item, "name", type(item).__name__), item))
     return built

@@ -45,6 +45,7 @@ class BuildContext:
     component: str
     kind: str
     seed: int = 0
+    label: str | None = None  # the scenario's name for this use of the component
     run_dir: str | None = None
     settings: dict[str, Any] = field(default_factory=dict)
 
@@ -105,6 +106,10 @@ class PromptBuilder(ABC):
     @abstractmethod
     def build(self, request: PromptRequest) -> Prompt:
         """Render ``request`` into a :class:`Prompt`; untrusted text stays data."""
+
+    def security_prefix_variants(self) -> list[str] | None:
+        """Names accepted as ``security_prefix``; None if unknown (then scenarios are not checked)."""
+        return None
 
 
 class StateStore(ABC):

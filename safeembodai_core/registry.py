@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from .errors import ComponentError, PluginError
+from .errors import ComponentError, PluginError, SafeEmbodAIError
 
 if TYPE_CHECKING:
     from .components import BuildContext
@@ -139,7 +139,7 @@ class ComponentRegistry:
             context = BuildContext(component=name, kind=kind)
         try:
             return info.factory(options, context)
-        except (ComponentError, PluginError):
+        except SafeEmbodAIError:  # a reported, user-facing problem (a locked database, a missing file)
             raise
         except Exception as error:  # a plugin bug: name the plugin, keep the cause for --debug
             raise PluginError(info.plugin, f"building {kind} {name!r} failed: {type(error).__name__}: {error}") from error

@@ -51,7 +51,7 @@ class ScenarioRunner:
         self._state = state
 
     def build(self, kind: str, ref: ComponentRef, seed: int = 0) -> Any:
-        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir)
+        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir, label=ref.key)
         return self.plugins.registry.build(kind, ref.use, ref.options, context)
 
     @property

@@ -84,6 +84,7 @@ def tiny_scenario(
         "trials": 1,
         "environments": [environment],
         "backend": {"use": "scripted", "options": {"responses": list(responses or [answer(turn(30))])}},
+        "state": "memory",
         "arms": {"arm": arm or {}},
         "conditions": {"condition": {"attackers": attackers or []}},
         **top,

@@ -123,7 +123,7 @@ def validate_plan(
                 verdict = rule.validate(signal, context)
             except ValueError as error:
                 verdict = Verdict(rule=name, valid=False, reason=str(error))
-            verdicts.append(verdict.model_copy(update={"signal_index": index, "rule": verdict.rule or name}))
+            verdicts.append(verdict.model_copy(update={"signal_index": index, "rule": name}))
         context = context.advanced(signal)
     return verdicts
 

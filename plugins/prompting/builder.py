@@ -92,6 +92,9 @@ class JinjaPromptBuilder(PromptBuilder):
 
     # -- the parts of the prompt ----------------------------------------------------------------
 
+    def security_prefix_variants(self) -> list[str]:
+        return self.templates.variants()
+
     def _security(self, request: PromptRequest) -> tuple[str, dict[str, Any] | None, str]:
         if request.security_prefix is None:
             return "", None, ""

@@ -104,7 +104,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
             attacks = []
             for name, attacker in parts.attackers:
                 surface.rng = seeds.rng(spec.seed, "attacker", name, step)
-                attacks.extend(attacker.attack(surface))
+                attacks.extend(record.model_copy(update={"attacker": name}) for record in attacker.attack(surface))
             modalities = parts.perception.perceive(surface.observation)
             request = PromptRequest(
                 instruction=surface.instruction, modalities=modalities, step=step,

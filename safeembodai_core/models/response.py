@@ -155,6 +155,8 @@ def schema_outline() -> str:
             return inner if isinstance(inner, list) else [inner]
         if kind == "number":
             return "number (" + str(node.get("description", "")).split(",")[0] + ")" if node.get("description") else "number"
-        return {"string": "text", "boolean": "true|false", "integer": "integer"}.get(kind, "value")
+        if kind == "boolean":
+            return node.get("default", False)
+        return {"string": "text", "integer": "integer"}.get(kind, "value")
 
     return json.dumps(outline(schema), separators=(",", ":"))

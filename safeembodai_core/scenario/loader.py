@@ -12,7 +12,7 @@ from typing import Any, Iterable
 import yaml
 from pydantic import ValidationError
 
-from ..errors import ComponentError, ScenarioError
+from ..errors import ComponentError, SafeEmbodAIError, ScenarioError
 from ..registry import ComponentOptionsError, ComponentRegistry
 from ..refs import ComponentRef
 from .model import Scenario
@@ -164,8 +164,30 @@ def check_components(scenario: Scenario, registry: ComponentRegistry, locate: An
                 problems.append(f"{locate(full)}: {_dotted(full)}: {msg} ({kind} {ref.use!r} from plugin {info.plugin!r})")
         except ComponentError as error:
             problems.append(f"{locate(loc + ('use',))}: {_dotted(loc)}: {error}")
+    if not problems:
+        problems.extend(_check_prefix_variants(scenario, registry, locate))
     if problems:
         raise ScenarioError("invalid scenario:\n  " + "\n  ".join(problems))
+
+
+def _check_prefix_variants(scenario: Scenario, registry: ComponentRegistry, locate: Any) -> list[str]:
+    """Arms may only name security-prefix variants the prompt builder has (when it can tell)."""
+    wanted = {arm: d.prefix_variant for arm, d in scenario.arms.items() if d.prefix_variant is not None}
+    if not wanted:
+        return []
+    ref = scenario.prompt_builder
+    try:
+        builder = registry.build("prompt_builder", ref.use, ref.options)
+    except SafeEmbodAIError as error:
+        return [f"{locate(('prompt_builder',))}: prompt_builder: {error}"]
+    known = builder.security_prefix_variants() if hasattr(builder, "security_prefix_variants") else None
+    if known is None:
+        return []
+    return [
+        f"{locate(('arms', arm, 'security_prefix'))}: arms.{arm}.security_prefix: no security-prefix variant "
+        f"{variant!r} in prompt builder {ref.use!r}; known: {', '.join(known)}"
+        for arm, variant in wanted.items() if variant not in known
+    ]
 
 
 def load_scenario(path: str | Path, overrides: Iterable[str] = (), registry: ComponentRegistry | None = None) -> Scenario:

@@ -46,7 +46,7 @@ class Scenario(BaseModel):
     backend: ComponentRef = Field(default_factory=lambda: ComponentRef(use="mock"))
     perception: ComponentRef = Field(default_factory=lambda: ComponentRef(use="images"))
     prompt_builder: ComponentRef = Field(default_factory=lambda: ComponentRef(use="jinja"))
-    state: ComponentRef = Field(default_factory=lambda: ComponentRef(use="memory"))
+    state: ComponentRef = Field(default_factory=lambda: ComponentRef(use="sqlite"))
     arms: dict[str, Defences] = Field(default_factory=_default_arms, min_length=1)
     conditions: dict[str, Condition] = Field(default_factory=_default_conditions, min_length=1)
 

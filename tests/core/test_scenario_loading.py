@@ -105,3 +105,15 @@ def test_shipped_scenarios_are_valid(repo, plugins):
     assert paths, "scenarios/ ships no scenario"
     for path in paths:
         load_scenario(path, registry=plugins.registry)
+
+
+def test_unknown_security_prefix_variant_is_caught_at_load(plugins):
+    text = GOOD.replace("safeembodai: {security_prefix: true,", "safeembodai: {security_prefix: stricter,")
+    with pytest.raises(ScenarioError) as error:
+        parse_scenario(text, "demo.yaml", registry=plugins.registry)
+    message = str(error.value)
+    assert "demo.yaml:13: arms.safeembodai.security_prefix" in message and "'stricter'" in message
+    assert "paper" in message and "spotlight" in message
+    ok = parse_scenario(GOOD.replace("security_prefix: true", "security_prefix: spotlight"), "demo.yaml",
+                        registry=plugins.registry)
+    assert ok.arms["safeembodai"].prefix_variant == "spotlight"

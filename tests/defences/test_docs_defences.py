@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import shutil
 
 import pytest
 import yaml
@@ -42,7 +43,10 @@ def test_every_payload_kind_variant_and_forgery_is_documented(repo, plugins):
 
 
 @pytest.mark.parametrize("name", sorted(COMPONENTS))
-def test_yaml_examples_are_valid_scenario_parts(plugins, repo, name):
+def test_yaml_examples_are_valid_scenario_parts(plugins, repo, name, tmp_path, monkeypatch):
+    # the docs point template_dir at a user folder "my_prompts": give them one, as a user would
+    shutil.copytree(repo / "prompts", tmp_path / "my_prompts")
+    monkeypatch.chdir(tmp_path)
     blocks = re.findall(r"```yaml\n(.*?)```", doc(repo, name), re.S)
     assert len(blocks) >= 3
     for block in blocks:
