@@ -20,7 +20,8 @@ from ..models import TrialResult, TrialSpec
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(scenario_json: dict[str, Any], run_dir: str) -> None:
+def build_worker_runner(scenario_json: dict[str, Any], run_dir: str) -> Any:
+    """What every worker (process or Ray actor) runs trials with: its own plugins, worlds and store."""
     from ..logs import configure_logging
     from ..plugins import load_plugins
     from ..runner import ScenarioRunner
@@ -28,7 +29,11 @@ def _init_worker(scenario_json: dict[str, Any], run_dir: str) -> None:
 
     configure_logging(os.environ.get("SAFEEMBODAI_WORKER_LOG_LEVEL", "warning"))
     scenario = Scenario.model_validate(scenario_json)
-    _WORKER["runner"] = ScenarioRunner(scenario, load_plugins(), run_dir=run_dir, save_trajectories=True)
+    return ScenarioRunner(scenario, load_plugins(), run_dir=run_dir, save_trajectories=True)
+
+
+def _init_worker(scenario_json: dict[str, Any], run_dir: str) -> None:
+    _WORKER["runner"] = build_worker_runner(scenario_json, run_dir)
     _WORKER["parent"] = os.getppid()
 
 
@@ -93,17 +98,17 @@ class RayExecutor:
             raise SafeEmbodAIError('the ray executor needs the ray extra: pip install -e ".[ray]"') from None
         self.ray = ray
         if not ray.is_initialized():
+            local = {"_node_ip_address": "127.0.0.1"} if address is None else {}
             ray.init(address=address, include_dashboard=False, log_to_driver=False,
-                     ignore_reinit_error=True, configure_logging=False)
+                     ignore_reinit_error=True, configure_logging=False, **local)
 
         @ray.remote
         class TrialWorker:
             def __init__(self, scenario_json, run_dir):
-                _init_worker(scenario_json, run_dir)
-                _WORKER["parent"] = os.getppid()
+                self.runner = build_worker_runner(scenario_json, run_dir)
 
             def run(self, spec_json):
-                return _WORKER["runner"].run(TrialSpec.model_validate(spec_json)).model_dump(mode="json")
+                return self.runner.run(TrialSpec.model_validate(spec_json)).model_dump(mode="json")
 
         self.actors = [TrialWorker.remote(scenario_json, run_dir) for _ in range(workers)]
 
