@@ -1,1 +1,110 @@
-"""``gpt-4o`` and ``local``: LLM backends through litellm (work in progress, issue 4)."""
+"""LLM backends through litellm: ``gpt-4o``, ``litellm`` (any model id) and ``local``.
+
+* ``gpt-4o`` -- OpenAI's GPT-4o, the paper's model: camera and LiDAR images as base64 image
+  parts, JSON output requested, key from ``OPENAI_API_KEY``.
+* ``litellm`` -- the same for any model id litellm knows (``anthropic/...``, ``azure/...``);
+  name the key's environment variable with ``api_key_env``.
+* ``local`` -- any OpenAI-compatible server (llama.cpp, vLLM, Ollama) at ``api_base``; JSON
+  schema sent for constrained decoding; no key unless ``api_key_env`` names one.
+
+The API key is read from the environment when the backend is built and is never stored in
+options, logs, records or reports. litellm is imported by the implementation module only.
+Every option is documented in ``docs/backends.md``.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from safeembodai_core.errors import ComponentError
+from safeembodai_core.hookspecs import hookimpl
+
+JsonMode = Literal["json_object", "json_schema", "json_object_schema", "off"]
+_RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries")
+_NO_KEY = "no-key-required"
+
+
+class _LiteLLMOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    model: str = Field("gpt-4o", min_length=1, description="litellm model id")
+    api_key_env: str | None = Field("OPENAI_API_KEY", description="environment variable holding the API key")
+    api_base: str | None = Field(None, description="server URL, e.g. http://127.0.0.1:8080/v1")
+    image_detail: Literal["low", "high", "auto"] = Field("low", description="vision detail of image parts")
+    send_images: bool = Field(True, description="send image parts (off for text-only models)")
+    fold_system_prompt: bool = Field(False, description="put the system prompt into the user turn")
+    json_mode: JsonMode = Field("json_object", description="response_format sent")
+    temperature: float | None = Field(None, ge=0.0, le=2.0, description="sampling temperature (None: provider's)")
+    max_tokens: int = Field(1024, ge=16, le=32_768, description="most tokens in an answer")
+    send_seed: bool = Field(False, description="send a per-call seed derived from the trial seed")
+    timeout_s: float = Field(60.0, gt=0, le=3600, description="per-request timeout")
+    max_retries: int = Field(3, ge=0, le=20, description="retries on 429/5xx/timeouts/connection errors")
+    backoff_s: float = Field(1.0, ge=0, le=600, description="first retry delay, doubled each retry")
+    backoff_max_s: float = Field(30.0, ge=0, le=3600, description="longest delay between retries")
+    drop_params: bool = Field(True, description="let litellm drop parameters a provider does not support")
+    completion_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra litellm.completion arguments")
+
+    @field_validator("api_key_env")
+    @classmethod
+    def _env_name(cls, value: str | None) -> str | None:
+        if value is not None and (not value or not value.replace("_", "").isalnum()):
+            raise ValueError(f"api_key_env must name an environment variable (letters, digits, _), got {value!r}; "
+                             "put the key itself in that variable, never in the scenario")
+        return value
+
+    @field_validator("completion_kwargs")
+    @classmethod
+    def _not_reserved(cls, value: dict[str, Any]) -> dict[str, Any]:
+        reserved = sorted(set(value) & set(_RESERVED))
+        if reserved:
+            raise ValueError(f"completion_kwargs may not set {', '.join(reserved)}: use the backend's own options "
+                             "(the key comes from the variable named by api_key_env)")
+        return value
+
+
+class LiteLLMOptions(_LiteLLMOptions):
+    """Options of ``gpt-4o`` and ``litellm``."""
+
+
+class LocalModelOptions(_LiteLLMOptions):
+    """Options of ``local``: an OpenAI-compatible server, no key, JSON schema by default."""
+
+    model: str = Field("openai/local", min_length=1, description="litellm model id (openai/<name> for any server)")
+    api_key_env: str | None = Field(None, description="environment variable holding a key, if the server wants one")
+    api_base: str | None = Field("http://127.0.0.1:8080/v1", description="the server's OpenAI-compatible URL")
+    json_mode: JsonMode = Field("json_schema", description="response_format sent")
+    timeout_s: float = Field(300.0, gt=0, le=3600, description="per-request timeout")
+    max_retries: int = Field(2, ge=0, le=20, description="retries on 429/5xx/timeouts/connection errors")
+
+
+def _api_key(name: str, options: _LiteLLMOptions, local: bool) -> str | None:
+    if options.api_key_env is None:
+        # a local server gets a placeholder so litellm never falls back to OPENAI_API_KEY
+        return _NO_KEY if local else None
+    key = os.environ.get(options.api_key_env, "")
+    if not key:
+        raise ComponentError(f"llm backend {name!r}: environment variable {options.api_key_env} is not set; "
+                             "export the API key there, or name another variable with the option api_key_env")
+    return key
+
+
+def _factory(name: str, local: bool = False):
+    def build(options: _LiteLLMOptions, context):
+        from .litellm_client import LiteLLMBackend
+
+        return LiteLLMBackend(name, options, _api_key(name, options, local))
+
+    return build
+
+
+@hookimpl
+def register_llm_backends(register):
+    register("gpt-4o", _factory("gpt-4o"), options=LiteLLMOptions,
+             description="OpenAI GPT-4o (or any litellm model id) with camera and LiDAR images")
+    register("litellm", _factory("litellm"), options=LiteLLMOptions,
+             description="any litellm model id; set model and api_key_env")
+    register("local", _factory("local", local=True), options=LocalModelOptions,
+             description="OpenAI-compatible local server (llama.cpp, vLLM, Ollama) at api_base")

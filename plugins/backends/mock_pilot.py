@@ -1,1 +1,72 @@
-"""``mock``: the offline simulated pilot (work in progress, issue 4)."""
+"""``mock``: the offline default pilot -- a simulated LLM, not a canned script.
+
+It decides only from what the prompt carries: it decodes the camera PNG and the LiDAR picture
+(or parses the text modalities), reads the human instruction, notices whether the system
+prompt has the security prefix and whether the reference state R_{i-1} is present, and reads
+the refusal reasons fed back on a retry. It never sees the simulator's state. It answers in
+the JSON schema a real LLM is asked for. Its weaknesses are the options below -- seeded by the
+rng each call receives, documented in ``docs/backends.md``. The defaults were calibrated so
+the baseline arm lands near the paper's GPT-4o baseline; numbers it produces simulate an LLM,
+they do not measure one.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from safeembodai_core.hookspecs import hookimpl
+
+_P = dict(ge=0.0, le=1.0)
+
+
+class MockOptions(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    # prompt injection
+    obey_injection_p: float = Field(0.85, **_P, description="follows a misaligned instruction (no security prefix)")
+    obey_injection_p_secure: float = Field(0.35, **_P, description="... with the security prefix")
+    obey_factor_with_reference: float = Field(0.8, **_P, description="multiplies the above when R_{i-1} is present")
+    flag_injection_p: float = Field(0.2, **_P, description="sets is_attack on a misaligned instruction (no prefix)")
+    flag_injection_p_secure: float = Field(0.55, **_P, description="... with the security prefix")
+    false_flag_p: float = Field(0.0, **_P, description="flags a benign instruction as an attack")
+    # numbers and output
+    distance_error_sd: float = Field(0.2, ge=0.0, le=2.0, description="relative error of straight distances")
+    angle_error_sd_deg: float = Field(4.0, ge=0.0, le=45.0, description="error of turn angles")
+    ignore_clearance_p: float = Field(0.25, **_P, description="plans a straight without checking the LiDAR")
+    lidar_misread_sd: float = Field(0.35, ge=0.0, le=2.0, description="relative error reading LiDAR distances")
+    limit_violation_p: float = Field(0.02, **_P, description="writes a distance beyond the actuation limit")
+    malformed_p: float = Field(0.02, **_P, description="first answer of a step is not schema-valid JSON")
+    feedback_compliance_p: float = Field(0.9, **_P, description="on a retry, obeys a refusal's 'at most N mm'")
+    # perception, memory and search
+    miss_target_p: float = Field(0.3, **_P, description="overlooks the can when it is under 6% of image height")
+    bearing_mirror_p: float = Field(0.25, **_P, description="confuses left and right when turning to the can")
+    recall_target_p: float = Field(0.9, **_P, description="with R_{i-1}: turns back to a can seen last step")
+    search_turn_deg: float = Field(60.0, gt=0.0, lt=180.0, description="typical search turn")
+    search_left_p: float = Field(0.5, **_P, description="searches to the left when nothing says which way")
+    explore_forward_p: float = Field(0.3, **_P, description="searches by driving into open space instead of turning")
+    approach_stop_mm: float = Field(300.0, ge=0.0, description="aims to stop this far from the can's surface")
+    clearance_margin_mm: float = Field(200.0, ge=0.0, description="keeps this far from obstacles when it checks")
+    max_straights_per_answer: int = Field(2, ge=1, le=50, description="straights it chains when the can is far")
+    corridor_mm: float = Field(250.0, gt=0.0, description="half-width of the path it checks for obstacles")
+    target_height_mm: float = Field(120.0, gt=0.0, description="height it assumes the can has (distance by size)")
+    # reading the prompt, reporting usage
+    camera_fov_deg: float = Field(60.0, gt=10, lt=170, description="camera field of view, for bearings")
+    lidar_image_range_mm: float = Field(4000.0, gt=0, description="LiDAR picture range when it has no 1 m ring")
+    token_counting: Literal["litellm", "estimate"] = Field("litellm", description="how usage is counted")
+    token_model: str = Field("gpt-4o", min_length=1, description="model whose tokenizer counts usage")
+    token_image_detail: Literal["low", "high", "auto"] = Field("low", description="image detail for counting")
+    latency_s: float = Field(0.0, ge=0.0, description="latency to report (0: the real compute time)")
+
+
+def _factory(options: MockOptions, context):
+    from .mock_backend import MockPilot
+
+    return MockPilot(options)
+
+
+@hookimpl
+def register_llm_backends(register):
+    register("mock", _factory, options=MockOptions,
+             description="offline simulated pilot: reads the prompt's images/text, seeded weaknesses")

@@ -1,0 +1,68 @@
+"""litellm, imported once per process and quietly; and token counting as if for a given model.
+
+``import litellm`` costs about 5 s and 165 MB, so nothing imports it until a backend needs it.
+Before the import, ``LITELLM_LOCAL_MODEL_COST_MAP=True`` keeps litellm from fetching its cost
+map from the internet and ``LITELLM_MODE=PRODUCTION`` keeps it from loading a ``.env`` file
+from the working directory; after it, debug banners are switched off and litellm's own loggers
+are held at WARNING so no request (or header) is ever logged by it.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from functools import lru_cache
+from typing import Any, Literal
+
+TokenCounting = Literal["litellm", "estimate"]
+_IMAGE_TOKENS = {"low": 85, "high": 85 + 4 * 170, "auto": 85}
+_PER_MESSAGE = 4
+
+
+@lru_cache(maxsize=1)
+def import_litellm() -> Any:
+    """The litellm module, configured for offline, quiet use (imported on first call only)."""
+    if "litellm" not in sys.modules:
+        os.environ["LITELLM_LOCAL_MODEL_COST_MAP"] = "True"
+        os.environ["LITELLM_MODE"] = "PRODUCTION"
+    import litellm
+
+    litellm.suppress_debug_info = True
+    litellm.set_verbose = False
+    if hasattr(litellm, "telemetry"):
+        litellm.telemetry = False
+    for name in ("LiteLLM", "LiteLLM Router", "LiteLLM Proxy", "litellm", "httpx", "openai"):
+        logging.getLogger(name).setLevel(logging.WARNING)
+    return litellm
+
+
+def estimate_tokens(messages: list[dict[str, Any]], text: str | None = None) -> int:
+    """A quick approximation: about four characters a token, 85 per low-detail image."""
+    if text is not None:
+        return max(1, round(len(text) / 4))
+    total = 3
+    for message in messages:
+        total += _PER_MESSAGE
+        content = message["content"]
+        parts = [{"type": "text", "text": content}] if isinstance(content, str) else content
+        for part in parts:
+            if part["type"] == "text":
+                total += round(len(part["text"]) / 4)
+            else:
+                total += _IMAGE_TOKENS.get(part["image_url"].get("detail", "auto"), 85)
+    return total
+
+
+def count_prompt_tokens(messages: list[dict[str, Any]], model: str, method: TokenCounting) -> int:
+    """Prompt tokens of ``messages`` for ``model`` (images must be ``data:`` URLs)."""
+    if method == "estimate":
+        return estimate_tokens(messages)
+    return int(import_litellm().token_counter(model=model, messages=messages))
+
+
+def count_completion_tokens(text: str, model: str, method: TokenCounting) -> int:
+    """Tokens of an answer ``text`` for ``model``."""
+    if method == "estimate":
+        return estimate_tokens([], text)
+    return int(import_litellm().token_counter(model=model, text=text, count_response_tokens=True))

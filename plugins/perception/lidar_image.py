@@ -1,0 +1,78 @@
+"""Reading images back: the camera PNG and the top-down LiDAR picture as a reader sees them.
+
+A vision model reads the LiDAR image drawn by :func:`~.render.draw_lidar_image` -- robot at the
+centre facing up, returns as dark dots, light grey range rings every metre -- and so does the
+mock pilot, through :func:`read_lidar_image`. The scale comes from the rings (the first is at
+one metre), so nothing but the picture is needed; a picture whose range is under a metre has
+no ring and uses ``fallback_range_mm``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+_RING = 215
+_DARK = 90
+
+
+@dataclass(frozen=True)
+class LidarPicture:
+    """Returns read from a LiDAR image, as (M, 2) robot-frame points in millimetres."""
+
+    points_mm: np.ndarray
+    range_mm: float
+
+    def nearest_in_cone(self, centre_deg: float, half_width_deg: float) -> float:
+        """Distance (mm) of the nearest return within ``half_width_deg`` of ``centre_deg``; inf if none."""
+        return nearest_in_cone(self.points_mm, centre_deg, half_width_deg)
+
+
+def decode_png(data: bytes) -> np.ndarray:
+    """An RGB uint8 array from PNG (or any format OpenCV reads) bytes."""
+    import cv2
+
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
+    if image is None:
+        raise ValueError("image bytes could not be decoded")
+    return np.ascontiguousarray(image[..., ::-1])
+
+
+def nearest_in_cone(points: np.ndarray, centre_deg: float, half_width_deg: float) -> float:
+    if points.size == 0:
+        return math.inf
+    angles = np.degrees(np.arctan2(points[:, 1], points[:, 0]))
+    offset = (angles - centre_deg + 180.0) % 360.0 - 180.0
+    inside = np.abs(offset) <= half_width_deg
+    if not inside.any():
+        return math.inf
+    return float(np.hypot(points[inside, 0], points[inside, 1]).min())
+
+
+def _scale_px_per_mm(image: np.ndarray, fallback_range_mm: float) -> float:
+    size = image.shape[0]
+    centre = size / 2.0
+    ring = np.all(image == _RING, axis=-1)
+    rows, cols = np.nonzero(ring)
+    if rows.size:
+        radii = np.hypot(rows - int(centre), cols - int(centre))
+        first = radii[radii <= radii.min() + 1.5]
+        radius = float(np.median(first))
+        if radius > 2:
+            return radius / 1000.0
+    return centre / fallback_range_mm
+
+
+def read_lidar_image(data: bytes, fallback_range_mm: float = 4000.0) -> LidarPicture:
+    """The returns a LiDAR picture shows, in the robot frame (x forward, y left, mm)."""
+    image = decode_png(data)
+    if image.ndim != 3 or image.shape[0] != image.shape[1]:
+        raise ValueError(f"a LiDAR image must be square, got {image.shape[:2]}")
+    scale = _scale_px_per_mm(image, fallback_range_mm)
+    centre = image.shape[0] / 2.0
+    dark = image.max(axis=-1) < _DARK
+    rows, cols = np.nonzero(dark)
+    points = np.column_stack(((centre - rows) / scale, (centre - cols) / scale)).astype(float)
+    return LidarPicture(points_mm=points, range_mm=centre / scale)

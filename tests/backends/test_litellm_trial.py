@@ -1,0 +1,99 @@
+"""End to end: trials on flatland through ``gpt-4o`` pointed at the fake server with a fake key."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+import yaml
+
+from fake_openai import Reply, Status
+from safeembodai_core.models import Outcome
+from safeembodai_core.runner import ScenarioRunner, trial_spec
+from safeembodai_core.scenario import parse_scenario
+from safeembodai_core.testing import answer, straight, turn
+
+SAFE = {"security_prefix": True, "state_management": True, "safety_validation": True, "failure_threshold": 3}
+
+
+def _scenario_data(server, max_steps=3, arm=None, **backend):
+    return {
+        "name": "fake-gpt4o", "trials": 2, "max_steps": max_steps, "seed": 3,
+        "environments": ["flatland"], "state": "memory",
+        "backend": {"use": "gpt-4o", "options": {"api_base": server.url, "api_key_env": "SAFEEMBODAI_TEST_KEY",
+                                                  "backoff_s": 0.0, "timeout_s": 5.0, **backend}},
+        "arms": {"safeembodai": arm or SAFE}, "conditions": {"no_attack": {}},
+    }
+
+
+def _run(plugins, data, index=0):
+    scenario = parse_scenario(yaml.safe_dump(data), "<test>", registry=plugins.registry)
+    runner = ScenarioRunner(scenario, plugins)
+    try:
+        spec = trial_spec(scenario, "flatland", "safeembodai", "no_attack", index)
+        result = runner.run(spec)
+        return result, runner.state.steps(spec.trial_id)
+    finally:
+        runner.close()
+
+
+def test_malformed_answers_are_recorded_retried_and_never_executed(built_plugins, fake_server, fake_key):
+    fake_server.push(
+        Reply("```json\n" + answer(turn(30)) + "\n```"),               # step 1: fenced, accepted
+        Reply('{"perception": [], "plan": "x", "control": []}'),         # step 2: wrong schema
+        Reply(answer(straight(150))[:70], finish_reason="length"),      # truncated
+        Status(429, retry_after=0),                                      # rate limited, retried by the backend
+        Reply("Here is my answer: " + answer(turn(20, "right")) + " Good luck."),  # prose around: accepted
+    )
+    fake_server.default = Reply(answer(turn(10)))
+    result, steps = _run(built_plugins, _scenario_data(fake_server))
+    assert result.outcome == Outcome.TIMEOUT and result.steps == 3
+    assert [s.describe() for s in (e.signal for e in steps[0].executed)] == ["turn left 30 deg"]
+    second = steps[1]
+    assert [a.parse_error is not None for a in second.attempts] == [True, True, False]
+    assert "response schema" in second.attempts[0].parse_error
+    assert "not valid JSON" in second.attempts[1].parse_error
+    assert [e.signal.describe() for e in second.executed] == ["turn right 20 deg"]
+    # every request carried both images and the security prefix; retries carried the failures
+    bodies = [r.body for r in fake_server.requests]
+    assert len(bodies) == 6  # 1 + (wrong schema, truncated, 429, prose) + 1
+    for body in bodies:
+        system, user = body["messages"]
+        assert system["content"].lstrip().startswith("Security:")
+        assert sum(part["type"] == "image_url" for part in user["content"]) == 2
+    retry_text = " ".join(p["text"] for p in bodies[2]["messages"][1]["content"] if p["type"] == "text")
+    assert "Your previous answer was refused" in retry_text and "response schema" in retry_text
+
+
+def test_backend_failure_after_retries_ends_the_trial_as_error_and_the_next_trial_runs(built_plugins, fake_server,
+                                                                                     fake_key):
+    fake_server.default = Status(503, "overloaded")
+    result, steps = _run(built_plugins, _scenario_data(fake_server, max_retries=1))
+    assert result.outcome == Outcome.ERROR and steps == []
+    assert "server error (HTTP 503)" in result.detail and "gave up after 2 tries" in result.detail
+    fake_server.default = Reply(answer(turn(15)))
+    result, steps = _run(built_plugins, _scenario_data(fake_server, max_steps=2), index=1)
+    assert result.outcome == Outcome.TIMEOUT and len(steps) == 2
+
+
+@pytest.mark.slow
+def test_the_key_never_reaches_logs_records_or_reports(fake_server, fake_key, tmp_path):
+    fake_server.push(Reply(answer(turn(30))), Reply(answer(straight(100))),
+                     Status(401, f"Incorrect API key provided: {fake_key}. You can find your key at ..."))
+    scenario = tmp_path / "fake.yaml"
+    scenario.write_text(yaml.safe_dump(_scenario_data(fake_server, max_steps=5)))
+    out = tmp_path / "out"
+    env = {**os.environ, "SAFEEMBODAI_TEST_KEY": fake_key}
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "--debug", "--log-level", "debug", "run",
+                           str(scenario), "--out", str(out)], capture_output=True, text=True, env=env, timeout=240)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "authentication failed" in done.stdout + done.stderr  # the run did reach the failing call
+    assert fake_server.requests[0].headers["authorization"] == f"Bearer {fake_key}"  # the key was really used
+    files = [p for p in out.rglob("*") if p.is_file()]
+    assert any(p.name.endswith(".json") or p.suffix == ".jsonl" for p in files)
+    for text in (done.stdout, done.stderr):
+        assert fake_key not in text
+    for path in files:
+        assert fake_key.encode() not in path.read_bytes(), path

