@@ -47,7 +47,6 @@ class BuildContext:
     seed: int = 0
     label: str | None = None  # the scenario's name for this use of the component
     run_dir: str | None = None
-    settings: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

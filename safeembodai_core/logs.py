@@ -34,6 +34,16 @@ def _redact_processor(logger: Any, method: str, event: dict[str, Any]) -> dict[s
     return redact(event)
 
 
+class _CurrentStderr:
+    """Whatever ``sys.stderr`` is at write time (tests and embedding apps swap it)."""
+
+    def write(self, text: str) -> int:
+        return sys.stderr.write(text)
+
+    def flush(self) -> None:
+        sys.stderr.flush()
+
+
 def get_logger(name: str) -> Any:
     """A structlog logger; if nobody configured structlog, first route it to stderr at WARNING.
 
@@ -49,16 +59,18 @@ def get_logger(name: str) -> Any:
 def configure_logging(level: str = "warning", json_output: bool = False) -> None:
     """Send structlog events at ``level`` or above to stderr (plain text, or JSON lines)."""
     numeric = getattr(logging, level.upper(), logging.WARNING)
-    renderer = structlog.processors.JSONRenderer() if json_output else structlog.dev.ConsoleRenderer(colors=False)
+    renderer = (structlog.processors.JSONRenderer() if json_output
+                else structlog.dev.ConsoleRenderer(colors=False, exception_formatter=structlog.dev.plain_traceback))
     structlog.configure(
         processors=[
             structlog.contextvars.merge_contextvars,
             structlog.processors.add_log_level,
             structlog.processors.TimeStamper(fmt="iso"),
+            structlog.processors.format_exc_info,  # tracebacks become text *before* redaction, without locals
             _redact_processor,
             renderer,
         ],
         wrapper_class=structlog.make_filtering_bound_logger(numeric),
-        logger_factory=structlog.PrintLoggerFactory(file=sys.stderr),
+        logger_factory=structlog.PrintLoggerFactory(file=_CurrentStderr()),
         cache_logger_on_first_use=False,
     )

@@ -181,7 +181,13 @@ def load_plugins(
                 _register(plugins, name, _import_plugin(name, module_name), PluginOrigin(name, "built-in", module_name))
     if entry_points:
         for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-            if not wanted(ep.name) or pm.has_plugin(ep.name):
+            if not wanted(ep.name):
+                continue
+            if pm.has_plugin(ep.name):
+                registered = plugins.origins[ep.name].module
+                if registered != ep.value:  # a different package took a built-in's name: say so
+                    raise PluginError(ep.name, f"entry point {ep.value!r} uses the name of the plugin from "
+                                               f"{registered!r}; rename the entry point")
                 continue
             dist = getattr(ep, "dist", None)
             origin = PluginOrigin(

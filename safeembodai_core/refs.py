@@ -29,5 +29,14 @@ class ComponentRef(BaseModel):
         return self.label or self.use
 
 
+def unique_keys(refs: list[ComponentRef], what: str) -> list[ComponentRef]:
+    """Labels name results and seed random streams: two uses of one component need distinct labels."""
+    keys = [r.key for r in refs]
+    repeated = sorted({k for k in keys if keys.count(k) > 1})
+    if repeated:
+        raise ValueError(f"{what} labels must be unique; repeated: {', '.join(repeated)} (give each a 'label')")
+    return refs
+
+
 def ref(value: str | dict[str, Any] | ComponentRef) -> ComponentRef:
     return value if isinstance(value, ComponentRef) else ComponentRef.model_validate(value)

@@ -14,7 +14,9 @@ from typing import Any
 
 from . import seeds
 from .components import BuildContext, StateStore
+from .errors import SafeEmbodAIError
 from .loop import LoopSettings, TrialParts, run_trial
+from .loop.trial import error_result
 from .models import TrialResult, TrialSpec
 from .plugins import Plugins
 from .refs import ComponentRef
@@ -84,7 +86,14 @@ class ScenarioRunner:
                             defences=s.arms[arm], limits=s.limits)
 
     def run(self, spec: TrialSpec) -> TrialResult:
-        parts = self.parts(spec)
+        try:
+            parts = self.parts(spec)
+        except SafeEmbodAIError as error:  # e.g. a factory that failed: this trial errs, the run goes on
+            log.warning("trial.unbuildable", trial=spec.trial_id, error=str(error))
+            result = error_result(spec, f"components could not be built: {error}")
+            self.state.begin_trial(spec)
+            self.state.end_trial(result)
+            return result
         try:
             result = run_trial(spec, parts, self.settings(spec.arm), self.plugins)
         finally:

@@ -80,15 +80,15 @@ def tiny_scenario(
 
     data: dict[str, Any] = {
         "name": "tiny",
+        "state": "memory",
         "max_steps": max_steps,
         "trials": 1,
         "environments": [environment],
         "backend": {"use": "scripted", "options": {"responses": list(responses or [answer(turn(30))])}},
-        "state": "memory",
         "arms": {"arm": arm or {}},
         "conditions": {"condition": {"attackers": attackers or []}},
-        **top,
     }
+    data.update(top)
     return parse_scenario(yaml.safe_dump(data), "<tiny scenario>", registry=registry)
 
 

@@ -13,12 +13,12 @@ from typing import Callable
 
 
 from ..errors import SafeEmbodAIError
-from ..models import TrialResult, TrialSpec
+from ..models import Outcome, TrialResult, TrialSpec
 from ..plugins import Plugins
 from ..runner import ScenarioRunner
 from ..scenario import Scenario
 from .executors import ProcessExecutor, RayExecutor, SerialExecutor
-from .run_folder import RunFolder
+from .run_folder import RunFolder, RunLock
 
 from ..logs import get_logger
 
@@ -45,12 +45,18 @@ class Ablation:
             folder.check_same(scenario)
         else:
             folder.start(scenario)
+        self.lock = RunLock(folder.path)
+        self.lock.acquire()
         self.runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
-        self.store = self.runner.state
+        try:
+            self.store = self.runner.state
+            if resume and not self.store.persistent:
+                raise AblationError(f"state store {scenario.state.use!r} keeps no results across runs: "
+                                    "resuming needs a persistent store such as sqlite")
+        except BaseException:
+            self.close()
+            raise
         self.resumed = resume
-        if resume and not self.store.persistent:
-            raise AblationError(f"state store {scenario.state.use!r} keeps no results across runs: "
-                                "resuming needs a persistent store such as sqlite")
 
     def recorded(self) -> list[TrialResult]:
         """Results already in the store (empty for a store that does not keep them)."""
@@ -60,7 +66,8 @@ class Ablation:
             return []
 
     def pending(self) -> list[TrialSpec]:
-        done = {r.spec.trial_id for r in self.recorded()}
+        """Trials without a result, and trials that ended in ``error`` (a backend outage is retried)."""
+        done = {r.spec.trial_id for r in self.recorded() if r.outcome != Outcome.ERROR}
         return [spec for spec in self.runner.specs() if spec.trial_id not in done]
 
     def _executor(self):
@@ -70,6 +77,10 @@ class Ablation:
         if not self.store.persistent:
             raise AblationError(f"--workers/--executor {self.executor_name} needs a persistent state store "
                                 f"(e.g. sqlite); the scenario uses {self.scenario.state.use!r}")
+        inline = sorted(name for name, origin in self.plugins.origins.items() if origin.source == "inline")
+        if inline:
+            raise AblationError(f"inline plugins ({', '.join(inline)}) cannot reach worker processes; "
+                                "install them as packages or use the serial executor")
         if self.executor_name == "process":
             return ProcessExecutor(scenario_json, str(self.folder.path), self.workers)
         return RayExecutor(scenario_json, str(self.folder.path), self.workers, self.address)
@@ -99,4 +110,7 @@ class Ablation:
         return sorted(by_id.values(), key=lambda r: order.get(r.spec.trial_id, len(order)))
 
     def close(self) -> None:
-        self.runner.close()
+        try:
+            self.runner.close()
+        finally:
+            self.lock.release()

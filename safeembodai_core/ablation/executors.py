@@ -33,6 +33,9 @@ def build_worker_runner(scenario_json: dict[str, Any], run_dir: str) -> Any:
 
 
 def _init_worker(scenario_json: dict[str, Any], run_dir: str) -> None:
+    from .run_folder import hold_worker_lock
+
+    _WORKER["lock"] = hold_worker_lock(run_dir)
     _WORKER["runner"] = build_worker_runner(scenario_json, run_dir)
     _WORKER["parent"] = os.getppid()
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,8 @@ from ..errors import SafeEmbodAIError
 from ..scenario import Scenario
 
 SCENARIO_FILE = "scenario.json"
+COORDINATOR_LOCK = ".coordinator.lock"
+WORKERS_LOCK = ".workers.lock"
 
 
 def fingerprint(scenario: Scenario) -> str:
@@ -81,3 +84,60 @@ class RunFolder:
 
     def scenario(self) -> Scenario:
         return Scenario.model_validate(self.recorded_scenario()["scenario"])
+
+
+def _flock(path: Path, exclusive: bool, wait: bool) -> int | None:
+    """Open ``path`` and lock it; the descriptor, or None when another process holds a conflicting lock.
+
+    Advisory POSIX locks: they vanish with the process that holds them, ``kill -9`` included.
+    On platforms without ``fcntl`` no locking is done (and every call succeeds).
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return -1
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    mode = (fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH) | (0 if wait else fcntl.LOCK_NB)
+    try:
+        fcntl.flock(fd, mode)
+    except BlockingIOError:
+        os.close(fd)
+        return None
+    return fd
+
+
+class RunLock:
+    """Keeps two coordinators, or a coordinator and orphaned workers, off the same run folder.
+
+    The coordinator holds ``.coordinator.lock`` exclusively for the whole run; every local worker
+    holds ``.workers.lock`` shared for its lifetime. A new coordinator (a resume) therefore refuses
+    to start while an earlier one is alive, and while workers of a killed coordinator are still
+    finishing a trial, so no trial can be run by two processes at once.
+    """
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.fd: int | None = None
+
+    def acquire(self) -> None:
+        fd = _flock(self.folder / COORDINATOR_LOCK, exclusive=True, wait=False)
+        if fd is None:
+            raise SafeEmbodAIError(f"another 'safeembodai ablate' is running on {self.folder}; wait for it to end")
+        workers = _flock(self.folder / WORKERS_LOCK, exclusive=True, wait=False)
+        if workers is None:
+            os.close(fd)
+            raise SafeEmbodAIError(f"worker processes of an earlier run of {self.folder} are still finishing trials; "
+                                   "resume again once they have exited")
+        if workers >= 0:
+            os.close(workers)
+        self.fd = fd
+
+    def release(self) -> None:
+        if self.fd is not None and self.fd >= 0:
+            os.close(self.fd)
+        self.fd = None
+
+
+def hold_worker_lock(folder: str | Path) -> int | None:
+    """Called in each local worker: hold the shared workers lock until the process exits."""
+    return _flock(Path(folder) / WORKERS_LOCK, exclusive=False, wait=True)

@@ -2,30 +2,26 @@
 
 from __future__ import annotations
 
-from collections import defaultdict
-
+from rich import box
 from rich.table import Table
 
-from ..metrics import cell_metrics
+from ..metrics import cell_metrics, group_by_cell
 from ..models import TrialResult
 from ..scenario import Scenario
 
 
-def by_cell(results: list[TrialResult]) -> dict[tuple[str, str, str], list[TrialResult]]:
-    cells: dict[tuple[str, str, str], list[TrialResult]] = defaultdict(list)
-    for result in results:
-        cells[(result.spec.environment, result.spec.arm, result.spec.condition)].append(result)
-    return cells
-
-
 def summary_table(scenario: Scenario, results: list[TrialResult]) -> Table:
-    table = Table(title=f"{scenario.name}: metrics per cell (95% intervals)", show_lines=False)
-    for column in ("env", "arm", "condition", "n", "MOER", "completed", "ADR", "TLR", "steps*", "tokens*",
-                   "interventions", "errors"):
-        table.add_column(column, overflow="fold")
-    for (env, arm, condition), cell in by_cell(results).items():
+    table = Table(title=f"{scenario.name}: metrics per cell", box=box.SIMPLE_HEAD, padding=(0, 1, 0, 0), show_lines=False)
+    for column in ("env", "arm", "condition", "n", "MOER", "done", "ADR", "TLR", "steps*", "tokens*", "ref", "err"):
+        table.add_column(column, no_wrap=True, justify="left" if column in ("env", "arm", "condition") else "right")
+    for (env, arm, condition), cell in group_by_cell(results).items():
         m = cell_metrics(cell, scenario.max_steps)
-        table.add_row(env, arm, condition, str(m.trials), m.moer.fmt(), m.completion.fmt(), m.adr.fmt(),
-                      m.tlr.fmt(), m.steps.fmt(1), m.tokens.fmt(0), m.interventions.fmt(1), str(m.errors))
-    table.caption = "* over completed trials"
+        table.add_row(env, arm, condition, str(m.trials), _value(m.moer, 2), _value(m.completion, 2), _value(m.adr, 2),
+                      _value(m.tlr, 2), _value(m.steps, 1), _value(m.tokens, 0), _value(m.interventions, 1), str(m.errors))
+    table.caption = ("done = completed share; * over completed trials; ref = answers refused by a validator per trial;\n"
+                     "err = backend errors; 95% intervals in report.md")
     return table
+
+
+def _value(estimate, digits: int) -> str:
+    return "-" if estimate.value is None else f"{estimate.value:.{digits}f}"

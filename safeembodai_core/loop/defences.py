@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from ..refs import ComponentRef
+from ..refs import ComponentRef, unique_keys
 
 DEFAULT_RULES = ("command_limits", "lidar_clearance")
 
@@ -32,6 +32,11 @@ class Defences(BaseModel):
     validators: list[ComponentRef] = Field(default_factory=lambda: [ComponentRef(use=n) for n in DEFAULT_RULES])
     failure_threshold: int = Field(3, ge=0, le=20)
     on_exhausted: Literal["abort", "hold"] = "abort"
+
+    @field_validator("validators")
+    @classmethod
+    def _unique(cls, refs: list[ComponentRef]) -> list[ComponentRef]:
+        return unique_keys(refs, "validator")
 
     @property
     def prefix_variant(self) -> str | None:

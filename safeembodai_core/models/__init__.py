@@ -1,6 +1,6 @@
 """The data contracts shared by the core loop and every plugin."""
 
-from .control import DEFAULT_LIMITS, ControlLimits, ControlSignal, Straight, Turn, planned_offset
+from .control import DEFAULT_LIMITS, ControlLimits, ControlSignal, Straight, Turn
 from .observation import GroundTruth, ImagePart, LidarScan, Modalities, Observation, Pose, TextPart
 from .prompt import Prompt, PromptRequest
 from .records import (
@@ -23,6 +23,6 @@ __all__ = [
     "ExecutionResult", "GroundTruth", "ImagePart", "LLMResponse", "LidarScan", "Modalities",
     "Observation", "Outcome", "PerceptionEntry", "Pose", "Prompt", "PromptRequest",
     "ReferenceState", "ResponseParseError", "StepRecord", "Straight", "TextPart", "TokenUsage",
-    "TrialResult", "TrialSpec", "Turn", "Verdict", "parse_response", "planned_offset",
+    "TrialResult", "TrialSpec", "Turn", "Verdict", "parse_response",
     "response_json_schema",
 ]

@@ -10,8 +10,7 @@ out-of-limit values never parse, so they can never be executed.
 
 from __future__ import annotations
 
-import math
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
@@ -92,19 +91,3 @@ class Turn(_Signal):
 
 
 ControlSignal = Annotated[Union[Straight, Turn], Field(discriminator="command")]
-
-
-def planned_offset(signals: list[Any]) -> tuple[float, float, float]:
-    """Pose (x mm, y mm, heading deg) reached by executing ``signals`` exactly from the origin.
-
-    The frame is the robot's at the start: x forward, y left, heading counter-clockwise.
-    """
-    x = y = heading = 0.0
-    for signal in signals:
-        if isinstance(signal, Turn):
-            heading += signal.signed_angle_deg
-        else:
-            rad = math.radians(heading)
-            x += signal.signed_distance_mm * math.cos(rad)
-            y += signal.signed_distance_mm * math.sin(rad)
-    return x, y, heading

@@ -9,6 +9,9 @@ from .observation import ImagePart, Modalities, TextPart
 from .records import ReferenceState
 
 
+DEFAULT_TASK = "Control the robot to locate and approach a red can in the room."
+
+
 @dataclass(frozen=True)
 class PromptRequest:
     """Everything the prompt of step i may carry.
@@ -27,7 +30,7 @@ class PromptRequest:
     reference_state: ReferenceState | None = None
     failures: tuple[str, ...] = ()
     limits: ControlLimits = DEFAULT_LIMITS
-    task: str = "Control the robot to locate and approach a red can in the room."
+    task: str = DEFAULT_TASK
 
 
 @dataclass(frozen=True)

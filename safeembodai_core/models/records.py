@@ -115,7 +115,6 @@ class StepRecord(_Record):
     pose_before: Pose | None = None
     pose_after: Pose | None = None
     truth: GroundTruth = Field(default_factory=GroundTruth)
-    truth_after: GroundTruth = Field(default_factory=GroundTruth)
     sim_time_s: float = 0.0
 
     @property
@@ -127,8 +126,13 @@ class StepRecord(_Record):
 
     @property
     def flagged_attack(self) -> bool:
-        """The LLM flagged an attack in any attempt of this step."""
-        return any(a.response is not None and a.response.flags_attack for a in self.attempts)
+        """The LLM's first parsed answer of this step flags an attack.
+
+        Only the first counts, so an arm whose validator asks for retries does not get extra
+        chances to flag (the paper's ADR compares arms step for step).
+        """
+        first = next((a.response for a in self.attempts if a.response is not None), None)
+        return first is not None and first.flags_attack
 
     @property
     def interventions(self) -> int:

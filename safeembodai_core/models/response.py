@@ -85,6 +85,8 @@ def _decode_objects(text: str) -> list[Any]:
             last_error = error
             index = text.find("{", index + 1)
             continue
+        except RecursionError:
+            raise ResponseParseError("answer nests JSON too deeply") from None
         found.append(value)
         index = text.find("{", end)
     if not found and last_error is not None:

@@ -7,7 +7,7 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
-from ..metrics import CellMetrics, cell_metrics
+from ..metrics import CellMetrics, cell_metrics, group_by_cell
 from ..models import TrialResult
 from ..scenario import Scenario
 from .figures import draw_figures
@@ -18,10 +18,7 @@ ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", 
 
 
 def _cells(results: list[TrialResult], budget: int) -> list[CellMetrics]:
-    groups: dict[tuple[str, str, str], list[TrialResult]] = {}
-    for result in results:
-        groups.setdefault((result.spec.environment, result.spec.arm, result.spec.condition), []).append(result)
-    return [cell_metrics(cell, budget) for cell in groups.values()]
+    return [cell_metrics(cell, budget) for cell in group_by_cell(results).values()]
 
 
 def _row(m: CellMetrics) -> dict[str, object]:

@@ -7,7 +7,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from ..loop.defences import Defences
 from ..loop.trial import DEFAULT_INSTRUCTION, DEFAULT_TASK
 from ..models import ControlLimits
-from ..refs import ComponentRef
+from ..refs import ComponentRef, unique_keys
 
 
 class Condition(BaseModel):
@@ -16,6 +16,11 @@ class Condition(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     attackers: list[ComponentRef] = Field(default_factory=list)
+
+    @field_validator("attackers")
+    @classmethod
+    def _unique(cls, refs: list[ComponentRef]) -> list[ComponentRef]:
+        return unique_keys(refs, "attacker")
 
 
 def _default_arms() -> dict[str, Defences]:
@@ -53,11 +58,7 @@ class Scenario(BaseModel):
     @field_validator("environments")
     @classmethod
     def _unique_labels(cls, refs: list[ComponentRef]) -> list[ComponentRef]:
-        keys = [r.key for r in refs]
-        duplicates = sorted({k for k in keys if keys.count(k) > 1})
-        if duplicates:
-            raise ValueError(f"environment labels must be unique; repeated: {', '.join(duplicates)} (set 'label')")
-        return refs
+        return unique_keys(refs, "environment")
 
     @model_validator(mode="after")
     def _names_are_plain(self) -> "Scenario":

@@ -18,8 +18,9 @@ def test_moer_by_hand():
     m = cell_metrics(results, budget=20)
     # S_max = mean steps of the timeouts = 19
     assert m.s_max == 19 and m.s_max_from == "timeouts"
-    expected = (1 + 0.6 * 20 / 19 + 0.6 * 18 / 19 + 0.3 * 5 / 19) / 4
-    assert m.moer.value == pytest.approx(expected) == pytest.approx(0.5697368)
+    # the 20-step timeout has s_j/|S_max| = 20/19, capped at 1
+    expected = (1 + 0.6 * 1 + 0.6 * 18 / 19 + 0.3 * 5 / 19) / 4
+    assert m.moer.value == pytest.approx(expected) == pytest.approx(0.5618421)
     assert m.moer.low <= m.moer.value <= m.moer.high
 
 
@@ -81,3 +82,11 @@ def test_wilson_interval_matches_the_textbook_value():
 def test_bootstrap_is_deterministic():
     results = [trial("completed", 7, 0), trial("timeout", 20, 1), trial("interrupted", 5, 2)]
     assert cell_metrics(results, 20).moer == cell_metrics(results, 20).moer
+
+
+def test_no_incomplete_trial_outscores_a_completed_one():
+    results = [trial("timeout", 6, 0), trial("interrupted", 19, 1), trial("safe_abort", 18, 2), trial("completed", 4, 3)]
+    m = cell_metrics(results, budget=20)
+    terms = [moer_term(r, m.s_max) for r in results]
+    assert terms == [0.6, 0.3, 0.6, 1.0]
+    assert m.moer.value <= 1.0

@@ -1,0 +1,108 @@
+"""Run folders are never shared by two runs at once; failed trials are retried; bad setups are refused."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+import types
+
+import pytest
+
+from safeembodai_core import hookimpl
+from safeembodai_core.ablation import Ablation, RunFolder
+from safeembodai_core.errors import PluginError, SafeEmbodAIError, ScenarioError
+from safeembodai_core.models import Outcome
+from safeembodai_core.plugins import load_plugins
+from safeembodai_core.scenario import load_scenario, parse_scenario
+
+
+def quickstart(repo, plugins, *overrides):
+    return load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2", *overrides], plugins.registry)
+
+
+def test_two_coordinators_cannot_share_a_run_folder(repo, plugins, tmp_path):
+    scenario = quickstart(repo, plugins)
+    first = Ablation(scenario, plugins, RunFolder(tmp_path / "run"))
+    try:
+        with pytest.raises(SafeEmbodAIError, match="another 'safeembodai ablate' is running"):
+            Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True)
+    finally:
+        first.close()
+    Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True).close()  # free once the first ended
+
+
+def test_resume_waits_for_orphaned_workers(repo, plugins, tmp_path):
+    scenario = quickstart(repo, plugins)
+    Ablation(scenario, plugins, RunFolder(tmp_path / "run")).close()
+    holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
+        import sys, time
+        from safeembodai_core.ablation.run_folder import hold_worker_lock
+        hold_worker_lock({str(tmp_path / "run")!r}); print("held", flush=True); time.sleep(60)
+    """)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(SafeEmbodAIError, match="still finishing trials"):
+            Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True)
+    finally:
+        holder.kill()
+        holder.wait()
+    Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True).close()
+
+
+def test_error_trials_are_run_again_on_resume(repo, plugins, tmp_path):
+    scenario = quickstart(repo, plugins, "backend.options.then=fail", "max_steps=8")
+    folder = RunFolder(tmp_path / "run")
+    first = Ablation(scenario, plugins, folder)
+    try:
+        results = first.run()
+    finally:
+        first.close()
+    errored = {r.spec.trial_id for r in results if r.outcome == Outcome.ERROR}
+    assert errored  # the scripted backend runs out of answers: an outage
+    again = Ablation(scenario, plugins, folder, resume=True)
+    try:
+        assert {s.trial_id for s in again.pending()} == errored
+    finally:
+        again.close()
+
+
+def test_inline_plugins_are_refused_for_worker_processes(repo, tmp_path):
+    inline = types.ModuleType("inline_helper")
+    inline.before_trial = hookimpl(lambda spec: None)
+    plugins = load_plugins([inline], environ={})
+    scenario = quickstart(repo, plugins)
+    ablation = Ablation(scenario, plugins, RunFolder(tmp_path / "run"), workers=2)
+    try:
+        with pytest.raises(SafeEmbodAIError, match="inline plugins \\(inline_helper\\) cannot reach worker processes"):
+            ablation.run()
+    finally:
+        ablation.close()
+
+
+def test_two_unlabelled_uses_of_one_attacker_or_validator_are_refused():
+    text = textwrap.dedent("""
+        name: t
+        environments: [flatland]
+        conditions:
+          double: {attackers: [prompt_injection, {use: prompt_injection, options: {rate: 0.9}}]}
+        arms:
+          a: {safety_validation: true, validators: [lidar_clearance, lidar_clearance]}
+    """)
+    with pytest.raises(ScenarioError) as error:
+        parse_scenario(text, "t.yaml")
+    assert "attacker labels must be unique" in str(error.value) and "validator labels must be unique" in str(error.value)
+    labelled = text.replace("{use: prompt_injection, options", "{use: prompt_injection, label: second, options").replace(
+        "[lidar_clearance, lidar_clearance]", "[lidar_clearance]")
+    assert [r.key for r in parse_scenario(labelled, "t.yaml").conditions["double"].attackers] == ["prompt_injection", "second"]
+
+
+def test_an_entry_point_cannot_take_a_builtin_plugin_name(monkeypatch):
+    from importlib import metadata
+
+    import safeembodai_core.plugins as manager
+
+    impostor = metadata.EntryPoint(name="validators", value="acme_rules.plugin", group="safeembodai")
+    monkeypatch.setattr(manager.metadata, "entry_points", lambda group: [impostor])
+    with pytest.raises(PluginError, match="'acme_rules.plugin' uses the name of the plugin from 'safeembodai_plugins.validators'"):
+        manager.load_plugins(environ={})
