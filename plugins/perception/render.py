@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from safeembodai_core.components import Perception
@@ -20,6 +22,17 @@ def encode_png(rgb: np.ndarray) -> bytes:
     return data.tobytes()
 
 
+@lru_cache(maxsize=1)
+def _dot_offsets() -> tuple[np.ndarray, np.ndarray]:
+    """Pixel offsets of a filled radius-2 dot exactly as ``cv2.circle`` draws it."""
+    import cv2
+
+    stamp = np.zeros((5, 5), dtype=np.uint8)
+    cv2.circle(stamp, (2, 2), 2, 1, -1)
+    rows, cols = np.nonzero(stamp)
+    return rows - 2, cols - 2
+
+
 def draw_lidar_image(scan: LidarScan, size_px: int, range_mm: float) -> np.ndarray:
     """Top-down map: robot at the centre facing up, returns as dark dots, range rings every metre."""
     import cv2
@@ -35,8 +48,11 @@ def draw_lidar_image(scan: LidarScan, size_px: int, range_mm: float) -> np.ndarr
         cols = np.rint(centre - points[:, 1] * scale).astype(int)
         rows = np.rint(centre - points[:, 0] * scale).astype(int)
         inside = (cols >= 0) & (cols < size_px) & (rows >= 0) & (rows < size_px)
-        for r, c in zip(rows[inside], cols[inside]):
-            cv2.circle(image, (int(c), int(r)), 2, (0, 0, 0), -1)
+        dr, dc = _dot_offsets()
+        dot_rows = (rows[inside][:, None] + dr[None, :]).ravel()
+        dot_cols = (cols[inside][:, None] + dc[None, :]).ravel()
+        keep = (dot_rows >= 0) & (dot_rows < size_px) & (dot_cols >= 0) & (dot_cols < size_px)
+        image[dot_rows[keep], dot_cols[keep]] = 0  # one vectorised stamp instead of a circle per return
     tip = (int(centre), int(centre - 18))
     cv2.circle(image, (int(centre), int(centre)), 6, (0, 120, 255), -1)
     cv2.line(image, (int(centre), int(centre)), tip, (0, 120, 255), 2)
