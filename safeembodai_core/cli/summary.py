@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from rich import box
 from rich.table import Table
 
 from ..metrics import cell_metrics, group_by_cell
@@ -11,7 +10,8 @@ from ..scenario import Scenario
 
 
 def summary_table(scenario: Scenario, results: list[TrialResult]) -> Table:
-    table = Table(title=f"{scenario.name}: metrics per cell", box=box.SIMPLE_HEAD, padding=(0, 1, 0, 0), show_lines=False)
+    table = Table(title=f"{scenario.name}: metrics per cell", box=None, padding=(0, 1, 0, 0), pad_edge=False,
+                  header_style="bold underline")
     for column in ("env", "arm", "condition", "n", "MOER", "done", "ADR", "TLR", "steps*", "tokens*", "ref", "err"):
         table.add_column(column, no_wrap=True, justify="left" if column in ("env", "arm", "condition") else "right")
     for (env, arm, condition), cell in group_by_cell(results).items():

@@ -1,5 +1,5 @@
 """Figures in the style of the paper's Figures 5-8: grouped bars per environment, one bar per arm,
-one panel per condition, 95% intervals as error bars and the paper's values as hollow markers."""
+one panel per condition, 95% intervals as error bars and the paper's values as white diamonds."""
 
 from __future__ import annotations
 
@@ -50,18 +50,22 @@ def draw_figures(cells: list[CellMetrics], folder: Path) -> list[Path]:
                     if theirs is not None:
                         paper_x.append(x)
                         paper_y.append(theirs)
-                bars = axis.bar(xs, values, width=width * 0.95, yerr=[lows, highs], capsize=2, label=arm)
+                axis.bar(xs, values, width=width * 0.95, yerr=[lows, highs], capsize=2, label=arm, color=f"C{a}")
                 if paper_x:
-                    axis.scatter(paper_x, paper_y, marker="D", facecolors="none",
-                                 edgecolors=bars.patches[0].get_facecolor() if bars.patches else "black",
-                                 zorder=3, label=f"{arm} (paper)")
+                    axis.scatter(paper_x, paper_y, marker="D", s=28, facecolors="white", edgecolors="black",
+                                 linewidths=1.2, zorder=4, label="paper (GPT-4o)")
             axis.set_xticks(range(len(environments)), environments)
             axis.set_title(condition.replace("_", " "))
             if limits:
                 axis.set_ylim(*limits)
         axes[0][0].set_ylabel(label)
-        axes[0][-1].legend(fontsize="x-small", loc="best")
-        fig.tight_layout()
+        handles: dict[str, object] = {}
+        for axis in axes[0]:
+            for handle, name in zip(*axis.get_legend_handles_labels()):
+                handles.setdefault(name, handle)
+        fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=len(handles), fontsize="small",
+                   frameon=False)
+        fig.tight_layout(rect=(0, 0.08, 1, 1))
         path = folder / f"{metric}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
