@@ -106,3 +106,52 @@ def test_an_entry_point_cannot_take_a_builtin_plugin_name(monkeypatch):
     monkeypatch.setattr(manager.metadata, "entry_points", lambda group: [impostor])
     with pytest.raises(PluginError, match="'acme_rules.plugin' uses the name of the plugin from 'safeembodai_plugins.validators'"):
         manager.load_plugins(environ={})
+
+
+def test_an_unwritable_run_folder_is_a_clear_error(repo, tmp_path):
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("a file where the run folder should go")
+    completed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(repo / "scenarios" / "quickstart.yaml"),
+                                "--out", str(blocker / "runs")], capture_output=True, text=True)
+    assert completed.returncode == 1 and "Traceback" not in completed.stderr
+    assert "cannot write the run folder" in completed.stderr and "not-a-folder" in completed.stderr
+
+
+def test_a_full_disk_stops_the_run_cleanly_and_it_resumes(repo, plugins, tmp_path, monkeypatch):
+    from safeembodai_core.errors import StateStoreError
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    scenario = quickstart(repo, plugins, "trials=2")
+    folder = RunFolder(tmp_path / "run")
+    real_record, real_end = SqliteStateStore.record_step, SqliteStateStore.end_trial
+    ended: list[str] = []
+
+    def end_trial(self, result):
+        if len(ended) >= 3:
+            raise StateStoreError(f"{self.path}: database or disk is full")
+        ended.append(result.spec.trial_id)
+        real_end(self, result)
+
+    def record_step(self, record):
+        if len(ended) >= 3:
+            raise StateStoreError(f"{self.path}: database or disk is full")
+        real_record(self, record)
+
+    monkeypatch.setattr(SqliteStateStore, "end_trial", end_trial)
+    monkeypatch.setattr(SqliteStateStore, "record_step", record_step)
+    ablation = Ablation(scenario, plugins, folder)
+    try:
+        with pytest.raises(StateStoreError, match="disk is full"):
+            ablation.run()
+    finally:
+        ablation.close()
+    monkeypatch.setattr(SqliteStateStore, "end_trial", real_end)
+    monkeypatch.setattr(SqliteStateStore, "record_step", real_record)
+    resumed = Ablation(scenario, plugins, folder, resume=True)
+    try:
+        assert len(resumed.pending()) == 8 - 3
+        results = resumed.run()
+    finally:
+        resumed.close()
+    ids = [r.spec.trial_id for r in results]
+    assert len(ids) == len(set(ids)) == 8 and set(ended) <= set(ids)
