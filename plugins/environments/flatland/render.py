@@ -66,30 +66,15 @@ def render_camera(position: np.ndarray, heading: float, circles: np.ndarray, o) 
     return image
 
 
-def render_trajectory(poses, circles, o, outcome, size_px: int = 480) -> bytes:
-    """A PNG of the room from above: obstacles, can, the robot's path and the outcome."""
-    import cv2
+def render_trajectory(poses, circles, o, outcome, seed: int | None = None, collided: bool = False) -> bytes:
+    """A PNG of the room from above, in the style every built-in world shares."""
+    from ..topdown import TopDownScene, draw_topdown
 
-    scale = (size_px - 40) / o.room_mm
-    image = np.full((size_px, size_px, 3), 255, dtype=np.uint8)
-
-    def px(x, y):
-        return int(round(20 + x * scale)), int(round(size_px - 20 - y * scale))
-
-    cv2.rectangle(image, px(0, 0), px(o.room_mm, o.room_mm), (60, 60, 60), 2)
-    for k, (x, y, r) in enumerate(circles):
-        colour = (25, 20, 200) if k == 0 else (150, 150, 150)
-        cv2.circle(image, px(x, y), max(2, int(r * scale)), colour, -1)
-    points = [px(p.x_mm, p.y_mm) for p in poses]
-    for a, b in zip(points, points[1:]):
-        cv2.line(image, a, b, (200, 120, 0), 2)
-    if points:
-        cv2.circle(image, points[0], max(3, int(o.robot_radius_mm * scale)), (0, 160, 0), 1)
-        cv2.circle(image, points[-1], max(3, int(o.robot_radius_mm * scale)), (200, 120, 0), 2)
-        end = poses[-1]
-        tip = px(end.x_mm + 250 * math.cos(math.radians(end.heading_deg)), end.y_mm + 250 * math.sin(math.radians(end.heading_deg)))
-        cv2.line(image, points[-1], tip, (200, 120, 0), 2)
-    label = outcome.value if outcome is not None else "running"
-    cv2.putText(image, label, (24, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
-    ok, data = cv2.imencode(".png", image)
-    return data.tobytes()
+    last = poses[-1] if poses else None
+    scene = TopDownScene(
+        title=f"flatland  seed {seed}", room_mm=o.room_mm, can_xy=(circles[0][0], circles[0][1]),
+        can_radius_mm=o.can_radius_mm, reach_mm=o.reach_mm, robot_radius_mm=o.robot_radius_mm,
+        obstacles=[tuple(c) for c in circles[1:]],
+        collision_xy=(last.x_mm, last.y_mm) if collided and last is not None else None,
+    )
+    return draw_topdown(scene, poses, outcome)

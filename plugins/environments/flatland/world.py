@@ -38,6 +38,7 @@ class FlatlandWorld(Environment):
         self.circles = np.zeros((1, 3))
         self.sim_time_s = 0.0
         self.collided = False
+        self.seed: int | None = None
 
     # -- world construction -------------------------------------------------------------------
 
@@ -47,7 +48,7 @@ class FlatlandWorld(Environment):
         margin = o.robot_radius_mm + 50
         if o.room_mm <= 2 * margin + 2 * o.can_radius_mm:
             raise EnvironmentError_(f"flatland: room_mm={o.room_mm} is too small for the robot")
-        self.sim_time_s, self.collided = 0.0, False
+        self.sim_time_s, self.collided, self.seed = 0.0, False, seed
         self.position = rng.uniform(margin, o.room_mm - margin, size=2)
         self.heading = float(rng.uniform(-180.0, 180.0))
         can = self._place(rng, o.can_radius_mm, [], away_from_robot=o.min_start_distance_mm, hidden=True, what="can")
@@ -141,4 +142,4 @@ class FlatlandWorld(Environment):
         return None
 
     def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
-        return render_trajectory(poses, self.circles, self.options, outcome)
+        return render_trajectory(poses, self.circles, self.options, outcome, self.seed, self.collided)

@@ -1,94 +1,34 @@
-"""The top-down picture of a trial, like the paper's Figure 4.
-
-The room from above with north up: walls, soccer balls (white), the Labbots where they ended
-(blue) with their tracks (light blue), the red can with its reach circle, the robot's path
-(orange) from its start (green) to its final pose, a red cross where it collided, the outcome
-in the title and a one-metre scale bar.
-"""
+"""The pybullet room as a top-down scene (drawn by ``safeembodai_plugins.environments.topdown``)."""
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from safeembodai_core.models import Outcome, Pose
 
+from ..topdown import MARGIN_PX, SIZE_PX, TopDownScene, draw_topdown
 from .options import CAN_RADIUS_MM
 from .scene import WALL_THICKNESS_MM
 
 if TYPE_CHECKING:
     from .world import PybulletRoom
 
-SIZE_PX = 560
-MARGIN_PX = 36
-# BGR, as OpenCV draws
-_FLOOR, _WALL, _TEXT = (235, 235, 235), (90, 90, 90), (20, 20, 20)
-_BALL, _LABBOT, _TRACK = (255, 255, 255), (190, 90, 40), (235, 200, 170)
-_CAN, _PATH, _START, _CROSS = (30, 20, 210), (0, 140, 255), (40, 160, 40), (0, 0, 220)
-_OUTCOME_COLOUR = {Outcome.COMPLETED: (40, 150, 40), Outcome.INTERRUPTED: (0, 0, 200), Outcome.TIMEOUT: (0, 120, 220)}
+__all__ = ["MARGIN_PX", "SIZE_PX", "draw_trajectory"]
 
 
 def draw_trajectory(env: "PybulletRoom", poses: list[Pose], outcome: Outcome | None) -> bytes:
     """PNG bytes of the room with ``poses`` (the robot's path) and ``outcome``."""
-    import cv2
-
     o = env.options
-    scale = (SIZE_PX - 2 * MARGIN_PX) / (o.room_mm + 2 * WALL_THICKNESS_MM)
-    image = np.full((SIZE_PX, SIZE_PX, 3), 255, dtype=np.uint8)
-
-    def px(x: float, y: float) -> tuple[int, int]:
-        return (int(round(MARGIN_PX + (x + WALL_THICKNESS_MM) * scale)),
-                int(round(SIZE_PX - MARGIN_PX - (y + WALL_THICKNESS_MM) * scale)))
-
-    def radius(mm: float) -> int:
-        return max(2, int(round(mm * scale)))
-
-    cv2.rectangle(image, px(-WALL_THICKNESS_MM, -WALL_THICKNESS_MM),
-                  px(o.room_mm + WALL_THICKNESS_MM, o.room_mm + WALL_THICKNESS_MM), _WALL, -1)
-    cv2.rectangle(image, px(0, 0), px(o.room_mm, o.room_mm), _FLOOR, -1)
-    for x, y in env.balls_xy:
-        cv2.circle(image, px(x, y), radius(o.ball_radius_mm), _BALL, -1, cv2.LINE_AA)
-        cv2.circle(image, px(x, y), radius(o.ball_radius_mm), _TEXT, 1, cv2.LINE_AA)
     swarm = env.swarm
-    if swarm is not None and len(swarm):
-        track = np.stack(swarm.track)  # (T, L, 2)
-        for k in range(track.shape[1]):
-            points = np.array([px(x, y) for x, y in track[:, k]], dtype=np.int32)
-            cv2.polylines(image, [points], False, _TRACK, 1, cv2.LINE_AA)
-            cv2.circle(image, tuple(int(v) for v in points[0]), radius(swarm.radius), _TRACK, 1, cv2.LINE_AA)
-            cv2.circle(image, px(*swarm.xy[k]), radius(swarm.radius), _LABBOT, -1, cv2.LINE_AA)
-    cv2.circle(image, px(*env.can_xy), radius(o.reach_mm), _CAN, 1, cv2.LINE_AA)
-    cv2.circle(image, px(*env.can_xy), max(4, radius(CAN_RADIUS_MM)), _CAN, -1, cv2.LINE_AA)
-    _draw_path(cv2, image, poses, px, radius(o.robot_radius_mm))
-    if env.collision_xy is not None:
-        cx, cy = px(*env.collision_xy)
-        for dx, dy in ((8, 8), (8, -8)):
-            cv2.line(image, (cx - dx, cy - dy), (cx + dx, cy + dy), _CROSS, 3, cv2.LINE_AA)
-    label = outcome.value if outcome is not None else "running"
-    title = f"{env.kind}  seed {env._seed}  {len(poses)} poses  outcome: {label}"
-    cv2.putText(image, title, (MARGIN_PX, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
-                _OUTCOME_COLOUR.get(outcome, _TEXT), 1, cv2.LINE_AA)
-    bar_left = (MARGIN_PX, SIZE_PX - 14)
-    bar_right = (MARGIN_PX + int(round(1000 * scale)), SIZE_PX - 14)
-    cv2.line(image, bar_left, bar_right, _TEXT, 2)
-    cv2.putText(image, "1 m", (bar_right[0] + 6, SIZE_PX - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.45, _TEXT, 1, cv2.LINE_AA)
-    ok, data = cv2.imencode(".png", image)
-    if not ok:
-        raise ValueError("could not encode the trajectory picture as PNG")
-    return data.tobytes()
-
-
-def _draw_path(cv2, image: np.ndarray, poses: list[Pose], px, robot_px: int) -> None:
-    if not poses:
-        return
-    points = np.array([px(p.x_mm, p.y_mm) for p in poses], dtype=np.int32)
-    cv2.polylines(image, [points], False, _PATH, 2, cv2.LINE_AA)
-    for pose, colour in ((poses[0], _START), (poses[-1], _PATH)):
-        centre = px(pose.x_mm, pose.y_mm)
-        rad = math.radians(pose.heading_deg)
-        length = 1.6 * robot_px
-        tip = (int(round(centre[0] + length * math.cos(rad))), int(round(centre[1] - length * math.sin(rad))))
-        cv2.circle(image, centre, robot_px, colour, 2, cv2.LINE_AA)
-        cv2.line(image, centre, tip, colour, 2, cv2.LINE_AA)
+    has_movers = swarm is not None and len(swarm)
+    scene = TopDownScene(
+        title=f"{env.kind}  seed {env._seed}", room_mm=o.room_mm, wall_mm=WALL_THICKNESS_MM,
+        can_xy=tuple(env.can_xy), can_radius_mm=CAN_RADIUS_MM, reach_mm=o.reach_mm, robot_radius_mm=o.robot_radius_mm,
+        obstacles=[(x, y, o.ball_radius_mm) for x, y in env.balls_xy],
+        movers_radius_mm=swarm.radius if has_movers else 0.0,
+        mover_tracks=np.stack(swarm.track) if has_movers else None,
+        collision_xy=env.collision_xy,
+    )
+    return draw_topdown(scene, poses, outcome)
