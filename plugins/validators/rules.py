@@ -27,7 +27,7 @@ def checked_scan(context: ValidationContext, rule: str, expected_beams: int | No
     if expected_beams is not None and ranges.size != expected_beams:
         raise ValueError(f"{rule}: LiDAR scan has {ranges.size} beams; this rule expects {expected_beams}")
     finite = ranges[np.isfinite(ranges)]
-    if finite.size and finite.min() < 0:
+    if (finite.size and finite.min() < 0) or np.isneginf(ranges).any():
         raise ValueError(f"{rule}: LiDAR scan has negative ranges")
     return scan
 
@@ -74,7 +74,9 @@ class LidarClearanceRule(Validator):
         if not isinstance(signal, Straight):
             return Verdict(rule=self.name, valid=True, reason="turns are always valid under V(C)")
         scan = checked_scan(context, self.name, self.options.expected_beams)
-        r, dist = self.options.half_angle_deg, self.options.safety_distance_mm
+        r = self.options.half_angle_deg
+        # dist is a clearance from the LiDAR at the robot's centre: never less than the body's radius
+        dist = max(self.options.safety_distance_mm, context.robot.radius_mm)
         direction, where = direction_words(signal)
         centre = 0.0 if signal.direction == "forward" else 180.0
         beams = scan.sector(centre, r)

@@ -29,6 +29,7 @@ from safeembodai_core.validation import ValidationContext
 from .rules import checked_scan, direction_words
 
 _AHEAD_EPS_MM = 1e-6
+_SAMPLE_MM = 20.0  # corridor sampling step for the visibility check
 
 
 def scan_origin_at_pose(context: ValidationContext) -> np.ndarray:
@@ -56,6 +57,36 @@ class FootprintSweepRule(Validator):
             unknown = unknown[np.hypot(*(unknown - origin).T) >= inscribed_mm]
         return known, unknown
 
+    @staticmethod
+    def _first_hidden(context: ValidationContext, half: float, reach: float,
+                      sign: float) -> tuple[float, np.ndarray] | None:
+        """The nearest corridor sample the scan never saw, as (distance along, point), if any.
+
+        From the scan's own pose every corridor sample is on a beam that either reaches it or
+        returns a point inside the corridor first, so only planned poses away from it need this.
+        """
+        x, y, heading = context.offset
+        if math.hypot(x, y) < 1e-9:
+            return None
+        along = np.arange(_SAMPLE_MM, reach, _SAMPLE_MM)
+        lateral = np.linspace(-half, half, max(2, int(math.ceil(2 * half / _SAMPLE_MM)) + 1))
+        grid_x, grid_y = np.meshgrid(along, lateral, indexing="ij")
+        planned = np.column_stack((sign * grid_x.ravel(), grid_y.ravel()))
+        rad = math.radians(heading)
+        c, s = math.cos(rad), math.sin(rad)
+        at_scan = np.column_stack((x + planned[:, 0] * c - planned[:, 1] * s, y + planned[:, 0] * s + planned[:, 1] * c))
+        scan = context.scan
+        ranges = np.where(np.isposinf(scan.ranges_mm), scan.max_range_mm, scan.ranges_mm)
+        n, inc = scan.beam_count, scan.increment_deg
+        beam = np.rint(np.degrees(np.arctan2(at_scan[:, 1], at_scan[:, 0])) / inc).astype(int) % n
+        # the nearer of the neighbouring beams; a missing reading (nan) leaves the sample unseen
+        seen = np.minimum(ranges[beam], np.minimum(ranges[(beam - 1) % n], ranges[(beam + 1) % n]))
+        hidden = ~(np.hypot(at_scan[:, 0], at_scan[:, 1]) <= seen)  # nan (no reading) is hidden too
+        if not hidden.any():
+            return None
+        k = np.flatnonzero(hidden)[np.argmin(np.abs(planned[hidden, 0]))]
+        return float(abs(planned[k, 0])), planned[k]
+
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
         o = self.options
         checked_scan(context, self.name, o.expected_beams)
@@ -64,12 +95,12 @@ class FootprintSweepRule(Validator):
         length = o.length_mm or robot.length_mm
         known, unknown = self._obstacles(context, min(width, length) / 2)
         if isinstance(signal, Straight):
-            return self._straight(signal, known, unknown, width, length)
+            return self._straight(signal, context, known, unknown, width, length)
         if not o.check_turns:
             return Verdict(rule=self.name, valid=True)
         return self._turn(signal, known, unknown, robot.radius_mm + o.turn_margin_mm)
 
-    def _straight(self, signal: Straight, known: np.ndarray, unknown: np.ndarray,
+    def _straight(self, signal: Straight, context: ValidationContext, known: np.ndarray, unknown: np.ndarray,
                   width: float, length: float) -> Verdict:
         o = self.options
         front = o.front_margin_mm if o.front_margin_mm is not None else o.margin_mm
@@ -77,8 +108,8 @@ class FootprintSweepRule(Validator):
         reach = signal.distance + length / 2 + front
         sign = 1.0 if signal.direction == "forward" else -1.0
         direction, where = direction_words(signal)
-        nearest: tuple[float, np.ndarray, bool] | None = None
-        for points, is_unknown in ((known, False), (unknown, True)):
+        nearest: tuple[float, np.ndarray, str] | None = None
+        for points, kind in ((known, "obstacle"), (unknown, "unread")):
             if not points.size:
                 continue
             along = points[:, 0] * sign
@@ -86,10 +117,13 @@ class FootprintSweepRule(Validator):
             if inside.any():
                 k = np.flatnonzero(inside)[np.argmin(along[inside])]
                 if nearest is None or along[k] < nearest[0]:
-                    nearest = (float(along[k]), points[k], is_unknown)
+                    nearest = (float(along[k]), points[k], kind)
+        hidden = self._first_hidden(context, half, reach, sign)
+        if hidden is not None and (nearest is None or hidden[0] < nearest[0]):
+            nearest = (hidden[0], hidden[1], "hidden")
         if nearest is None:
             return Verdict(rule=self.name, valid=True)
-        along, point, is_unknown = nearest
+        along, point, kind = nearest
         lateral = float(point[1])
         side = "left" if lateral > 0 else "right"
         other = "right" if lateral > 0 else "left"
@@ -97,7 +131,10 @@ class FootprintSweepRule(Validator):
         advice = (f"going {direction}, at most {safe} mm is safe" if safe >= 1
                   else f"no {direction} motion is safe here; turn away (to the {other}) first")
         path = f"the robot's path ({width:g} mm wide + {o.margin_mm:g} mm margin each side)"
-        if is_unknown:
+        if kind == "hidden":
+            what = (f"the part of {path} beyond {along:.0f} mm {where} was hidden from the LiDAR (behind something "
+                    f"it saw from where the scan was taken), so it cannot be confirmed clear")
+        elif kind == "unread":
             bearing = math.degrees(math.atan2(point[1], point[0]))
             what = (f"the LiDAR has no reading towards {bearing:.0f} deg, so {path} cannot be confirmed clear "
                     f"beyond {along:.0f} mm {where}")

@@ -25,11 +25,17 @@ log = get_logger(__name__)
 MAX_STORED_TEXT = 16_000
 
 
+def _one_line(text: str) -> str:
+    """Reasons can echo LLM-written text (a parser error quotes the bad value): keep each on one
+    line so it cannot pose as a section of the next prompt."""
+    return " ".join(text.split())
+
+
 def _feedback(index: int, attempt: Attempt) -> list[str]:
     refused = ""
     if attempt.response is not None and attempt.response.control:
         refused = " (refused plan: " + ", ".join(s.describe() for s in attempt.response.control) + ")"
-    return [f"attempt {index + 1}{refused}: {reason}" for reason in attempt.failures()]
+    return [_one_line(f"attempt {index + 1}{refused}: {reason}") for reason in attempt.failures()]
 
 
 def decide(

@@ -53,7 +53,7 @@ class LidarScan:
         if not np.isfinite(self.max_range_mm) or self.max_range_mm <= 0:
             raise ValueError(f"max_range_mm must be a positive finite number, got {self.max_range_mm}")
         finite = ranges[np.isfinite(ranges)]
-        if finite.size and finite.min() < 0:
+        if (finite.size and finite.min() < 0) or np.isneginf(ranges).any():
             raise ValueError("LiDAR ranges must not be negative")
         self.ranges_mm = ranges
 
