@@ -61,7 +61,8 @@ def trial_list(trials: list[dict]) -> Table:
     for column in ("trial id", "seed", "status", "outcome", "steps"):
         table.add_column(column)
     for row in trials:
-        table.add_row(row["trial_id"], str(row["seed"]), row["status"], row["outcome"] or "-", str(row["steps"]))
+        table.add_row(*(Text(str(v)) for v in (row["trial_id"], row["seed"], row["status"], row["outcome"] or "-",
+                                                row["steps"])))
     return table
 
 
@@ -137,14 +138,16 @@ def show_run(run: str, trial: str | None, *, environment: str | None = None, arm
         result = store.result(trial_id)
     finally:
         store.close()
-    console.print(f"[bold]{trial_id}[/bold]")
+    console.print(Text(trial_id, style="bold"))
     for record in steps:
         console.print(step_panel(record))
     if result is None:
         console.print("trial did not finish (no result stored)")
     else:
-        console.print(f"outcome: [bold]{result.outcome.value}[/bold] after {result.steps} steps"
-                      f" ({result.detail or 'no detail'}); distance {result.distance_mm:.0f} mm, "
-                      f"collisions {result.collisions}, interventions {result.interventions}, tokens {result.tokens}")
+        line = Text("outcome: ")
+        line.append(result.outcome.value, style="bold")
+        line.append(f" after {result.steps} steps ({result.detail or 'no detail'}); distance {result.distance_mm:.0f} mm, "
+                    f"collisions {result.collisions}, interventions {result.interventions}, tokens {result.tokens}")
+        console.print(line)
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 import sqlite3
 import threading
+import time
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
@@ -117,7 +118,7 @@ class SqliteStateStore(StateStore):
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 conn = sqlite3.connect(str(self.path), timeout=self.timeout_s, isolation_level=None,
                                        check_same_thread=False)
-                conn.execute("PRAGMA journal_mode=WAL")
+                self._switch_to_wal(conn)
                 conn.execute(f"PRAGMA synchronous={self.synchronous}")
             try:
                 self._check_schema(conn)
@@ -130,6 +131,22 @@ class SqliteStateStore(StateStore):
             raise self._error("open the database", error) from None
         self._conn, self._pid = conn, os.getpid()
         return conn
+
+    def _switch_to_wal(self, conn: sqlite3.Connection) -> None:
+        """Enable WAL, waiting up to ``timeout_s`` for other processes creating the same file.
+
+        SQLite answers "database is locked" at once here, without its busy timeout, while another
+        connection switches a new file's journal mode: several workers starting together hit it.
+        """
+        deadline = time.monotonic() + self.timeout_s
+        while True:
+            try:
+                conn.execute("PRAGMA journal_mode=WAL")
+                return
+            except sqlite3.OperationalError as error:
+                if "locked" not in str(error) or time.monotonic() >= deadline:
+                    raise
+                time.sleep(0.02)
 
     def _check_schema(self, conn: sqlite3.Connection) -> None:
         tables = {row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type='table'")}

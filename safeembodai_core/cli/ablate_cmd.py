@@ -23,6 +23,7 @@ from .common import load, scenario_options
 def ablate(scenario_path, backend, seed, overrides, workers, executor, address, out_root, resume_dir, no_report) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from ..ablation import Ablation, RunFolder
@@ -47,7 +48,8 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
             def advance(result) -> None:
                 cell = (result.spec.environment, result.spec.arm, result.spec.condition)
                 left[cell] -= 1
-                progress.update(trials, advance=1, description=f"trials (last: {result.spec.trial_id} {result.outcome.value})")
+                progress.update(trials, advance=1,
+                                description=f"trials (last: {escape(result.spec.trial_id)} {result.outcome.value})")
                 if left[cell] == 0:
                     progress.advance(finished_cells)
 

@@ -30,6 +30,7 @@ def _pick(kind: str, value: str | None, names: list[str]) -> str:
 def run(scenario_path, backend, seed, overrides, environment, arm, condition, index, out_dir) -> None:
     """Run one trial of SCENARIO and show what happened at every step."""
     from rich.console import Console
+    from rich.markup import escape
 
     from ..runner import ScenarioRunner, trial_spec
     from .trial_view import save_trial, step_table
@@ -51,6 +52,6 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     finally:
         runner.close()
     console.print(step_table(steps))
-    console.print(f"[bold]{spec.trial_id}[/bold]: {result.outcome.value} after {result.steps} steps"
-                  f" ({result.detail or 'no detail'}); distance {result.distance_mm:.0f} mm, tokens {result.tokens}")
+    console.print(f"[bold]{escape(spec.trial_id)}[/bold]: {result.outcome.value} after {result.steps} steps"
+                  f" ({escape(result.detail or 'no detail')}); distance {result.distance_mm:.0f} mm, tokens {result.tokens}")
     console.print(f"saved to {folder}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from rich.markup import escape
 from rich.table import Table
 
 from ..metrics import cell_metrics, group_by_cell
@@ -16,7 +17,7 @@ def summary_table(scenario: Scenario, results: list[TrialResult]) -> Table:
         table.add_column(column, no_wrap=True, justify="left" if column in ("env", "arm", "condition") else "right")
     for (env, arm, condition), cell in group_by_cell(results).items():
         m = cell_metrics(cell, scenario.max_steps)
-        table.add_row(env, arm, condition, str(m.trials), _value(m.moer, 2), _value(m.completion, 2), _value(m.adr, 2),
+        table.add_row(escape(env), escape(arm), escape(condition), str(m.trials), _value(m.moer, 2), _value(m.completion, 2), _value(m.adr, 2),
                       _value(m.tlr, 2), _value(m.steps, 1), _value(m.tokens, 0), _value(m.interventions, 1), str(m.errors))
     table.caption = ("done = completed share; * over completed trials; ref = answers refused by a validator per trial;\n"
                      "err = backend errors; 95% intervals in report.md")

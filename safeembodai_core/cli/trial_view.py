@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from rich.markup import escape
 from rich.table import Table
 
 from ..models import StepRecord, TrialResult
@@ -15,17 +16,17 @@ def step_table(steps: list[StepRecord]) -> Table:
     for column in ("i", "instruction", "attempts", "plan / refusal", "executed"):
         table.add_column(column, overflow="fold")
     for record in steps:
-        instruction = record.instruction + ("\n[red]attacked[/red]" if record.attacks else "")
+        instruction = escape(record.instruction) + ("\n[red]attacked[/red]" if record.attacks else "")
         notes = []
         for attempt in record.attempts:
             if attempt.accepted and attempt.response is not None:
                 flag = " [yellow](flagged attack)[/yellow]" if attempt.response.flags_attack else ""
-                notes.append(f"ok: {attempt.response.planning[:160]}{flag}")
+                notes.append(f"ok: {escape(attempt.response.planning[:160])}{flag}")
             else:
-                notes.append("refused: " + "; ".join(attempt.failures())[:200])
-        executed = "\n".join(
+                notes.append("refused: " + escape("; ".join(attempt.failures())[:200]))
+        executed = escape("\n".join(
             f"{item.signal.describe()} -> {item.result.detail or 'done'}" for item in record.executed
-        ) or "-"
+        )) or "-"
         table.add_row(str(record.step), instruction, str(len(record.attempts)), "\n".join(notes), executed)
     return table
 

@@ -81,3 +81,22 @@ def test_registering_the_store_imports_neither_sqlite3_nor_rich():
             "assert 'sqlite3' not in sys.modules and 'rich' not in sys.modules, sorted(sys.modules)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
+
+
+def test_show_prints_stored_text_literally_even_when_it_looks_like_markup(tmp_path, capsys):
+    from rich.console import Console
+
+    from safeembodai_core.models import Outcome, TrialResult, TrialSpec
+    from safeembodai_plugins.state.review import show_run
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    path = tmp_path / "results.sqlite"
+    store = SqliteStateStore(path)
+    spec = TrialSpec(trial_id="OF/a/c/0", environment="OF", arm="a", condition="c", seed=1)
+    store.begin_trial(spec)
+    store.end_trial(TrialResult(spec=spec, outcome=Outcome.ERROR, steps=0,
+                                detail="bad [type=value_error, input=x] and [/x] closing"))
+    store.close()
+    show_run(str(path), "OF/a/c/0", console=Console(width=200))
+    out = capsys.readouterr().out
+    assert "[type=value_error, input=x] and [/x] closing" in out

@@ -187,3 +187,32 @@ def test_no_secret_from_the_environment_is_stored_but_records_stay_verbatim(tmp_
     steps = SqliteStateStore(tmp_path / "s.sqlite").steps("flatland/arm/condition/0")
     assert key_like in steps[0].attempts[0].raw_text  # evidence is stored as the LLM wrote it
     assert key_like in steps[0].attempts[0].response.planning
+
+
+def _open_new_store(path, barrier, queue):
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    barrier.wait()
+    try:
+        SqliteStateStore(path, timeout_s=30)._connection()
+        queue.put(None)
+    except Exception as error:  # reported to the parent, which asserts on it
+        queue.put(repr(error))
+
+
+@pytest.mark.slow
+def test_many_processes_can_create_the_same_new_file_at_once(tmp_path):
+    import multiprocessing
+
+    context = multiprocessing.get_context("fork")
+    errors = []
+    for round_ in range(12):
+        path = tmp_path / f"new-{round_}.sqlite"
+        barrier, queue = context.Barrier(10), context.Queue()
+        workers = [context.Process(target=_open_new_store, args=(path, barrier, queue)) for _ in range(10)]
+        for worker in workers:
+            worker.start()
+        errors += [e for e in (queue.get(timeout=60) for _ in workers) if e]
+        for worker in workers:
+            worker.join()
+    assert errors == []
