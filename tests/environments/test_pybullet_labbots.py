@@ -102,3 +102,28 @@ def test_labbots_told_to_avoid_the_robot_do_not_hit_it(make_env, moves):
     assert not result.collided
     assert env.outcome() is None
     assert travelled(env.swarm.track)[0] > 300.0
+
+
+def test_labbots_depend_on_simulated_time_only_not_on_how_commands_are_split():
+    """Two arms that spend the same simulated time meet the same Labbots (paired comparison)."""
+    import numpy as np
+
+    from safeembodai_core.models import Straight, Turn
+    from safeembodai_core.plugins import load_plugins
+
+    registry = load_plugins(environ={}).registry
+
+    def labbots_after(*signals):
+        env = registry.build("environment", "DO", {})
+        try:
+            env.reset(7)
+            for signal in signals:
+                env.execute(signal)
+            return env.sim_time_s, env.swarm.xy.copy(), env.swarm.heading.copy()
+        finally:
+            env.close()
+
+    one = labbots_after(Turn(command="turn", direction="left", angle=31.5))
+    split = labbots_after(Turn(command="turn", direction="left", angle=30), Turn(command="turn", direction="left", angle=1.5))
+    assert one[0] == pytest.approx(split[0])
+    assert np.array_equal(one[1], split[1]) and np.array_equal(one[2], split[2])

@@ -9,7 +9,10 @@ side drawn at random, kept until the way ahead is clear). Labbots do not see the
 trial as ``interrupted``.
 
 The motion is plain numpy; the world copies the positions into pybullet, where the robot's
-contact checks see them. All draws come from the generator handed in, in a fixed order.
+contact checks see them. Labbots move on a fixed clock of ``TICK_S`` ticks, and tick k draws
+from a generator seeded by (the swarm's seed, k) alone: where they are is a function of
+simulated time only, never of how the robot's commands were cut into increments. Two arms that
+spend the same simulated time therefore meet the same Labbots.
 """
 
 from __future__ import annotations
@@ -19,31 +22,35 @@ import math
 import numpy as np
 
 CLEARANCE_MM = 30.0
+TICK_S = 0.05
 
 
 class LabbotSwarm:
     """Positions (mm) and headings (deg) of every Labbot, and how they move."""
 
     def __init__(self, options, xy: np.ndarray, headings_deg: np.ndarray, obstacles: np.ndarray,
-                 rng: np.random.Generator) -> None:
+                 seed: int) -> None:
         self.o = options
         self.radius = float(getattr(options, "labbot_radius_mm", 0.0))
         self.xy = np.array(xy, dtype=float).reshape(-1, 2)  # mm, world frame
         self.heading = np.array(headings_deg, dtype=float).reshape(-1)  # deg, CCW from +x
         self.turning = np.zeros(len(self.xy))  # -1 / +1 while turning away from something, else 0
         self._statics = [tuple(map(float, row)) for row in np.asarray(obstacles, dtype=float).reshape(-1, 3)]
-        self.rng = rng
+        self.seed = int(seed)
+        self.clock_s = 0.0  # simulated time this swarm has been given
+        self.ticks = 0  # ticks moved so far
         self.track: list[np.ndarray] = [self.xy.copy()]
 
     def __len__(self) -> int:
         return len(self.xy)
 
-    def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return self.xy.copy(), self.heading.copy(), self.turning.copy()
+    def state(self) -> tuple:
+        return self.xy.copy(), self.heading.copy(), self.turning.copy(), self.clock_s, self.ticks, len(self.track)
 
-    def restore(self, state: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
-        self.xy, self.heading, self.turning = (a.copy() for a in state)
-        self.track[-1] = self.xy.copy()
+    def restore(self, state: tuple) -> None:
+        xy, heading, turning, self.clock_s, self.ticks, kept = state
+        self.xy, self.heading, self.turning = xy.copy(), heading.copy(), turning.copy()
+        del self.track[kept:]
 
     def _clear(self, index: int, x: float, y: float, xs: list[float], ys: list[float],
                robot: tuple[float, float] | None) -> bool:
@@ -60,13 +67,19 @@ class LabbotSwarm:
         return robot is None or math.hypot(robot[0] - x, robot[1] - y) >= reach + self.o.robot_radius_mm
 
     def advance(self, dt: float, robot_xy: np.ndarray) -> None:
-        """Move every Labbot for ``dt`` simulated seconds."""
+        """Let ``dt`` simulated seconds pass: every whole tick reached in that time is moved."""
         if dt <= 0 or not len(self):
             return
-        o = self.o
+        self.clock_s += dt
+        while (self.ticks + 1) * TICK_S <= self.clock_s + 1e-9:
+            self._tick(robot_xy, np.random.default_rng([self.seed, self.ticks]))
+            self.ticks += 1
+
+    def _tick(self, robot_xy: np.ndarray, rng: np.random.Generator) -> None:
+        o, dt = self.o, TICK_S
         avoid = (float(robot_xy[0]), float(robot_xy[1])) if o.labbots_avoid_robot else None
-        drift = self.rng.normal(0.0, o.labbot_wander_deg * math.sqrt(dt), size=len(self)).tolist()
-        sides = np.where(self.rng.random(size=len(self)) < 0.5, -1.0, 1.0).tolist()
+        drift = rng.normal(0.0, o.labbot_wander_deg * math.sqrt(dt), size=len(self)).tolist()
+        sides = np.where(rng.random(size=len(self)) < 0.5, -1.0, 1.0).tolist()
         xs, ys = self.xy[:, 0].tolist(), self.xy[:, 1].tolist()
         headings, turning = self.heading.tolist(), self.turning.tolist()
         step, lookahead = o.labbot_speed_mm_s * dt, o.labbot_speed_mm_s * dt + o.labbot_lookahead_mm

@@ -59,7 +59,7 @@ class PybulletRoom(KinematicMotion, Environment):
         statics = np.vstack([np.append(self.can_xy, CAN_RADIUS_MM)]
                             + [np.column_stack((self.balls_xy, np.full(len(self.balls_xy), o.ball_radius_mm)))])
         self.swarm = LabbotSwarm(o, layout.labbots_xy, layout.labbots_heading_deg, statics,
-                                 np.random.default_rng(derive_seed(seed, "labbots")))
+                                 derive_seed(seed, "labbots"))
         self.sim_time_s, self.collided, self.collision_xy = 0.0, False, None
         self._thought = True  # nothing pending from the previous trial
         with silenced():
