@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,7 +19,6 @@ from .models import (
     ControlLimits,
     ControlSignal,
     ExecutionResult,
-    LidarScan,
     Modalities,
     Observation,
     Outcome,

@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING, Any
 
 from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError
 
+if TYPE_CHECKING:
+    from .scripted import ScriptedOptions
+
 
 class ScriptedBackend(LLMBackend):
-    def __init__(self, options: ScriptedOptions) -> None:
+    """Replays the answers of its options, then repeats the last or fails (``then``)."""
+
+    def __init__(self, options: "ScriptedOptions") -> None:
         self.answers = [a if isinstance(a, str) else json.dumps(a) for a in options.responses]
         self.then = options.then
         self.calls = 0

@@ -108,7 +108,7 @@ def test_labbots_depend_on_simulated_time_only_not_on_how_commands_are_split():
     """Two arms that spend the same simulated time meet the same Labbots (paired comparison)."""
     import numpy as np
 
-    from safeembodai_core.models import Straight, Turn
+    from safeembodai_core.models import Turn
     from safeembodai_core.plugins import load_plugins
 
     registry = load_plugins(environ={}).registry

@@ -19,7 +19,7 @@ from safeembodai_core.models import (
     Straight,
 )
 
-from .geometry import WALL, cast_rays, circle_hits, free_travel
+from .geometry import WALL, cast_rays, free_travel
 from .render import render_camera, render_trajectory
 
 CAN = 0  # the can is circle 0; obstacles follow
