@@ -5,12 +5,14 @@ from __future__ import annotations
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 
 def test_code_has_no_undefined_names_or_unused_imports(repo):
-    ruff = shutil.which("ruff") or shutil.which("ruff", path=str(__import__("pathlib").Path(sys.executable).parent))
+    beside_python = Path(sys.executable).parent / "ruff"  # the venv's own, even if its bin is not on PATH
+    ruff = str(beside_python) if beside_python.exists() else shutil.which("ruff")
     if ruff is None:
         pytest.skip('ruff is not installed (it comes with pip install -e ".[dev]")')
     folders = ["safeembodai_core", "plugins", "prompts", "tests", "bench", "docs/examples"]
