@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import re
+from functools import lru_cache
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -47,6 +48,25 @@ def _template_line(tb: TracebackType | None, filename: str | None) -> int | None
     return line
 
 
+@lru_cache(maxsize=16)
+def _environment(folders: tuple[str, ...]) -> SandboxedEnvironment:
+    """One sandboxed environment per search path, shared by every builder of the process.
+
+    Jinja keeps compiled templates in it (and recompiles a template whose file changed), so the
+    builders of successive trials do not compile the same templates again.
+    """
+    env = SandboxedEnvironment(
+        loader=jinja2.FileSystemLoader(list(folders)),
+        undefined=jinja2.StrictUndefined,
+        autoescape=False,
+        keep_trailing_newline=False,
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
+    env.filters["quoted"] = quoted
+    return env
+
+
 class TemplateSet:
     """The templates of one prompt builder: user folder first, built-ins second."""
 
@@ -60,15 +80,7 @@ class TemplateSet:
                 )
             folders.insert(0, str(folder.resolve()))
         self.folders = folders
-        self.env = SandboxedEnvironment(
-            loader=jinja2.FileSystemLoader(folders),
-            undefined=jinja2.StrictUndefined,
-            autoescape=False,
-            keep_trailing_newline=False,
-            trim_blocks=True,
-            lstrip_blocks=True,
-        )
-        self.env.filters["quoted"] = quoted
+        self.env = _environment(tuple(folders))
         self._cache: dict[str, jinja2.Template] = {}
 
     def load(self, name: str) -> jinja2.Template:
