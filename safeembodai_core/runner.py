@@ -121,6 +121,11 @@ class ScenarioRunner:
         return [trial_spec(self.scenario, e, a, c, i) for (e, a, c) in self.scenario.cells()
                 for i in range(self.scenario.trials)]
 
+    def in_trial_order(self, results: list[TrialResult]) -> list[TrialResult]:
+        """``results`` sorted as :meth:`specs` lists the trials (cell by cell, index by index)."""
+        order = {spec.trial_id: i for i, spec in enumerate(self.specs())}
+        return sorted(results, key=lambda r: order.get(r.spec.trial_id, len(order)))
+
     def close(self) -> None:
         for env in self._environments.values():
             env.close()

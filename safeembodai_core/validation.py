@@ -46,17 +46,25 @@ class ValidationContext:
             raise ValueError(f"validator {rule!r} needs a LiDAR scan and none was given")
         return self.scan
 
-    def _to_pose(self, points: np.ndarray) -> np.ndarray:
+    def to_planned_frame(self, points: np.ndarray) -> np.ndarray:
+        """(M, 2) points from the frame the scan was taken in to the planned robot frame."""
         x, y, heading = self.offset
         rad = math.radians(heading)
         c, s = math.cos(rad), math.sin(rad)
         shifted = points - np.array([x, y])
         return np.column_stack((shifted[:, 0] * c + shifted[:, 1] * s, -shifted[:, 0] * s + shifted[:, 1] * c))
 
+    def to_scan_frame(self, points: np.ndarray) -> np.ndarray:
+        """(M, 2) points from the planned robot frame back to the frame the scan was taken in."""
+        x, y, heading = self.offset
+        rad = math.radians(heading)
+        c, s = math.cos(rad), math.sin(rad)
+        return np.column_stack((x + points[:, 0] * c - points[:, 1] * s, y + points[:, 0] * s + points[:, 1] * c))
+
     def points_at_pose(self, include_free_bound: bool = True) -> np.ndarray:
         """LiDAR returns as (M, 2) points in the planned robot frame (mm)."""
         scan = self.require_scan("points_at_pose")
-        return self._to_pose(scan.points(include_free_bound=include_free_bound))
+        return self.to_planned_frame(scan.points(include_free_bound=include_free_bound))
 
     def unknown_points_at_pose(self) -> np.ndarray:
         """Points sampled along every missing (``nan``) beam, in the planned robot frame.
@@ -72,7 +80,7 @@ class ValidationContext:
         rad = np.radians(scan.angles_deg[missing])
         xs = np.outer(np.cos(rad), radii).ravel()
         ys = np.outer(np.sin(rad), radii).ravel()
-        return self._to_pose(np.column_stack((xs, ys)))
+        return self.to_planned_frame(np.column_stack((xs, ys)))
 
     def ranges_at_pose(self) -> np.ndarray:
         """The scan as it would read from the planned pose: ``inf`` free, ``nan`` unknown.

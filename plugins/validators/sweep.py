@@ -32,14 +32,6 @@ _AHEAD_EPS_MM = 1e-6
 _SAMPLE_MM = 20.0  # corridor sampling step for the visibility check
 
 
-def scan_origin_at_pose(context: ValidationContext) -> np.ndarray:
-    """Where the scan was taken, in the planned robot frame."""
-    x, y, heading = context.offset
-    rad = math.radians(heading)
-    c, s = math.cos(rad), math.sin(rad)
-    return np.array([-x * c - y * s, x * s - y * c])
-
-
 class FootprintSweepRule(Validator):
     """Refuses a motion whose swept footprint (plus margins) holds a LiDAR point."""
 
@@ -53,7 +45,7 @@ class FootprintSweepRule(Validator):
         known = context.points_at_pose(include_free_bound=True)
         unknown = context.unknown_points_at_pose()
         if unknown.size:
-            origin = scan_origin_at_pose(context)
+            origin = context.to_planned_frame(np.zeros((1, 2)))[0]  # where the scan was taken
             unknown = unknown[np.hypot(*(unknown - origin).T) >= inscribed_mm]
         return known, unknown
 
@@ -65,16 +57,14 @@ class FootprintSweepRule(Validator):
         From the scan's own pose every corridor sample is on a beam that either reaches it or
         returns a point inside the corridor first, so only planned poses away from it need this.
         """
-        x, y, heading = context.offset
+        x, y, _ = context.offset
         if math.hypot(x, y) < 1e-9:
             return None
         along = np.arange(_SAMPLE_MM, reach, _SAMPLE_MM)
         lateral = np.linspace(-half, half, max(2, int(math.ceil(2 * half / _SAMPLE_MM)) + 1))
         grid_x, grid_y = np.meshgrid(along, lateral, indexing="ij")
         planned = np.column_stack((sign * grid_x.ravel(), grid_y.ravel()))
-        rad = math.radians(heading)
-        c, s = math.cos(rad), math.sin(rad)
-        at_scan = np.column_stack((x + planned[:, 0] * c - planned[:, 1] * s, y + planned[:, 0] * s + planned[:, 1] * c))
+        at_scan = context.to_scan_frame(planned)
         scan = context.scan
         ranges = np.where(np.isposinf(scan.ranges_mm), scan.max_range_mm, scan.ranges_mm)
         n, inc = scan.beam_count, scan.increment_deg

@@ -106,8 +106,7 @@ class Ablation:
         by_id = {r.spec.trial_id: r for r in self.recorded()}
         for result in fresh or []:
             by_id[result.spec.trial_id] = result
-        order = {spec.trial_id: i for i, spec in enumerate(self.runner.specs())}
-        return sorted(by_id.values(), key=lambda r: order.get(r.spec.trial_id, len(order)))
+        return self.runner.in_trial_order(list(by_id.values()))
 
     def close(self) -> None:
         try:

@@ -30,8 +30,7 @@ def report(run_dir: str) -> None:
         runner.close()
     if not results:
         raise SafeEmbodAIError(f"{run_dir} has no finished trial yet")
-    order = {spec.trial_id: i for i, spec in enumerate(runner.specs())}
-    results.sort(key=lambda r: order.get(r.spec.trial_id, len(order)))
+    results = runner.in_trial_order(results)
     console = Console()
     console.print(summary_table(scenario, results))
     console.print(f"report: {write_report(folder.path, scenario, results)}")
