@@ -187,12 +187,19 @@ class LLMBackend(ABC):
 
 @dataclass
 class BackendReply:
-    """A backend's answer: the raw text (untrusted), token usage and latency."""
+    """A backend's answer: the raw text (untrusted), token usage, latency and why it ended.
+
+    ``finish_reason`` is the provider's reason the answer ended (OpenAI's ``"stop"``,
+    ``"length"``, ``"content_filter"``, ...), or ``None`` for a backend that does not report one.
+    Algorithm 1 refuses any answer whose reason is not a normal stop: a cut-off answer is never
+    executed (``safeembodai_core.loop.guarded_step``).
+    """
 
     text: str
     usage: TokenUsage = field(default_factory=TokenUsage)
     latency_s: float = 0.0
     model: str = ""
+    finish_reason: str | None = None
 
 
 @dataclass

@@ -17,12 +17,33 @@ import structlog
 _SECRET_KEY = re.compile(r"(api[_-]?key|authorization|secret|password|passwd|bearer|^token$|access[_-]?token)", re.I)
 _SECRET_VALUE = re.compile(r"\b(sk|rk|pk)-[A-Za-z0-9_\-]{8,}|\bBearer\s+[A-Za-z0-9._\-]{8,}")
 MASK = "***"
+_MIN_SECRET_CHARS = 4
+_secrets: set[str] = set()
+
+
+def register_secret(value: str | None) -> None:
+    """Redact ``value`` (a configured credential) from every text that :func:`redact` sees.
+
+    Backends call this with the key they were configured with, so a server that reflects the key
+    into an answer cannot get it stored, logged or displayed. Values shorter than 4 characters are
+    ignored (masking them would garble ordinary text).
+    """
+    if value and len(value) >= _MIN_SECRET_CHARS:
+        _secrets.add(value)
+
+
+def _mask_registered(text: str) -> str:
+    for secret in sorted(_secrets, key=len, reverse=True):
+        if secret in text:
+            text = text.replace(secret, MASK)
+    return text
 
 
 def redact(value: Any) -> Any:
-    """Mask anything that looks like a credential inside ``value`` (recursively)."""
+    """Mask anything that looks like a credential inside ``value`` (recursively): every value
+    given to :func:`register_secret`, and anything shaped like a bearer key."""
     if isinstance(value, str):
-        return _SECRET_VALUE.sub(MASK, value)
+        return _SECRET_VALUE.sub(MASK, _mask_registered(value) if _secrets else value)
     if isinstance(value, dict):
         return {k: (MASK if isinstance(k, str) and _SECRET_KEY.search(k) else redact(v)) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
