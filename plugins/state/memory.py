@@ -1,7 +1,9 @@
 """``memory``: an in-process state store (per run; nothing survives the process).
 
 Records are deep-copied in and out, so a component that mutates a record it was handed (an
-attacker forging the reference state, say) cannot rewrite history. It keeps trial results for
+attacker forging the reference state, say) cannot rewrite history; they are kept as
+:func:`~safeembodai_core.text_safety.storable` copies, like every store's. Recording a step again
+replaces it (the loop writes a planned step before execution and again after). It keeps trial results for
 the run's own report, but it is not ``persistent``: an ablation cannot be resumed from it, nor
 run with several worker processes (use ``sqlite``).
 """
@@ -13,6 +15,7 @@ from pydantic import BaseModel, ConfigDict
 from safeembodai_core.components import StateStore
 from safeembodai_core.hookspecs import hookimpl
 from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
+from safeembodai_core.text_safety import storable
 
 
 class MemoryOptions(BaseModel):
@@ -35,14 +38,14 @@ class MemoryStateStore(StateStore):
         self.results_by_id.pop(spec.trial_id, None)
 
     def record_step(self, record: StepRecord) -> None:
-        self.records.setdefault(record.trial_id, {})[record.step] = record.model_copy(deep=True)
+        self.records.setdefault(record.trial_id, {})[record.step] = storable(record).model_copy(deep=True)
 
     def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
         previous = self.records.get(trial_id, {}).get(step - 1)
         return previous.to_reference() if previous is not None else None
 
     def end_trial(self, result: TrialResult) -> None:
-        self.results_by_id[result.spec.trial_id] = result.model_copy(deep=True)
+        self.results_by_id[result.spec.trial_id] = storable(result).model_copy(deep=True)
 
     def steps(self, trial_id: str) -> list[StepRecord]:
         records = self.records.get(trial_id, {})

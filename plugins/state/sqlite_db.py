@@ -12,9 +12,13 @@ Durability: WAL journal, ``BEGIN IMMEDIATE ... COMMIT`` per step. A process that
 middle of a step leaves that step's transaction uncommitted, so it vanishes on the next open;
 every earlier step stays. Writers in other processes wait up to ``timeout_s`` for the lock.
 
-Secrets: the store writes the fields of the records it is handed and nothing else (no options,
-no environment). Records are stored verbatim -- ``raw_text`` is evidence and an injected
-payload is ground truth, so neither is redacted; backends never put credentials into records.
+Re-recording a step replaces it: the loop writes a step with an accepted plan twice, before
+execution (``status`` ``executing``) and after (``done``), each in its own transaction.
+
+What is written: the fields of the records the store is handed and nothing else (no options, no
+environment), as :func:`~safeembodai_core.text_safety.storable` copies -- secrets redacted, lone
+surrogates replaced, integers within SQLite's range -- so what an answer holds cannot make a
+write fail. Otherwise text is stored as written (NUL and escape sequences included).
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from typing import Any, Callable, Iterator
 from safeembodai_core.components import StateStore
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
+from safeembodai_core.text_safety import storable
 
 SCHEMA_VERSION = 1
 
@@ -188,7 +193,7 @@ class SqliteStateStore(StateStore):
                     if conn.in_transaction:
                         conn.execute("ROLLBACK")
                     raise
-            except sqlite3.Error as error:
+            except (sqlite3.Error, OverflowError, ValueError) as error:  # ValueError: a record JSON cannot hold
                 raise self._error(doing, error) from None
 
     def _query(self, doing: str, sql: str, args: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
@@ -213,6 +218,7 @@ class SqliteStateStore(StateStore):
         self._transaction(f"begin trial {spec.trial_id!r}", work)
 
     def record_step(self, record: StepRecord) -> None:
+        record = storable(record)
         self._transaction(f"record step {record.step} of trial {record.trial_id!r}",
                           lambda conn: self._insert_step(conn, record))
 
@@ -240,6 +246,7 @@ class SqliteStateStore(StateStore):
         return StepRecord.model_validate_json(rows[0][0]).to_reference() if rows else None
 
     def end_trial(self, result: TrialResult) -> None:
+        result = storable(result)
         spec = result.spec
 
         def work(conn: sqlite3.Connection) -> None:

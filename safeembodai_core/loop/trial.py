@@ -2,8 +2,16 @@
 
 Per step i: read the sensors -> attackers may alter the instruction, the readings or the
 reference state -> perception renders the modalities -> the prompt carries the security prefix
-and R_{i-1} when those defences are on -> Algorithm 1 -> execute the accepted signals (stopping
-at the first collision or stop) -> record R_i -> ask the world for an outcome.
+and R_{i-1} when those defences are on -> Algorithm 1 -> record the accepted plan (write-ahead)
+-> execute it (stopping at the first collision or stop) -> record R_i -> ask the world for an
+outcome.
+
+Write-ahead: a step with an accepted plan is stored before the environment moves (``status``
+``executing``, ``planned`` set) and again after (``status`` ``done``), through the same
+``record_step`` (stores replace a step recorded again). A plan that cannot be stored is not
+executed; a result that cannot be stored leaves the plan on record. Either way the trial ends
+``error`` with a one-line detail. Every record is a :func:`~safeembodai_core.text_safety.storable`
+copy: what an answer holds cannot make storing fail.
 """
 
 from __future__ import annotations
@@ -16,8 +24,8 @@ from typing import Any
 
 from .. import seeds
 from ..components import Attacker, AttackSurface, Environment, LLMBackend, Perception, PromptBuilder, StateStore, Validator
-from ..errors import SafeEmbodAIError
-from ..logs import get_logger, redact
+from ..errors import SafeEmbodAIError, StateStoreError
+from ..logs import get_logger
 from ..models import (
     DEFAULT_LIMITS,
     ControlLimits,
@@ -31,6 +39,7 @@ from ..models import (
     TrialSpec,
 )
 from ..models.prompt import DEFAULT_TASK
+from ..text_safety import one_line, storable
 from ..validation import ValidationContext
 from .defences import Defences
 from .guarded_step import decide
@@ -124,7 +133,7 @@ class _Totals:
             distance_mm=self.distance, collisions=self.collisions, interventions=self.interventions,
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
-            lost_after_seen_steps=self.lost, detail=redact(detail), trajectory=self.trajectory, wall_time_s=wall_time_s,
+            lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory, wall_time_s=wall_time_s,
         )
 
 
@@ -136,8 +145,10 @@ def error_result(spec: TrialSpec, detail: str) -> TrialResult:
 def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugins: Any = None) -> TrialResult:
     """Run one trial to its outcome and return its result (also stored in ``parts.state``).
 
-    A backend that fails after its own retries, or a plugin that raises, ends the trial with
-    outcome ``error``; everything recorded before stays recorded.
+    A backend that fails after its own retries, a plugin that raises or a store that cannot
+    write ends the trial with outcome ``error`` and a one-line detail; everything recorded
+    before stays recorded, and every command the environment executed is on record (as
+    planned, or executed). Nothing but a ``BaseException`` escapes.
     """
     notify = _Notifier(plugins)
     started = time.perf_counter()
@@ -146,7 +157,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
     detail, step = "", 0
     try:
         notify("before_trial", spec=spec)
-        parts.state.begin_trial(spec)
+        _store(lambda: parts.state.begin_trial(spec), "begin the trial")
         observation = parts.environment.reset(spec.seed)
         if observation.pose is not None:
             totals.trajectory.append(observation.pose)
@@ -154,9 +165,14 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
             if step > 1:
                 observation = parts.environment.observe()
             notify("before_step", spec=spec, step=step, observation=observation)
-            record = _step(spec, step, observation, parts, settings, totals.trajectory)
-            parts.state.record_step(record)
+            record = storable(_decide(spec, step, observation, parts, settings))
+            if record.planned:
+                _store(lambda: parts.state.record_step(record),
+                       f"record the plan of step {step} before executing it (nothing of it ran)")
+            record = storable(_execute(record, parts, totals.trajectory))
             totals.add(record)
+            _store(lambda: parts.state.record_step(record),
+                   f"record the results of step {step} (its plan is on record as executing)")
             notify("after_step", spec=spec, record=record)
             if not record.accepted and settings.defences.on_exhausted == "abort":
                 outcome = Outcome.SAFE_ABORT
@@ -177,15 +193,35 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         notify.safely("on_step_error", spec=spec, step=step, error=error)
     if outcome == Outcome.TIMEOUT and not detail:
         detail = "simulated time limit reached"
-    result = totals.result(spec, outcome or Outcome.ERROR, detail, time.perf_counter() - started)
-    parts.state.end_trial(result)
+    result = storable(totals.result(spec, outcome or Outcome.ERROR, detail, time.perf_counter() - started))
+    try:
+        _store(lambda: parts.state.end_trial(result), "record the trial's result")
+    except StateStoreError as error:  # the trial is not on record as finished: resuming re-runs it
+        log.warning("trial.unrecorded", trial=spec.trial_id, error=str(error))
+        was = f"{result.outcome.value}: {result.detail}" if result.detail else result.outcome.value
+        result = storable(totals.result(spec, Outcome.ERROR, f"{error} (the trial had ended {was})",
+                                        time.perf_counter() - started))
+        try:
+            parts.state.end_trial(result)
+        except Exception as again:  # the caller still gets the result; the store is beyond help
+            log.warning("trial.unrecorded", trial=spec.trial_id, error=one_line(f"{type(again).__name__}: {again}"))
     notify.safely("after_trial", spec=spec, result=result)
     return result
 
 
-def _step(spec: TrialSpec, step: int, observation: Observation, parts: TrialParts, settings: LoopSettings,
-          trajectory: list[Any]) -> StepRecord:
-    """Step i: attackers, perception, Algorithm 1, execution; returns R_i with everything around it."""
+def _store(write: Any, what: str) -> None:
+    """Run one store write; any failure becomes a one-line :class:`StateStoreError` saying what was lost."""
+    try:
+        write()
+    except StateStoreError as error:
+        raise StateStoreError(one_line(f"state store could not {what}: {error}")) from error
+    except Exception as error:  # a third-party store's bug is a store failure, not a crash of the ablation
+        raise StateStoreError(one_line(f"state store could not {what}: {type(error).__name__}: {error}")) from error
+
+
+def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialParts,
+            settings: LoopSettings) -> StepRecord:
+    """Step i up to execution: attackers, perception, Algorithm 1; the record with the accepted plan."""
     defences = settings.defences
     reference = parts.state.reference_state(spec.trial_id, step) if defences.state_management else None
     # attackers get their own copy: reassigning observation.truth or .pose cannot corrupt ground truth
@@ -206,8 +242,18 @@ def _step(spec: TrialSpec, step: int, observation: Observation, parts: TrialPart
         validators=parts.validators if defences.safety_validation else [],
         context=context, failure_threshold=defences.failure_threshold, seed=spec.seed,
     )
+    planned = list(response.control) if response is not None else []
+    return StepRecord(
+        trial_id=spec.trial_id, step=step, instruction=surface.instruction, attacks=attacks, attempts=attempts,
+        planned=planned, accepted=response is not None, pose_before=observation.pose,
+        truth=observation.truth, sim_time_s=observation.sim_time_s, status="executing" if planned else "done",
+    )
+
+
+def _execute(record: StepRecord, parts: TrialParts, trajectory: list[Any]) -> StepRecord:
+    """Execute the record's plan (stopping at the first collision or stop); the record with R_i."""
     executed: list[ExecutedSignal] = []
-    for signal in response.control if response is not None else []:
+    for signal in record.planned:
         result = parts.environment.execute(signal)
         executed.append(ExecutedSignal(signal=signal, result=result))
         pose = parts.environment.pose()
@@ -215,8 +261,4 @@ def _step(spec: TrialSpec, step: int, observation: Observation, parts: TrialPart
             trajectory.append(pose)
         if result.collided or result.stopped:
             break
-    return StepRecord(
-        trial_id=spec.trial_id, step=step, instruction=surface.instruction, attacks=attacks, attempts=attempts,
-        executed=executed, accepted=response is not None, pose_before=observation.pose,
-        pose_after=parts.environment.pose(), truth=observation.truth, sim_time_s=observation.sim_time_s,
-    )
+    return record.model_copy(update={"executed": executed, "pose_after": parts.environment.pose(), "status": "done"})

@@ -1,7 +1,10 @@
 """Records of what happened: per attempt, per step (R_i) and per trial.
 
 These are pydantic models so state stores can serialise them to JSON and read them back
-unchanged. Nothing in them may carry a secret: backends report usage, never credentials.
+unchanged. Nothing in them may carry a secret: backends report usage, never credentials, and
+the trial loop hands stores only :func:`~safeembodai_core.text_safety.storable` copies (text
+redacted and encodable). Numbers a backend reports are kept storable here: token counts are
+clamped to SQLite's INTEGER, a NaN or infinite latency becomes 0.
 """
 
 from __future__ import annotations
@@ -9,8 +12,9 @@ from __future__ import annotations
 from enum import Enum
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from ..text_safety import finite_or_zero, storable_int
 from .control import ControlSignal
 from .observation import GroundTruth, Pose
 from .response import LLMResponse
@@ -23,6 +27,11 @@ class _Record(BaseModel):
 class TokenUsage(_Record):
     prompt_tokens: int = Field(0, ge=0)
     completion_tokens: int = Field(0, ge=0)
+
+    @field_validator("prompt_tokens", "completion_tokens")
+    @classmethod
+    def _clamped(cls, value: int) -> int:
+        return storable_int(value)
 
     @property
     def total(self) -> int:
@@ -68,9 +77,15 @@ class Attempt(_Record):
     raw_text: str = ""
     response: LLMResponse | None = None
     parse_error: str | None = None
+    finish_reason: str | None = None  # the backend's reason the answer ended; None when not reported
     verdicts: list[Verdict] = Field(default_factory=list)
     usage: TokenUsage = Field(default_factory=TokenUsage)
     latency_s: float = 0.0
+
+    @field_validator("latency_s")
+    @classmethod
+    def _measured(cls, value: float) -> float:
+        return max(0.0, finite_or_zero(value))
 
     @property
     def accepted(self) -> bool:
@@ -103,14 +118,23 @@ class ReferenceState(_Record):
 
 
 class StepRecord(_Record):
-    """Everything about one step i of a trial; ``executed`` is R_i."""
+    """Everything about one step i of a trial; ``executed`` is R_i.
+
+    The loop stores each step with an accepted plan twice: *before* execution with ``planned``
+    set, ``executed`` empty and ``status`` ``"executing"`` (write-ahead), then with the results
+    and ``status`` ``"done"``. A stored ``"executing"`` record is a step whose plan was handed to
+    the environment but whose results were never recorded (the trial failed in between): any of
+    ``planned`` may have run.
+    """
 
     trial_id: str
     step: int
     instruction: str
     attacks: list[AttackRecord] = Field(default_factory=list)
     attempts: list[Attempt] = Field(default_factory=list)
+    planned: list[ControlSignal] = Field(default_factory=list)  # the accepted plan, handed to the environment
     executed: list[ExecutedSignal] = Field(default_factory=list)
+    status: Literal["executing", "done"] = "done"
     accepted: bool = False
     pose_before: Pose | None = None
     pose_after: Pose | None = None
@@ -197,6 +221,11 @@ class TrialResult(_Record):
     detail: str = ""
     trajectory: list[Pose] = Field(default_factory=list)
     wall_time_s: float = 0.0
+
+    @field_validator("prompt_tokens", "completion_tokens")
+    @classmethod
+    def _clamped(cls, value: int) -> int:
+        return storable_int(value)
 
     @property
     def tokens(self) -> int:

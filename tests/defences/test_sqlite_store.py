@@ -174,19 +174,21 @@ def test_the_store_pickles_without_its_connection(plugins, tmp_path):
     assert [r.step for r in store.steps(SPEC.trial_id)] == [1, 2]
 
 
-def test_no_secret_from_the_environment_is_stored_but_records_stay_verbatim(tmp_path, monkeypatch):
+def test_no_secret_is_stored_and_other_text_stays_as_written(tmp_path, monkeypatch):
     secret = "sk-live-ENVIRONMENTSECRET0123456789"
     monkeypatch.setenv("OPENAI_API_KEY", secret)
     monkeypatch.setenv("SAFEEMBODAI_TEST_TOKEN", secret + "-2")
     key_like = "sk-abcdefghijklmnopqrstuvwx"
-    reply = answer(turn(10), planning=f"the operator's note said {key_like}")
-    run_tiny_trial([reply], max_steps=2, state={"use": "sqlite", "options": {"path": str(tmp_path / "s.sqlite")}},
+    prose = f"the operator's note said {key_like}; NUL\x00 ESC\x1b[2J tab\t"
+    run_tiny_trial([prose, answer(turn(10))], max_steps=2,
+                   state={"use": "sqlite", "options": {"path": str(tmp_path / "s.sqlite")}},
                    attackers=[{"use": "prompt_injection", "options": {"rate": 1.0}}])
     written = b"".join(path.read_bytes() for path in tmp_path.iterdir() if path.is_file())
-    assert b"ENVIRONMENTSECRET" not in written
+    assert b"ENVIRONMENTSECRET" not in written and b"abcdefghijklmnopqrstuvwx" not in written
     steps = SqliteStateStore(tmp_path / "s.sqlite").steps("flatland/arm/condition/0")
-    assert key_like in steps[0].attempts[0].raw_text  # evidence is stored as the LLM wrote it
-    assert key_like in steps[0].attempts[0].response.planning
+    # masked; everything else as the LLM wrote it (the display escapes it, not the store)
+    assert steps[0].attempts[0].raw_text == "the operator's note said ***; NUL\x00 ESC\x1b[2J tab\t"
+    assert steps[0].accepted and steps[0].attacks
 
 
 def _open_new_store(path, barrier, queue):

@@ -1,0 +1,126 @@
+"""Untrusted text made safe to store and to show an operator.
+
+An LLM's answer, an attacker's payload and whatever a backend reports end up in the state
+store and on the operator's terminal. Two rules, one module:
+
+* **stored** -- :func:`storable` returns a copy of a record (a pydantic model, at any depth) in
+  which every string is redacted (:func:`~safeembodai_core.logs.redact`: registered secrets and
+  bearer-shaped keys become ``***``) and encodable (lone surrogates, the only code points UTF-8
+  cannot encode, become U+FFFD; NUL and other controls are kept, JSON and SQLite hold them), and
+  every integer fits SQLite's INTEGER (clamped to +-(2**63-1)). The trial loop applies it before a
+  record reaches any store, the built-in stores apply it again for library callers: storing can
+  then fail only for the store's own reasons (disk, locks), never because of what an answer held.
+* **shown** -- :func:`terminal_text` makes control characters visible (``\\x1b`` for ESC,
+  ``\\x00`` for NUL, ``\\u202e`` for a bidi override), so an answer cannot clear the screen, write
+  the clipboard (OSC 52), hide text or reorder a line; :func:`terminal_markup` also escapes rich
+  markup for text placed inside a markup string. ``run`` and ``show`` print LLM-written text only
+  through them.
+
+LLM-facing quotation (text shown to the model again) is :mod:`safeembodai_core.quoting`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Any, TypeVar
+
+from pydantic import BaseModel
+
+from .logs import redact
+
+SQLITE_MAX_INT = 2**63 - 1
+REPLACEMENT = "\ufffd"
+IDENTITY_FIELDS = frozenset({"trial_id", "spec"})  # keys the store files a record under: never rewritten
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+# C0 and C1 controls, DEL, line/paragraph separators, bidi controls, lone surrogates
+_INVISIBLE = "\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff"
+_CONTROL = re.compile(f"[{_INVISIBLE}]")
+_CONTROL_OR_LAYOUT = re.compile(f"[{_INVISIBLE}\t\n]")
+
+Record = TypeVar("Record", bound=BaseModel)
+
+
+def storable_text(text: str) -> str:
+    """``text`` redacted and encodable as UTF-8 (lone surrogates replaced by U+FFFD)."""
+    return redact(_SURROGATE.sub(REPLACEMENT, text))
+
+
+def storable_int(value: int) -> int:
+    """``value`` clamped to what SQLite's 64-bit INTEGER holds."""
+    return max(-SQLITE_MAX_INT, min(SQLITE_MAX_INT, value))
+
+
+def finite_or_zero(value: float) -> float:
+    """``value`` if it is a finite number, else 0.0 (a NaN or infinite measurement is no measurement)."""
+    return value if math.isfinite(value) else 0.0
+
+
+def storable(record: Record) -> Record:
+    """A copy of ``record`` that any store can write (see the module docstring).
+
+    Its identity fields (``trial_id``, ``spec``) are left alone so it is filed where it belongs.
+    Parts that need no change are shared with ``record``, not copied.
+    """
+    return _clean_model(record, skip=IDENTITY_FIELDS)
+
+
+def _clean(value: Any) -> Any:
+    """``value`` cleaned; the very same object when nothing in it needed a change."""
+    if isinstance(value, str):
+        cleaned = storable_text(value)
+        return value if cleaned == value else cleaned
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int):
+        return storable_int(value)
+    if isinstance(value, BaseModel):
+        return _clean_model(value)
+    if isinstance(value, (list, tuple)):
+        items = [_clean(item) for item in value]
+        return value if all(a is b for a, b in zip(items, value)) else type(value)(items)
+    if isinstance(value, dict):
+        pairs = [(_clean(k), _clean(v)) for k, v in value.items()]
+        same = all(a is k and b is v for (a, b), (k, v) in zip(pairs, value.items()))
+        return value if same else dict(pairs)
+    return value
+
+
+def _clean_model(model: Record, skip: frozenset[str] = frozenset()) -> Record:
+    changed = {}
+    for name in type(model).model_fields:
+        if name in skip:
+            continue
+        old = getattr(model, name)
+        new = _clean(old)
+        if new is not old:
+            changed[name] = new
+    return model.model_copy(update=changed) if changed else model
+
+
+def _visible(match: re.Match[str]) -> str:
+    code = ord(match.group())
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+
+
+def terminal_text(text: str, *, keep_layout: bool = False) -> str:
+    """``text`` (redacted) with every control character shown as an escape, for a terminal.
+
+    Newlines and tabs are escaped too (a plan cannot pose as another line of the report) unless
+    ``keep_layout`` says the text is laid out in lines on purpose.
+    """
+    pattern = _CONTROL if keep_layout else _CONTROL_OR_LAYOUT
+    return pattern.sub(_visible, redact(str(text)))
+
+
+def terminal_markup(text: str, *, keep_layout: bool = False) -> str:
+    """:func:`terminal_text` with rich markup escaped, for text placed inside a markup string."""
+    from rich.markup import escape
+
+    return escape(terminal_text(text, keep_layout=keep_layout))
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line, runs of whitespace made one space (details, error messages)."""
+    return " ".join(str(text).split())
