@@ -40,6 +40,7 @@ from .models import (
     Verdict,
     parse_response,
 )
+from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
 from .validation import ValidationContext, validate_plan
@@ -107,15 +108,28 @@ class Guard:
         try:
             signals = _SIGNALS.validate_python(list(commands), context={"limits": self.limits})
         except ValidationError as error:
-            reason = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in error.errors()[:5])
+            reason = describe_schema_error(error, most=5)  # keys and tags the LLM wrote come back quoted
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=reason)])
         verdicts = validate_plan(signals, self._context(lidar_mm, max_range_mm), self.rules)
         return GuardReport(signals=signals, verdicts=verdicts)
 
-    def check_answer(self, text: str, *, lidar_mm: Any = None, max_range_mm: float = 10_000.0) -> GuardReport:
-        """Parse an LLM's raw answer (untrusted) and validate its control signals."""
+    def check_answer(
+        self,
+        text: str,
+        *,
+        finish_reason: str | None = None,
+        lidar_mm: Any = None,
+        max_range_mm: float = 10_000.0,
+    ) -> GuardReport:
+        """Parse an LLM's raw answer (untrusted) and validate its control signals.
+
+        The reading is the guarded loop's (:func:`~safeembodai_core.models.parse_response`):
+        duplicate keys, several JSON objects, huge numbers and the like give a ``schema`` verdict.
+        Pass the provider's ``finish_reason`` when you have it: an answer that did not end with a
+        normal stop (``"length"``, ``"content_filter"``, ...) is refused the same way.
+        """
         try:
-            response = parse_response(text, self.limits)
+            response = parse_response(text, self.limits, finish_reason=finish_reason)
         except ResponseParseError as error:
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))])
         report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm)

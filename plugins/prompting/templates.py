@@ -12,7 +12,6 @@ so ``{{ ... }}`` or ``{% ... %}`` inside a human instruction is printed literall
 
 from __future__ import annotations
 
-import json
 import re
 from functools import lru_cache
 from pathlib import Path
@@ -23,6 +22,7 @@ import jinja2
 from jinja2.sandbox import SandboxedEnvironment
 
 from safeembodai_core.errors import ComponentError
+from safeembodai_core.quoting import quote_untrusted
 from safeembodai_prompts import TEMPLATE_DIR
 
 SECURITY_FOLDER = "security"
@@ -34,8 +34,11 @@ class PromptTemplateError(ComponentError):
 
 
 def quoted(value: Any) -> str:
-    """``value`` as a JSON string literal: quotes and newlines escaped, so it cannot break out."""
-    return json.dumps(str(value), ensure_ascii=False)
+    """``value`` as a JSON string literal: quotes and newlines escaped, so it cannot break out.
+
+    The same quoting as the answer parser's refusal reasons (:mod:`safeembodai_core.quoting`).
+    """
+    return quote_untrusted(value)
 
 
 def _template_line(tb: TracebackType | None, filename: str | None) -> int | None:

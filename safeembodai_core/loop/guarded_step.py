@@ -4,6 +4,11 @@ The answer of attempt j is executed only if it parses into the response schema (
 required: the robot cannot execute anything else) and, when safety validation is on, every
 control signal passes every rule. Otherwise the reasons are handed to the prompt builder for
 attempt j+1, up to the failure threshold N. With N spent the step has no executable answer.
+
+Parsing is the strict reading of :func:`~safeembodai_core.models.parse_response`, the same as
+:meth:`~safeembodai_core.api.Guard.check_answer`: an answer the provider did not end normally
+(cut off at the token limit, filtered) is refused like any malformed one, refusal reasons quote
+the LLM's own words as JSON strings, and nothing raised while reading an answer ends the trial.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from typing import Sequence
 from .. import seeds
 from ..components import LLMBackend, PromptBuilder, Validator
 from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, parse_response
+from ..models.response import finish_reason_text
 from ..validation import ValidationContext, validate_plan
 
 from ..logs import get_logger
@@ -60,9 +66,14 @@ def decide(
         started = time.perf_counter()
         reply = backend.complete(prompt, seeds.rng(seed, "backend", request.step, index))
         latency = reply.latency_s or (time.perf_counter() - started)
-        attempt = Attempt(index=index, raw_text=reply.text[:MAX_STORED_TEXT], usage=reply.usage, latency_s=latency)
+        text = getattr(reply, "text", None)
+        finish_reason = finish_reason_text(getattr(reply, "finish_reason", None))
+        attempt = Attempt(index=index, raw_text=text[:MAX_STORED_TEXT] if isinstance(text, str) else "",
+                          usage=reply.usage, latency_s=latency, finish_reason=finish_reason)
         try:
-            response = parse_response(reply.text, request.limits)
+            # The one strict reading (shared with Guard.check_answer); it raises nothing else, so
+            # no answer, however hostile or cut off, can end the trial.
+            response = parse_response(text, request.limits, finish_reason=finish_reason)
         except ResponseParseError as error:
             attempt.parse_error = str(error)
         else:

@@ -15,24 +15,52 @@ The answer is one JSON object::
       ]
     }
 
-:func:`parse_response` accepts the object bare, inside a Markdown code fence or with prose
-around it, and rejects everything else with a :class:`ResponseParseError` whose message is fed
-back to the LLM on a retry: more than one object, truncated JSON, NaN/Infinity, unknown keys,
-missing keys, out-of-limit values, more signals than allowed, oversized text.
+:func:`parse_response` is the one strict reading of an answer, shared by Algorithm 1
+(:mod:`safeembodai_core.loop.guarded_step`) and :meth:`safeembodai_core.api.Guard.check_answer`.
+It accepts the object bare, inside a Markdown code fence or with prose around it, and refuses
+everything else with a :class:`ResponseParseError` whose message is fed back to the LLM on a
+retry:
+
+* an answer the provider did not end normally (``finish_reason`` outside
+  :data:`NORMAL_FINISH_REASONS`: cut off at the token limit, filtered, ...);
+* an answer longer than :data:`MAX_RESPONSE_CHARS`;
+* what :func:`~safeembodai_core.models.strict_json.read_one_object` refuses: duplicate keys,
+  more than one object (or a stray ``{``), truncated JSON, NaN/Infinity, huge numbers, invalid
+  Unicode, control characters, deep nesting;
+* what the schema refuses: unknown keys, missing keys, wrong types, out-of-limit values, more
+  signals than the limits allow, oversized text.
+
+Reasons never repeat LLM-written text bare: keys, tags and values are quoted as short JSON
+string literals (:func:`safeembodai_core.quoting.quote_untrusted`). Nothing else ever escapes:
+an unexpected exception while reading is turned into a refusal too, so no answer can end a trial.
+See "The parsing contract" in ``docs/defences.md``.
 """
 
 from __future__ import annotations
 
 import json
-import re
-from typing import Any
+from typing import Any, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from .control import DEFAULT_LIMITS, MAX_TEXT, ControlLimits, ControlSignal
+from ..logs import get_logger
+from ..quoting import quote_untrusted
+from .control import DEFAULT_LIMITS, MAX_TEXT, ControlLimits, ControlSignal, Straight, Turn
+from .strict_json import QUOTE_CHARS, ResponseParseError, read_one_object
+
+log = get_logger(__name__)
 
 MAX_RESPONSE_CHARS = 64_000
-_FENCE = re.compile(r"```(?:json|JSON)?\s*(.*?)```", re.DOTALL)
+MAX_FINISH_REASON_CHARS = 64
+
+# Finish reasons that mean "the model ended its answer itself". OpenAI (and litellm, which maps
+# every provider to OpenAI's names) says "stop"; the others are the native names of providers
+# reached without litellm: Anthropic "end_turn"/"stop_sequence", Hugging Face "eos"/"eos_token",
+# Cohere "COMPLETE" (compared case-insensitively). Everything else -- "length", "content_filter",
+# "tool_calls", "error", ... -- is refused. None means the backend does not report a reason and is
+# accepted: the strict parser still refuses a cut-off object. Note that litellm maps reasons it
+# does not know (and some errors) to "stop"; that is litellm's reading, not ours.
+NORMAL_FINISH_REASONS = frozenset({"stop", "end_turn", "stop_sequence", "eos", "eos_token", "complete"})
 
 
 class PerceptionEntry(BaseModel):
@@ -60,75 +88,113 @@ class LLMResponse(BaseModel):
         return any(entry.is_attack for entry in self.perception)
 
 
-class ResponseParseError(ValueError):
-    """The LLM's text is not a valid answer; ``str(error)`` is written for the LLM to read."""
-
-
 def response_json_schema() -> dict[str, Any]:
     """JSON schema of :class:`LLMResponse`, rendered into the prompt's response format ``f``."""
     return LLMResponse.model_json_schema()
 
 
-def _reject_constant(name: str) -> Any:
-    raise ResponseParseError(f"JSON constant {name} is not allowed; use finite numbers")
+_SCHEMA_NAMES = frozenset(
+    {name for model in (LLMResponse, PerceptionEntry, Straight, Turn) for name in model.model_fields}
+    | {tag for model in (Straight, Turn) for tag in get_args(model.model_fields["command"].annotation)}
+)
+# pydantic messages that are built from the schema only, never from the input.
+_SCHEMA_ONLY_MESSAGES = frozenset({
+    "missing", "extra_forbidden", "string_type", "string_too_long", "bool_type", "bool_parsing",
+    "float_type", "float_parsing", "int_type", "greater_than", "greater_than_equal", "less_than",
+    "less_than_equal", "finite_number", "literal_error", "union_tag_not_found", "model_type",
+    "model_attributes_type", "dict_type", "list_type", "too_long", "too_short", "value_error",
+})
+_SCALARS = (str, int, float, bool, type(None))
 
 
-def _decode_objects(text: str) -> list[Any]:
-    decoder = json.JSONDecoder(parse_constant=_reject_constant)
-    found: list[Any] = []
-    index = text.find("{")
-    last_error: json.JSONDecodeError | None = None
-    while index != -1:
-        try:
-            value, end = decoder.raw_decode(text, index)
-        except json.JSONDecodeError as error:
-            last_error = error
-            index = text.find("{", index + 1)
-            continue
-        except RecursionError:
-            raise ResponseParseError("answer nests JSON too deeply") from None
-        found.append(value)
-        index = text.find("{", end)
-    if not found and last_error is not None:
-        raise ResponseParseError(f"answer is not valid JSON ({last_error.msg} at char {last_error.pos})")
-    return found
+def _location(parts: tuple[Any, ...]) -> str:
+    """``control.0.straight.distance``; a key the schema does not know is quoted: it is the LLM's."""
+    rendered = [str(p) if isinstance(p, int) or p in _SCHEMA_NAMES else quote_untrusted(p, QUOTE_CHARS)
+                for p in parts]
+    return ".".join(rendered) or "(top level)"
 
 
-def extract_json(text: str) -> Any:
-    """Find exactly one JSON object in ``text`` (bare, fenced, or surrounded by prose)."""
-    if len(text) > MAX_RESPONSE_CHARS:
-        raise ResponseParseError(f"answer is {len(text)} characters long; the limit is {MAX_RESPONSE_CHARS}")
-    fenced = _FENCE.findall(text)
-    candidates = _decode_objects(fenced[0]) if len(fenced) == 1 else _decode_objects(text)
-    objects = [c for c in candidates if isinstance(c, dict)]
-    if not objects:
-        raise ResponseParseError("answer contains no JSON object")
-    if len(objects) > 1:
-        raise ResponseParseError(f"answer contains {len(objects)} JSON objects; send exactly one")
-    return objects[0]
+def _message(item: Any) -> str:
+    kind = item.get("type", "")
+    if kind == "union_tag_invalid":  # pydantic's message repeats the LLM's tag unquoted
+        ctx = item.get("ctx") or {}
+        return (f"{ctx.get('discriminator', 'command')} must be one of {ctx.get('expected_tags', '')}, "
+                f"got {quote_untrusted(ctx.get('tag', ''), QUOTE_CHARS)}")
+    message = item["msg"] if kind in _SCHEMA_ONLY_MESSAGES else f"invalid value ({kind})"
+    value = item.get("input")
+    if kind not in ("missing", "value_error") and isinstance(value, _SCALARS):
+        shown = quote_untrusted(value, QUOTE_CHARS) if isinstance(value, str) else json.dumps(value)
+        message += f" (got {shown})"
+    return message
 
 
-def _describe(error: ValidationError) -> str:
-    parts = []
-    for item in error.errors()[:6]:
-        where = ".".join(str(p) for p in item["loc"]) or "(top level)"
-        parts.append(f"{where}: {item['msg']}")
+def describe_schema_error(error: ValidationError, most: int = 6) -> str:
+    """The first ``most`` problems of ``error``, with every LLM-written fragment quoted."""
+    parts = [f"{_location(tuple(item['loc']))}: {_message(item)}" for item in error.errors()[:most]]
     more = error.error_count() - len(parts)
     return "; ".join(parts) + (f"; and {more} more" if more > 0 else "")
 
 
-def parse_response(text: str, limits: ControlLimits = DEFAULT_LIMITS) -> LLMResponse:
-    """Parse and validate an LLM answer; raise :class:`ResponseParseError` on anything invalid."""
+def finish_reason_text(reason: Any) -> str | None:
+    """A backend's finish reason as short text (an enum's value, say); None when not reported."""
+    if reason is None:
+        return None
+    return str(getattr(reason, "value", reason))[:MAX_FINISH_REASON_CHARS]
+
+
+def _check_finish_reason(reason: str | None) -> None:
+    if reason is None or reason.strip().lower() in NORMAL_FINISH_REASONS:
+        return
+    if reason.strip().lower() in ("length", "max_tokens"):
+        hint = "it was cut off at the token limit; send one complete, shorter JSON object"
+    else:
+        hint = "the provider stopped it before a normal end; send one complete JSON object"
+    raise ResponseParseError(
+        f"answer ended with finish reason {quote_untrusted(reason, QUOTE_CHARS)}, not a normal stop, "
+        f"so it is not executed: {hint}"
+    )
+
+
+def extract_json(text: str) -> Any:
+    """Find exactly one JSON object in ``text`` (bare, fenced, or surrounded by prose), strictly."""
+    if len(text) > MAX_RESPONSE_CHARS:
+        raise ResponseParseError(f"answer is {len(text)} characters long; the limit is {MAX_RESPONSE_CHARS}")
+    return read_one_object(text)
+
+
+def _parse(text: Any, limits: ControlLimits, finish_reason: Any) -> LLMResponse:
+    _check_finish_reason(finish_reason_text(finish_reason))
+    if not isinstance(text, str):
+        raise ResponseParseError(f"answer is not text (got {type(text).__name__})")
     data = extract_json(text)
     try:
         response = LLMResponse.model_validate(data, context={"limits": limits})
     except ValidationError as error:
-        raise ResponseParseError(f"answer does not follow the response schema: {_describe(error)}") from None
+        raise ResponseParseError(
+            f"answer does not follow the response schema: {describe_schema_error(error)}"
+        ) from None
     if len(response.control) > limits.max_signals:
         raise ResponseParseError(
             f"answer has {len(response.control)} control signals; at most {limits.max_signals} are allowed"
         )
     return response
+
+
+def parse_response(text: str, limits: ControlLimits = DEFAULT_LIMITS, *, finish_reason: Any = None) -> LLMResponse:
+    """Parse and validate an LLM answer; raise :class:`ResponseParseError` on anything invalid.
+
+    ``finish_reason`` is the backend's reason the answer ended (None: not reported). This never
+    raises anything but :class:`ResponseParseError`.
+    """
+    try:
+        return _parse(text, limits, finish_reason)
+    except ResponseParseError:
+        raise
+    except Exception as error:  # any other failure to read untrusted text is a refusal, not a crash
+        log.warning("answer.unreadable", error=type(error).__name__, detail=str(error)[:200])
+        raise ResponseParseError(
+            f"answer could not be read ({type(error).__name__}); send exactly one valid JSON object"
+        ) from None
 
 
 def schema_outline() -> str:

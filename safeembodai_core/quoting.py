@@ -1,0 +1,43 @@
+"""Quoting untrusted text before it goes in front of an LLM (or a person) again.
+
+Text an attacker or the LLM wrote -- a human instruction, a plan, a key or tag of a refused
+answer -- is only ever shown as a JSON string literal: quotes, backslashes and newlines are
+escaped, so it cannot close its quotes and pose as a new section of the prompt (``Role: ...``,
+``SYSTEM: ...``). JSON leaves a few characters unescaped that can still break a line or
+reorder what a reader sees; they are escaped here too: C1 controls and DEL, the Unicode line and
+paragraph separators, bidirectional-text controls ("Trojan Source") and lone surrogates (which
+are not valid Unicode and cannot even be encoded as UTF-8). Ordinary text, accents and emoji
+included, is left as it is.
+
+The prompt templates' ``quoted`` filter and the answer parser's refusal reasons both use
+:func:`quote_untrusted`, so every LLM-facing quotation follows the same rule.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from typing import Any
+
+CLIPPED = "[...]"
+_STILL_UNSAFE = re.compile(
+    "[\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]"
+)
+
+
+def _escape(match: re.Match[str]) -> str:
+    return f"\\u{ord(match.group()):04x}"
+
+
+def quote_untrusted(value: Any, max_chars: int | None = None) -> str:
+    """``value`` (made a string) as a JSON string literal that cannot break out of its quotes.
+
+    With ``max_chars`` only the first ``max_chars`` characters are quoted and ``[...]`` follows
+    the closing quote, so what is inside the quotes is always exactly what was written.
+    """
+    text = str(value)
+    clipped = max_chars is not None and len(text) > max_chars
+    if clipped:
+        text = text[: max(0, max_chars)]
+    literal = _STILL_UNSAFE.sub(_escape, json.dumps(text, ensure_ascii=False))
+    return literal + CLIPPED if clipped else literal
