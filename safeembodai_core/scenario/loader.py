@@ -1,7 +1,8 @@
 """Read a scenario file, apply ``--set`` overrides, validate, and check every component.
 
 Errors name the file, the line and the dotted key (``mo.yaml:14: arms.safeembodai.failure_threshold:
-Input should be greater than or equal to 0``); a key set with ``--set`` is named as such.
+Input should be greater than or equal to 0``); a key set with ``--set`` is named as such. The file and
+every ``--set`` value are read within the bounds of :mod:`.limits`.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pydantic import ValidationError
 from ..errors import ComponentError, SafeEmbodAIError, ScenarioError
 from ..registry import ComponentOptionsError, ComponentRegistry
 from ..refs import ComponentRef
+from .limits import MAX_DEPTH, BoundedLoader, load_value, read_scenario_text, yaml_error
 from .model import Scenario
 
 
@@ -23,7 +25,11 @@ def _dotted(loc: Iterable[Any]) -> str:
 
 
 def _line_of(node: yaml.Node | None, loc: Iterable[Any]) -> int | None:
-    """1-based line of the deepest YAML node along ``loc``."""
+    """1-based line of the deepest YAML node along ``loc``.
+
+    The last matching key wins: after ``<<`` merges are applied, a mapping's own keys follow (and
+    override) the merged ones.
+    """
     if node is None:
         return None
     line = node.start_mark.line + 1
@@ -31,10 +37,9 @@ def _line_of(node: yaml.Node | None, loc: Iterable[Any]) -> int | None:
         child = None
         if isinstance(node, yaml.MappingNode):
             for key, value in node.value:
-                if str(key.value) == str(part):
+                if isinstance(key, yaml.ScalarNode) and key.value == str(part):
                     child = value
                     line = key.start_mark.line + 1
-                    break
         elif isinstance(node, yaml.SequenceNode) and isinstance(part, int) and 0 <= part < len(node.value):
             child = node.value[part]
             line = child.start_mark.line + 1
@@ -44,21 +49,29 @@ def _line_of(node: yaml.Node | None, loc: Iterable[Any]) -> int | None:
     return line
 
 
-def _check_duplicate_keys(node: yaml.Node | None, source: str, path: tuple[Any, ...] = ()) -> None:
+def _check_duplicate_keys(node: yaml.Node | None, source: str, path: tuple[Any, ...] = (),
+                          checked: set[int] | None = None) -> None:
+    """Refuse a key written twice in one mapping; a node reached again through an alias is checked once."""
+    checked = set() if checked is None else checked
+    if id(node) in checked or isinstance(node, yaml.ScalarNode):
+        return
+    checked.add(id(node))
     if isinstance(node, yaml.MappingNode):
         seen: dict[str, int] = {}
         for key, value in node.value:
-            name = str(key.value)
+            if not isinstance(key, yaml.ScalarNode):  # refused as unhashable when constructed
+                continue
+            name = key.value
             if name in seen:
                 raise ScenarioError(
                     f"{source}:{key.start_mark.line + 1}: {_dotted(path + (name,))}: key repeated "
                     f"(first on line {seen[name]})"
                 )
             seen[name] = key.start_mark.line + 1
-            _check_duplicate_keys(value, source, path + (name,))
+            _check_duplicate_keys(value, source, path + (name,), checked)
     elif isinstance(node, yaml.SequenceNode):
         for index, item in enumerate(node.value):
-            _check_duplicate_keys(item, source, path + (index,))
+            _check_duplicate_keys(item, source, path + (index,), checked)
 
 
 def _apply_override(data: dict[str, Any], assignment: str) -> tuple[str, ...]:
@@ -68,10 +81,9 @@ def _apply_override(data: dict[str, Any], assignment: str) -> tuple[str, ...]:
     parts = tuple(p for p in key.strip().split("."))
     if not key.strip() or any(not p for p in parts):
         raise ScenarioError(f"--set {assignment!r}: the key must be dotted names like arms.safeembodai.failure_threshold")
-    try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
-    except yaml.YAMLError as error:
-        raise ScenarioError(f"--set {key}: value is not valid YAML: {error}") from None
+    if len(parts) >= MAX_DEPTH:
+        raise ScenarioError(f"--set {key[:80]}...: more than {MAX_DEPTH - 1} dotted names (the limit for a scenario)")
+    value = load_value(raw, f"--set {key}", len(parts)) if raw.strip() else ""
     target: Any = data
     for depth, part in enumerate(parts[:-1]):
         if isinstance(target, list):
@@ -99,18 +111,21 @@ def parse_scenario(
     registry: ComponentRegistry | None = None,
 ) -> Scenario:
     """Validate scenario ``text``; with ``registry``, also check every component and its options."""
+    loader = None
     try:
-        root = yaml.compose(text)
-        data = yaml.safe_load(text)
+        loader = BoundedLoader(text, source)  # reading starts here: it refuses unprintable characters
+        root = loader.get_single_node()
+        _check_duplicate_keys(root, source)  # before constructing: applying ``<<`` merges rewrites the nodes
+        data = loader.construct_document(root) if root is not None else {}
     except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f"{source}:{mark.line + 1}" if mark is not None else source
-        raise ScenarioError(f"{where}: not valid YAML: {getattr(error, 'problem', error)}") from None
+        raise yaml_error(error, source, text) from None
+    finally:
+        if loader is not None:
+            loader.dispose()
     if data is None:
         data = {}
     if not isinstance(data, dict):
         raise ScenarioError(f"{source}: a scenario must be a YAML mapping, got {type(data).__name__}")
-    _check_duplicate_keys(root, source)
     overridden = [_apply_override(data, item) for item in overrides]
 
     def locate(loc: tuple[Any, ...]) -> str:
@@ -191,12 +206,6 @@ def _check_prefix_variants(scenario: Scenario, registry: ComponentRegistry, loca
 
 
 def load_scenario(path: str | Path, overrides: Iterable[str] = (), registry: ComponentRegistry | None = None) -> Scenario:
-    """Read and validate the scenario file at ``path``."""
+    """Read and validate the scenario file at ``path`` (a regular file within :mod:`.limits`)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ScenarioError(f"{path}: no such scenario file") from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise ScenarioError(f"{path}: cannot read scenario: {error}") from None
-    return parse_scenario(text, str(path), overrides, registry)
+    return parse_scenario(read_scenario_text(path), str(path), overrides, registry)
