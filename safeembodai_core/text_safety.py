@@ -99,8 +99,14 @@ def _clean_model(model: Record, skip: frozenset[str] = frozenset()) -> Record:
     return model.model_copy(update=changed) if changed else model
 
 
+_NAMED = {"\n": "\\n", "\t": "\\t", "\r": "\\r"}
+
+
 def _visible(match: re.Match[str]) -> str:
-    code = ord(match.group())
+    char = match.group()
+    if char in _NAMED:
+        return _NAMED[char]
+    code = ord(char)
     return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
 
 

@@ -4,6 +4,10 @@ For each step: the prompt summary (the human instruction as the LLM received it,
 that shaped it, tokens), every attempt's answer (perception with attack flags, plan, control
 signals with their justifications) and verdicts, then what was executed with what result.
 Without ``--trial`` it lists the trials in the file.
+
+Stored text is printed literally (rich ``Text``, never markup) and through
+:func:`~safeembodai_core.text_safety.terminal_text`: an escape sequence or NUL an answer held
+is shown as ``\x1b`` / ``\x00``, never sent to the terminal.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from rich.text import Text
 
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import Attempt, StepRecord
+from safeembodai_core.text_safety import terminal_text as shown
 
 from .sqlite_db import SqliteStateStore
 from .sqlite_store import DEFAULT_FILE
@@ -61,8 +66,8 @@ def trial_list(trials: list[dict]) -> Table:
     for column in ("trial id", "seed", "status", "outcome", "steps"):
         table.add_column(column)
     for row in trials:
-        table.add_row(*(Text(str(v)) for v in (row["trial_id"], row["seed"], row["status"], row["outcome"] or "-",
-                                                row["steps"])))
+        table.add_row(*(Text(shown(str(v))) for v in (row["trial_id"], row["seed"], row["status"], row["outcome"] or "-",
+                                                       row["steps"])))
     return table
 
 
@@ -72,26 +77,26 @@ def _attempt(attempt: Attempt) -> Text:
     text.append(f"attempt {attempt.index + 1}: {verdict}", style="green" if attempt.accepted else "red")
     text.append(f"  ({attempt.usage.prompt_tokens}+{attempt.usage.completion_tokens} tokens)\n", style="dim")
     if attempt.parse_error is not None:
-        text.append(f"  unparseable answer: {attempt.parse_error}\n", style="red")
-        text.append(f"  raw: {attempt.raw_text[:300]}\n", style="dim")
+        text.append(f"  unparseable answer: {shown(attempt.parse_error)}\n", style="red")
+        text.append(f"  raw: {shown(attempt.raw_text[:300])}\n", style="dim")
     response = attempt.response
     if response is not None:
         for entry in response.perception:
             flag = " [ATTACK]" if entry.is_attack else ""
-            text.append(f"  perceived {entry.input}{flag}: ", style="bold yellow" if entry.is_attack else "bold")
-            text.append(f"{entry.result}\n")
+            text.append(f"  perceived {shown(entry.input)}{flag}: ", style="bold yellow" if entry.is_attack else "bold")
+            text.append(f"{shown(entry.result)}\n")
         text.append("  plan: ", style="bold")
-        text.append(f"{response.planning}\n")
+        text.append(f"{shown(response.planning)}\n")
         for index, signal in enumerate(response.control):
             text.append(f"  {index + 1}. {signal.describe()}", style="cyan")
-            text.append(f" -- {signal.justification}\n" if signal.justification else "\n")
+            text.append(f" -- {shown(signal.justification)}\n" if signal.justification else "\n")
     for verdict_ in attempt.verdicts:
         if not verdict_.valid:
             where = f"signal {verdict_.signal_index + 1}" if verdict_.signal_index is not None else "plan"
-            text.append(f"  x {verdict_.rule} ({where}): {verdict_.reason}\n", style="red")
+            text.append(f"  x {shown(verdict_.rule)} ({where}): {shown(verdict_.reason)}\n", style="red")
     passed = sorted({v.rule for v in attempt.verdicts if v.valid} - {v.rule for v in attempt.verdicts if not v.valid})
     if passed:
-        text.append(f"  passed: {', '.join(passed)}\n", style="green")
+        text.append(f"  passed: {shown(', '.join(passed))}\n", style="green")
     text.rstrip()
     return text
 
@@ -100,10 +105,10 @@ def step_panel(record: StepRecord) -> Panel:
     """One step as a panel: prompt summary, attempts, execution."""
     head = Text()
     head.append("instruction: ", style="bold")
-    head.append(record.instruction + "\n")
+    head.append(shown(record.instruction) + "\n")
     for attack in record.attacks:
-        head.append(f"attack ({attack.attacker}, {attack.channel}, {attack.kind}): ", style="bold red")
-        head.append(f"{attack.payload}\n")
+        head.append(f"attack ({shown(attack.attacker)}, {attack.channel}, {shown(attack.kind)}): ", style="bold red")
+        head.append(f"{shown(attack.payload)}\n")
     usage = record.usage
     head.append(f"{len(record.attempts)} attempt(s), {usage.prompt_tokens} prompt + "
                 f"{usage.completion_tokens} completion tokens", style="dim")
@@ -111,12 +116,17 @@ def step_panel(record: StepRecord) -> Panel:
         head.append("; target in view", style="dim")
     executed = Text()
     executed.append("executed: ", style="bold")
-    if not record.executed:
+    if record.status == "executing":
+        executed.append("results never recorded (the trial failed mid-step); any of the plan may have run:",
+                        style="bold red")
+        for signal in record.planned:
+            executed.append(f"\n  {signal.describe()} -> ?", style="yellow")
+    elif not record.executed:
         executed.append("nothing" + ("" if record.accepted else " (no acceptable answer)"))
     for item in record.executed:
         result = item.result
         style = "bold red" if result.collided else ("yellow" if result.stopped else "")
-        detail = result.detail or ("done" if not result.stopped else "stopped")
+        detail = shown(result.detail) if result.detail else ("done" if not result.stopped else "stopped")
         executed.append(f"\n  {item.signal.describe()} -> {detail}", style=style)
     parts = [head, *(_attempt(a) for a in record.attempts), executed]
     title = f"step {record.step}" + (" [red](attacked)[/red]" if record.attacks else "")
@@ -138,7 +148,7 @@ def show_run(run: str, trial: str | None, *, environment: str | None = None, arm
         result = store.result(trial_id)
     finally:
         store.close()
-    console.print(Text(trial_id, style="bold"))
+    console.print(Text(shown(trial_id), style="bold"))
     for record in steps:
         console.print(step_panel(record))
     if result is None:
@@ -146,7 +156,7 @@ def show_run(run: str, trial: str | None, *, environment: str | None = None, arm
     else:
         line = Text("outcome: ")
         line.append(result.outcome.value, style="bold")
-        line.append(f" after {result.steps} steps ({result.detail or 'no detail'}); distance {result.distance_mm:.0f} mm, "
+        line.append(f" after {result.steps} steps ({shown(result.detail or 'no detail')}); distance {result.distance_mm:.0f} mm, "
                     f"collisions {result.collisions}, interventions {result.interventions}, tokens {result.tokens}")
         console.print(line)
 

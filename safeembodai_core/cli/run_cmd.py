@@ -30,9 +30,9 @@ def _pick(kind: str, value: str | None, names: list[str]) -> str:
 def run(scenario_path, backend, seed, overrides, environment, arm, condition, index, out_dir) -> None:
     """Run one trial of SCENARIO and show what happened at every step."""
     from rich.console import Console
-    from rich.markup import escape
 
     from ..runner import ScenarioRunner, trial_spec
+    from ..text_safety import terminal_markup
     from .trial_view import save_trial, step_table
 
     scenario, plugins = load(scenario_path, backend, seed, overrides)
@@ -44,7 +44,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     spec = trial_spec(scenario, env_label, arm, condition, index)
     console = Console(stderr=False)
     try:
-        with console.status(f"running {spec.trial_id} (seed {spec.seed})"):
+        with console.status(f"running {terminal_markup(spec.trial_id)} (seed {spec.seed})"):
             result = runner.run(spec)
         steps = runner.state.steps(spec.trial_id)
         picture = runner.environment(env_label).trajectory_png(result.trajectory, result.outcome)
@@ -52,6 +52,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     finally:
         runner.close()
     console.print(step_table(steps))
-    console.print(f"[bold]{escape(spec.trial_id)}[/bold]: {result.outcome.value} after {result.steps} steps"
-                  f" ({escape(result.detail or 'no detail')}); distance {result.distance_mm:.0f} mm, tokens {result.tokens}")
-    console.print(f"saved to {folder}")
+    console.print(f"[bold]{terminal_markup(spec.trial_id)}[/bold]: {result.outcome.value} after {result.steps} steps"
+                  f" ({terminal_markup(result.detail or 'no detail')}); distance {result.distance_mm:.0f} mm, "
+                  f"tokens {result.tokens}")
+    console.print(f"saved to {terminal_markup(str(folder))}")

@@ -81,6 +81,39 @@ def test_trials_are_kept_apart_and_a_restart_drops_the_old_record(store):
     assert store.steps(SPEC.trial_id) == [] and len(store.steps(other.trial_id)) == 1
 
 
+def test_a_step_recorded_again_replaces_its_write_ahead_record(store):
+    store.begin_trial(SPEC)
+    done = make_step(1)
+    ahead = done.model_copy(update={"executed": [], "status": "executing",
+                                    "planned": done.attempts[1].response.control})
+    store.record_step(ahead)
+    assert store.steps(SPEC.trial_id) == [ahead]
+    assert store.reference_state(SPEC.trial_id, 2).executed == []
+    final = done.model_copy(update={"planned": ahead.planned})
+    store.record_step(final)
+    assert store.steps(SPEC.trial_id) == [final] and final.status == "done"
+    assert store.reference_state(SPEC.trial_id, 2) == final.to_reference()
+    store.record_step(make_step(2).model_copy(update={"status": "executing"}))
+    store.begin_trial(SPEC)  # a resumed trial starts over: no half-done step survives
+    assert store.steps(SPEC.trial_id) == []
+
+
+def test_sqlite_keeps_one_row_per_fact_when_a_step_is_recorded_again(plugins, tmp_path):
+    import sqlite3
+
+    store = plugins.registry.build("state_store", "sqlite", {"path": str(tmp_path / "s.sqlite")})
+    store.begin_trial(SPEC)
+    record = make_step(1)
+    store.record_step(record.model_copy(update={"executed": [], "status": "executing"}))
+    store.record_step(record)
+    store.close()
+    with sqlite3.connect(tmp_path / "s.sqlite") as conn:
+        counts = {table: conn.execute(f"SELECT COUNT(*) FROM {table}").fetchone()[0]
+                  for table in ("steps", "attempts", "verdicts", "attacks")}
+        status = conn.execute("SELECT json_extract(record, '$.status') FROM steps").fetchone()[0]
+    assert counts == {"steps": 1, "attempts": 2, "verdicts": 1, "attacks": 1} and status == "done"
+
+
 def test_handed_out_records_cannot_rewrite_history(store):
     store.begin_trial(SPEC)
     record = make_step(1)
