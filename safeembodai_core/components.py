@@ -123,7 +123,11 @@ class StateStore(ABC):
 
     @abstractmethod
     def record_step(self, record: StepRecord) -> None:
-        """Persist one step atomically."""
+        """Persist one step atomically, replacing any earlier record of the same (trial, step).
+
+        The loop writes a step with an accepted plan twice: before execution (``status``
+        ``"executing"``, ``planned`` set) and after (``"done"``); see ``docs/plugin_hooks.md``.
+        """
 
     @abstractmethod
     def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
