@@ -139,7 +139,7 @@ class _Totals:
 
 def error_result(spec: TrialSpec, detail: str) -> TrialResult:
     """The result of a trial that could not even start (its components failed to build)."""
-    return _Totals().result(spec, Outcome.ERROR, detail, 0.0)
+    return storable(_Totals().result(spec, Outcome.ERROR, detail, 0.0))
 
 
 def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugins: Any = None) -> TrialResult:
