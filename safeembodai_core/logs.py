@@ -55,6 +55,23 @@ def _redact_processor(logger: Any, method: str, event: dict[str, Any]) -> dict[s
     return redact(event)
 
 
+def _visible_controls(value: Any) -> Any:
+    if isinstance(value, str):
+        from .text_safety import terminal_text  # imports this module: resolved at call time
+
+        return terminal_text(value, keep_layout=True)
+    if isinstance(value, dict):
+        return {k: _visible_controls(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_visible_controls(v) for v in value)
+    return value
+
+
+def _terminal_safe_processor(logger: Any, method: str, event: dict[str, Any]) -> dict[str, Any]:
+    """Logged values can quote an LLM's answer: ESC, NUL and bidi controls are shown, not sent."""
+    return _visible_controls(event)
+
+
 class _CurrentStderr:
     """Whatever ``sys.stderr`` is at write time (tests and embedding apps swap it)."""
 
@@ -89,6 +106,7 @@ def configure_logging(level: str = "warning", json_output: bool = False) -> None
             structlog.processors.TimeStamper(fmt="iso"),
             structlog.processors.format_exc_info,  # tracebacks become text *before* redaction, without locals
             _redact_processor,
+            _terminal_safe_processor,
             renderer,
         ],
         wrapper_class=structlog.make_filtering_bound_logger(numeric),

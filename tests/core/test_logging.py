@@ -34,3 +34,27 @@ def test_secrets_are_masked_by_key_and_by_shape(capsys):
 
 def test_redact_keeps_token_counts():
     assert redact({"total_tokens": 5, "token": "t0ps3cret"}) == {"total_tokens": 5, "token": MASK}
+
+
+def test_registered_secrets_are_masked_in_any_logged_text(capsys):
+    from safeembodai_core.logs import register_secret
+
+    register_secret("opaque-credential-7f3a")
+    configure_logging("info")
+    try:
+        get_logger("test").info("reply", planning="echo: opaque-credential-7f3a here")
+    finally:
+        configure_logging("warning")
+    err = capsys.readouterr().err
+    assert "opaque-credential-7f3a" not in err and MASK in err
+
+
+def test_logged_llm_text_cannot_drive_the_terminal(capsys):
+    configure_logging("info")
+    try:
+        get_logger("test").info("step.refused", reasons=["clear \x1b[2J screen", "clip \x1b]52;c;aGk=\x07", "nul \x00"])
+    finally:
+        configure_logging("warning")
+    err = capsys.readouterr().err
+    assert not any(char in err for char in "\x1b\x07\x00")
+    assert "\\x1b[2J" in err
