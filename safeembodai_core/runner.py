@@ -8,6 +8,7 @@ state leaks from one trial into the next.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,11 @@ log = get_logger(__name__)
 def trial_seed(scenario: Scenario, index: int) -> int:
     """The seed of trial ``index``: from the base seed and the index only, so every cell pairs up."""
     return seeds.derive_seed(scenario.seed, "trial", index)
+
+
+def trajectory_file(run_dir: str | Path, trial_id: str) -> Path:
+    """Where the picture of ``trial_id`` goes in a run folder."""
+    return Path(run_dir) / "trajectories" / (trial_id.replace("/", "__") + ".png")
 
 
 def trial_spec(scenario: Scenario, environment: str, arm: str, condition: str, index: int) -> TrialSpec:
@@ -103,18 +109,58 @@ class ScenarioRunner:
         return result
 
     def trajectory_path(self, trial_id: str) -> Path:
-        return Path(self.run_dir or ".") / "trajectories" / (trial_id.replace("/", "__") + ".png")
+        return trajectory_file(self.run_dir or ".", trial_id)
 
-    def _save_trajectory(self, environment: Any, result: TrialResult) -> None:
+    def _save_trajectory(self, environment: Any, result: TrialResult) -> bool:
+        """Draw and write the trial's picture; False when the environment draws none.
+
+        A drawing bug only costs the picture (a warning). A picture that cannot be written (a
+        full disk, ``trajectories`` not a folder) stops the run with an error naming the file: the
+        trial's result is already stored, and a resume draws the missing picture again. The file
+        appears whole or not at all (written aside, then renamed).
+        """
         try:
             picture = environment.trajectory_png(result.trajectory, result.outcome)
         except Exception as error:  # a picture is a convenience: never lose a trial over it
             log.warning("trajectory.failed", trial=result.spec.trial_id, error=str(error))
-            return
-        if picture:
-            path = self.trajectory_path(result.spec.trial_id)
+            return False
+        if not picture:
+            return False
+        path = self.trajectory_path(result.spec.trial_id)
+        partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+        try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(picture)
+            partial.write_bytes(picture)
+            os.replace(partial, path)
+        except OSError as error:
+            try:
+                partial.unlink(missing_ok=True)
+            except OSError:
+                pass
+            raise SafeEmbodAIError(f"cannot write the trajectory picture {path}: {error.strerror or error} "
+                                   f"(the trial's result is stored; resume the run once fixed)") from None
+        return True
+
+    def draw_missing_trajectories(self, results: list[TrialResult]) -> int:
+        """Draw the pictures of ``results`` that have none (a run killed between storing a result
+        and writing its picture); return how many were drawn.
+
+        Each is drawn from the recorded path on the world reset to the trial's seed: the room,
+        the path and static obstacles are exact; marks a world only keeps while a trial runs
+        (where it collided, moving obstacles' tracks) may be missing.
+        """
+        drawn = 0
+        for result in results:
+            if not result.trajectory or self.trajectory_path(result.spec.trial_id).exists():
+                continue
+            try:
+                environment = self.environment(result.spec.environment)
+                environment.reset(result.spec.seed)
+            except Exception as error:  # SafeEmbodAIError included: the picture stays missing, the report says so
+                log.warning("trajectory.failed", trial=result.spec.trial_id, error=str(error))
+                continue
+            drawn += self._save_trajectory(environment, result)
+        return drawn
 
     def specs(self) -> list[TrialSpec]:
         """Every trial of the scenario, cell by cell."""

@@ -2,27 +2,38 @@
 
 The scenario's state store records every step and every trial result (by default ``sqlite``
 in ``<run>/results.sqlite``, written by the workers themselves as trials finish). A trial counts as
-done only once its result is in the store, so after Ctrl-C, ``kill -9`` or a crashed worker a
-resumed run re-runs exactly the missing trials: a trial cut off mid-way starts again from scratch
-(``begin_trial`` drops its partial steps), none runs twice to completion.
+done only once its result is in the store, so after Ctrl-C, SIGTERM, ``kill -9`` or a crashed
+worker a resumed run re-runs exactly the missing trials: a trial cut off mid-way starts again from
+scratch (``begin_trial`` drops its partial steps), none runs twice to completion.
+
+The store must not change under the run: the coordinator notes every finished trial in the run
+folder's ledger (after the store has it) and checks, as results arrive and at the end, that the
+store file is still the one it opened and still holds every trial of the ledger. A resume
+refuses a store that lost trials of the ledger instead of quietly running them again.
 """
 
 from __future__ import annotations
 
+import os
+import time
+from pathlib import Path
 from typing import Callable
 
 
-from ..errors import SafeEmbodAIError
+from ..errors import SafeEmbodAIError, StateStoreError
 from ..models import Outcome, TrialResult, TrialSpec
 from ..plugins import Plugins
 from ..runner import ScenarioRunner
 from ..scenario import Scenario
+from .error_kinds import store_failed
 from .executors import ProcessExecutor, RayExecutor, SerialExecutor
 from .run_folder import RunFolder, RunLock
 
 from ..logs import get_logger
 
 log = get_logger(__name__)
+
+FULL_CHECK_EVERY_S = 2.0  # reading every result back costs O(trials): not after each trial of a fast run
 
 
 class AblationError(SafeEmbodAIError):
@@ -49,14 +60,80 @@ class Ablation:
         self.lock.acquire()
         self.runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
         try:
+            pictures = folder.path / "trajectories"
+            if pictures.exists() and not pictures.is_dir():
+                raise AblationError(f"{pictures} is not a folder; move it away so the run can save its pictures there")
             self.store = self.runner.state
             if resume and not self.store.persistent:
                 raise AblationError(f"state store {scenario.state.use!r} keeps no results across runs: "
                                     "resuming needs a persistent store such as sqlite")
+            self.store_file = Path(self.store.path) if isinstance(getattr(self.store, "path", None), (str, Path)) else None
+            self.store_identity = self._identity()
+            self.ledger = self._check_ledger() if resume else set()
         except BaseException:
             self.close()
             raise
         self.resumed = resume
+        self._checked_at = time.monotonic()
+
+    def _store_name(self) -> str:
+        return str(self.store_file) if self.store_file else f"state store {self.scenario.state.use!r}"
+
+    def _identity(self) -> tuple[int, int] | None:
+        if self.store_file is None:
+            return None
+        try:
+            info = os.stat(self.store_file)
+        except FileNotFoundError:
+            raise AblationError(f"{self.store_file} vanished during the run (deleted or moved); the trials it held "
+                                f"are lost unless you put it back; then resume the run") from None
+        except OSError as error:
+            raise AblationError(f"cannot check {self.store_file}: {error.strerror or error}") from None
+        return info.st_dev, info.st_ino
+
+    def _check_ledger(self) -> set[str]:
+        """On resume: every trial of the ledger must be in the store; trials the store holds beyond
+        it (finished by workers after their coordinator died) join the ledger."""
+        ledger = self.folder.finished()
+        done = [r.spec.trial_id for r in self.recorded() if r.outcome != Outcome.ERROR]
+        if ledger is None:  # a run folder of an older version: start the ledger from the store
+            log.warning("ablation.no_ledger", run=str(self.folder.path), trials=len(done))
+            self.folder.note_finished(done)
+            return set(done)
+        noted = set(ledger)
+        self._refuse_lost(noted, set(done), when="holds")
+        extra = [trial_id for trial_id in done if trial_id not in noted]
+        if extra:
+            self.folder.note_finished(extra)
+        return noted | set(extra)
+
+    def _refuse_lost(self, noted: set[str], stored: set[str], when: str) -> None:
+        lost = sorted(noted - stored)
+        if lost:
+            shown = ", ".join(lost[:3]) + (", ..." if len(lost) > 3 else "")
+            raise AblationError(
+                f"{self._store_name()} {when} only {len(noted) - len(lost)} of the {len(noted)} finished trials recorded "
+                f"in {self.folder.ledger_path} (missing: {shown}); it was deleted, emptied or replaced. "
+                "Put the original file back to resume, or start a new run")
+
+    def check_store(self, full: bool = True) -> None:
+        """Fail if the store file was replaced or deleted, or (``full``) lost trials of the ledger."""
+        if self._identity() != self.store_identity:
+            raise AblationError(f"{self.store_file} was replaced during the run (it is not the file the run opened); "
+                                "put the original back, then resume the run")
+        if full and self.store.persistent:
+            stored = {r.spec.trial_id for r in self.recorded() if r.outcome != Outcome.ERROR}
+            self._refuse_lost(self.ledger, stored, when="now holds")
+            self._checked_at = time.monotonic()
+
+    def _note(self, result: TrialResult) -> None:
+        if store_failed(result):  # every later trial would fail the same way: stop, resume once fixed
+            raise StateStoreError(f"{result.detail} (trial {result.spec.trial_id}); finished trials are recorded: "
+                                  "resume the run once the store can be written")
+        self.check_store(full=time.monotonic() - self._checked_at >= FULL_CHECK_EVERY_S)
+        if result.outcome != Outcome.ERROR and result.spec.trial_id not in self.ledger:
+            self.folder.note_finished([result.spec.trial_id])
+            self.ledger.add(result.spec.trial_id)
 
     def recorded(self) -> list[TrialResult]:
         """Results already in the store (empty for a store that does not keep them)."""
@@ -85,8 +162,22 @@ class Ablation:
             return ProcessExecutor(scenario_json, str(self.folder.path), self.workers)
         return RayExecutor(scenario_json, str(self.folder.path), self.workers, self.address)
 
+    def redraw_missing_trajectories(self) -> int:
+        """Draw the pictures of recorded trials that have none (see ``ScenarioRunner``)."""
+        drawn = self.runner.draw_missing_trajectories(
+            [r for r in self.recorded() if r.outcome != Outcome.ERROR])  # error trials run again
+        if drawn:
+            log.info("ablation.redrawn", run=str(self.folder.path), pictures=drawn)
+        return drawn
+
     def run(self, on_result: Callable[[TrialResult], None] | None = None) -> list[TrialResult]:
-        """Run every pending trial; return all results of the run (earlier ones included)."""
+        """Run every pending trial; return all results of the run (earlier ones included).
+
+        On any exception (KeyboardInterrupt from Ctrl-C or SIGTERM included) the workers are
+        killed at once rather than waited for; what they were running is re-run on resume.
+        """
+        if self.resumed:
+            self.redraw_missing_trajectories()
         pending = self.pending()
         log.info("ablation.start", run=str(self.folder.path), pending=len(pending), executor=self.executor_name)
         fresh: list[TrialResult] = []
@@ -95,11 +186,15 @@ class Ablation:
             for result in executor.run(pending):
                 if self.executor_name != "serial":
                     self.store.end_trial(result)  # idempotent: the worker's store already wrote it
+                self._note(result)
                 fresh.append(result)
                 if on_result is not None:
                     on_result(result)
-        finally:
-            executor.close()
+        except BaseException:
+            executor.abort()
+            raise
+        executor.close()
+        self.check_store()
         return self.results(fresh)
 
     def results(self, fresh: list[TrialResult] | None = None) -> list[TrialResult]:

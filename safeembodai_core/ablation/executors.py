@@ -32,17 +32,19 @@ def build_worker_runner(scenario_json: dict[str, Any], run_dir: str) -> Any:
     return ScenarioRunner(scenario, load_plugins(), run_dir=run_dir, save_trajectories=True)
 
 
-def _init_worker(scenario_json: dict[str, Any], run_dir: str) -> None:
+def _init_worker(scenario_json: dict[str, Any], run_dir: str, coordinator: int) -> None:
+    from .lifeline import bind_to_coordinator
     from .run_folder import hold_worker_lock
 
+    bind_to_coordinator(coordinator)
     _WORKER["lock"] = hold_worker_lock(run_dir)
     _WORKER["runner"] = build_worker_runner(scenario_json, run_dir)
-    _WORKER["parent"] = os.getppid()
+    _WORKER["coordinator"] = coordinator
 
 
 def _run_in_worker(spec_json: dict[str, Any]) -> dict[str, Any]:
-    if os.getppid() != _WORKER["parent"]:  # the coordinator died: do not start trials nobody will record
-        raise SystemExit(1)
+    if os.getppid() != _WORKER["coordinator"]:  # the coordinator died: start no trial nobody will count
+        os._exit(1)
     result = _WORKER["runner"].run(TrialSpec.model_validate(spec_json))
     return result.model_dump(mode="json")
 
@@ -60,6 +62,8 @@ class SerialExecutor:
     def close(self) -> None:
         self.runner.close()
 
+    abort = close
+
 
 class ProcessExecutor:
     """A pool of ``workers`` spawned processes, each with one environment per label, reused."""
@@ -67,7 +71,7 @@ class ProcessExecutor:
     def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int) -> None:
         self.pool = ProcessPoolExecutor(
             max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-            initializer=_init_worker, initargs=(scenario_json, run_dir),
+            initializer=_init_worker, initargs=(scenario_json, run_dir, os.getpid()),
         )
         self.workers = workers
 
@@ -88,6 +92,14 @@ class ProcessExecutor:
                                    "resume the run to finish the rest") from None
 
     def close(self) -> None:
+        """Wait for the trials that run, then stop the workers (the run ended normally)."""
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+    def abort(self) -> None:
+        """Kill the workers now (the run was interrupted or failed): the trials they were running
+        are not recorded as finished and run again, from scratch, on resume."""
+        for process in list((getattr(self.pool, "_processes", None) or {}).values()):
+            process.kill()
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -126,3 +138,5 @@ class RayExecutor:
     def close(self) -> None:
         for actor in self.actors:
             self.ray.kill(actor)
+
+    abort = close

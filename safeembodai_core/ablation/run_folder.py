@@ -3,6 +3,11 @@
 ``scenario.json`` holds the validated scenario and its SHA-256 fingerprint. Resuming compares the
 scenario given now with it and refuses any difference, naming the keys that changed, because
 mixing trials of two different scenarios would make every metric meaningless.
+
+``finished.jsonl`` is the run's own ledger: the id of every trial whose result the coordinator has
+seen in the store (outcome ``error`` aside, as those are run again), appended only after the store
+holds it. The ledger is never ahead of the store, so a store that holds fewer of those trials was
+deleted, emptied or replaced, and resuming from it would silently run them again.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from ..errors import SafeEmbodAIError
 from ..scenario import Scenario
 
 SCENARIO_FILE = "scenario.json"
+LEDGER_FILE = "finished.jsonl"
 COORDINATOR_LOCK = ".coordinator.lock"
 WORKERS_LOCK = ".workers.lock"
 
@@ -59,17 +65,23 @@ class RunFolder:
                 raise SafeEmbodAIError(f"{self.path} already holds a run; use --resume {self.path} to finish it")
             record = {"fingerprint": fingerprint(scenario), "scenario": scenario.model_dump(mode="json")}
             target.write_text(json.dumps(record, indent=2), encoding="utf-8")
+            self.ledger_path.write_text("", encoding="utf-8")
         except OSError as error:
             raise SafeEmbodAIError(f"cannot write the run folder {self.path}: {error}") from None
 
     def recorded_scenario(self) -> dict[str, Any]:
         target = self.path / SCENARIO_FILE
         try:
-            return json.loads(target.read_text(encoding="utf-8"))
+            record = json.loads(target.read_text(encoding="utf-8"))
         except FileNotFoundError:
             raise SafeEmbodAIError(f"{self.path} is not a run folder (no {SCENARIO_FILE})") from None
-        except (OSError, json.JSONDecodeError) as error:
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
             raise SafeEmbodAIError(f"{target} is unreadable: {error}") from None
+        if not (isinstance(record, dict) and isinstance(record.get("fingerprint"), str)
+                and isinstance(record.get("scenario"), dict)):
+            raise SafeEmbodAIError(f"{target} is not a recorded scenario (expected the keys 'fingerprint' and "
+                                   "'scenario' that 'safeembodai ablate' writes)")
+        return record
 
     def check_same(self, scenario: Scenario) -> None:
         """Refuse to resume with a scenario that differs from the one the run started with."""
@@ -83,27 +95,124 @@ class RunFolder:
         )
 
     def scenario(self) -> Scenario:
-        return Scenario.model_validate(self.recorded_scenario()["scenario"])
+        from pydantic import ValidationError
+
+        try:
+            return Scenario.model_validate(self.recorded_scenario()["scenario"])
+        except ValidationError as error:
+            first = error.errors()[0]
+            where = ".".join(str(part) for part in first["loc"]) or "(root)"
+            more = f" (and {error.error_count() - 1} more)" if error.error_count() > 1 else ""
+            raise SafeEmbodAIError(f"{self.path / SCENARIO_FILE} is not a recorded scenario: "
+                                   f"{where}: {first['msg']}{more}") from None
+
+    # -- the ledger of finished trials -------------------------------------------------------
+
+    @property
+    def ledger_path(self) -> Path:
+        return self.path / LEDGER_FILE
+
+    def finished(self) -> list[str] | None:
+        """Trial ids in the ledger, oldest first; None when the run has no ledger (older versions).
+
+        A line cut short by a kill in the middle of an append is ignored: its trial is in the store.
+        """
+        try:
+            text = self.ledger_path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            return None
+        except (OSError, UnicodeDecodeError) as error:
+            raise SafeEmbodAIError(f"{self.ledger_path} is unreadable: {error}") from None
+        ids = []
+        for line in text.splitlines(keepends=True):
+            try:
+                trial_id = json.loads(line) if line.endswith("\n") else None
+            except json.JSONDecodeError:
+                trial_id = None
+            if isinstance(trial_id, str):
+                ids.append(trial_id)
+        return ids
+
+    def note_finished(self, trial_ids: list[str]) -> None:
+        """Append ``trial_ids`` to the ledger (call only once the store holds their results)."""
+        lines = "".join(json.dumps(trial_id) + "\n" for trial_id in trial_ids).encode("utf-8")
+        try:
+            with self.ledger_path.open("a+b") as ledger:
+                if ledger.seek(0, os.SEEK_END):
+                    ledger.seek(-1, os.SEEK_END)
+                    if ledger.read(1) != b"\n":  # a line cut short by a kill: never glue the next one to it
+                        lines = b"\n" + lines
+                ledger.write(lines)
+        except OSError as error:
+            raise SafeEmbodAIError(f"cannot write {self.ledger_path}: {error.strerror or error}") from None
+
+
+_HELD: set[int] = set()  # lock descriptors of this process, closed in any child it forks
+
+
+def _forget_locks_in_child() -> None:
+    """A forked child shares its parent's locks through inherited descriptors: drop them, so a
+    lock lives exactly as long as the process that took it (and never in, say, a helper the
+    worker forked that outlives it)."""
+    for fd in _HELD:
+        try:
+            os.close(fd)
+        except OSError:
+            pass
+    _HELD.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_locks_in_child)
 
 
 def _flock(path: Path, exclusive: bool, wait: bool) -> int | None:
     """Open ``path`` and lock it; the descriptor, or None when another process holds a conflicting lock.
 
     Advisory POSIX locks: they vanish with the process that holds them, ``kill -9`` included.
-    On platforms without ``fcntl`` no locking is done (and every call succeeds).
+    The descriptor is not inherited across ``exec`` (Python's default) nor kept by forked
+    children (see :func:`_forget_locks_in_child`). On platforms without ``fcntl`` no locking is
+    done (and every call succeeds).
     """
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX
         return -1
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as error:
+        raise SafeEmbodAIError(f"cannot open the lock file {path}: {error.strerror or error} "
+                               "(a run folder must be writable to run or report it)") from None
     mode = (fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH) | (0 if wait else fcntl.LOCK_NB)
     try:
         fcntl.flock(fd, mode)
     except BlockingIOError:
         os.close(fd)
         return None
+    _HELD.add(fd)
     return fd
+
+
+def _unlock(fd: int) -> None:
+    _HELD.discard(fd)
+    os.close(fd)
+
+
+def lock_holders(path: Path) -> list[int]:
+    """Pids holding a lock on ``path`` (from ``/proc/locks``; empty where that is unavailable)."""
+    try:
+        info = os.stat(path)
+        lines = Path("/proc/locks").read_text().splitlines()
+    except OSError:
+        return []
+    wanted = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
+    pids = {int(fields[4]) for fields in (line.split() for line in lines)
+            if len(fields) > 5 and fields[5] == wanted and fields[4].isdigit()}
+    return sorted(pids)
+
+
+class RunInProgress(SafeEmbodAIError):
+    """Another coordinator (or workers of a killed one) still works on the run folder."""
 
 
 class RunLock:
@@ -112,29 +221,35 @@ class RunLock:
     The coordinator holds ``.coordinator.lock`` exclusively for the whole run; every local worker
     holds ``.workers.lock`` shared for its lifetime. A new coordinator (a resume) therefore refuses
     to start while an earlier one is alive, and while workers of a killed coordinator are still
-    finishing a trial, so no trial can be run by two processes at once.
+    alive, so no trial can be run by two processes at once. Workers exit within a fraction of a
+    second of their coordinator's death (see ``lifeline.py``): ``acquire`` waits ``wait_s`` for them.
     """
 
-    def __init__(self, folder: Path) -> None:
+    def __init__(self, folder: Path, wait_s: float = 3.0) -> None:
         self.folder = folder
+        self.wait_s = wait_s
         self.fd: int | None = None
 
     def acquire(self) -> None:
         fd = _flock(self.folder / COORDINATOR_LOCK, exclusive=True, wait=False)
         if fd is None:
-            raise SafeEmbodAIError(f"another 'safeembodai ablate' is running on {self.folder}; wait for it to end")
-        workers = _flock(self.folder / WORKERS_LOCK, exclusive=True, wait=False)
-        if workers is None:
-            os.close(fd)
-            raise SafeEmbodAIError(f"worker processes of an earlier run of {self.folder} are still finishing trials; "
-                                   "resume again once they have exited")
+            raise RunInProgress(f"another 'safeembodai ablate' is running on {self.folder}; wait for it to end")
+        deadline = time.monotonic() + self.wait_s
+        while (workers := _flock(self.folder / WORKERS_LOCK, exclusive=True, wait=False)) is None:
+            if time.monotonic() >= deadline:
+                _unlock(fd)
+                pids = lock_holders(self.folder / WORKERS_LOCK)
+                named = f" (pid {', '.join(map(str, pids))})" if pids else ""
+                raise RunInProgress(f"worker processes of an earlier run of {self.folder} are still alive{named}; "
+                                    "try again once they have exited")
+            time.sleep(0.1)
         if workers >= 0:
-            os.close(workers)
+            _unlock(workers)
         self.fd = fd
 
     def release(self) -> None:
         if self.fd is not None and self.fd >= 0:
-            os.close(self.fd)
+            _unlock(self.fd)
         self.fd = None
 
 

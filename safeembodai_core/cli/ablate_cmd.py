@@ -1,7 +1,12 @@
-"""``safeembodai ablate SCENARIO``: every trial of every cell, in parallel, resumable, summarised."""
+"""``safeembodai ablate SCENARIO``: every trial of every cell, in parallel, resumable, summarised.
+
+Ctrl-C (SIGINT) and SIGTERM stop the run cleanly: workers are killed, finished trials stay
+recorded, the resume command is printed and the exit code is 130 or 143 (128 + the signal).
+"""
 
 from __future__ import annotations
 
+import signal
 
 import click
 
@@ -23,16 +28,40 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     """Run the ablation of SCENARIO: environments x arms x conditions x trials."""
     from rich.console import Console
     from rich.markup import escape
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
-    from ..ablation import Ablation, RunFolder
+    from ..ablation import RunFolder
+    from ..ablation.lifeline import StopSignals
+    from ..errors import SafeEmbodAIError
     from .summary import summary_table
 
     scenario, plugins = load(scenario_path, backend, seed, overrides)
     folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
     console = Console()
-    ablation = Ablation(scenario, plugins, folder, resume=resume_dir is not None, workers=workers,
-                        executor=executor, address=address)
+    with StopSignals() as stop:
+        try:
+            results = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor, address)
+            console.print(summary_table(scenario, results))
+            if not no_report:
+                from ..report import write_report
+
+                console.print(f"report: {write_report(folder.path, scenario, results)}")
+        except (KeyboardInterrupt, SafeEmbodAIError) as error:
+            # a signal sent to the whole process group also kills workers: the broken pool is the signal's doing
+            if isinstance(error, SafeEmbodAIError) and stop.signum is None:
+                raise
+            console.print(f"[yellow]interrupted[/yellow] ({signal.Signals(stop.exit_code - 128).name}): "
+                          f"finished trials are recorded; resume with --resume {escape(str(folder.path))}")
+            raise SystemExit(stop.exit_code) from None
+    console.print(f"run folder: {escape(str(folder.path))}")
+
+
+def _run(console, scenario, plugins, folder, resume, workers, executor, address):
+    from rich.markup import escape
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from ..ablation import Ablation
+
+    ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address)
     try:
         pending = ablation.pending()
         cells = {(s.environment, s.arm, s.condition) for s in pending}
@@ -52,18 +81,6 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
                 if left[cell] == 0:
                     progress.advance(finished_cells)
 
-            try:
-                results = ablation.run(advance)
-            except KeyboardInterrupt:
-                console.print(f"[yellow]interrupted[/yellow]: finished trials are recorded; "
-                              f"resume with --resume {folder.path}")
-                raise SystemExit(130) from None
+            return ablation.run(advance)
     finally:
         ablation.close()
-    console.print(summary_table(scenario, results))
-    if not no_report:
-        from ..report import write_report
-
-        report = write_report(folder.path, scenario, results)
-        console.print(f"report: {report}")
-    console.print(f"run folder: {folder.path}")

@@ -1,4 +1,10 @@
-"""``safeembodai report RUN_DIR``: metrics, figures and report.md for a (finished or partial) run."""
+"""``safeembodai report RUN_DIR``: metrics, figures and report.md for a (finished or partial) run.
+
+A run that an ``ablate`` is still working on is refused (that run writes its own report when it
+ends). Pictures missing from ``trajectories/`` (a run killed between storing a result and
+saving its picture) are drawn again from the recorded trajectories first; the report says how
+many pictures there are when some are still missing.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +16,10 @@ import click
 def report(run_dir: str) -> None:
     """Write report.md, figures/, metrics.csv and metrics.json for RUN_DIR."""
     from rich.console import Console
+    from rich.markup import escape
 
     from ..ablation import RunFolder
+    from ..ablation.run_folder import RunInProgress, RunLock
     from ..errors import SafeEmbodAIError
     from ..plugins import load_plugins
     from ..report import write_report
@@ -20,17 +28,26 @@ def report(run_dir: str) -> None:
 
     folder = RunFolder(run_dir)
     scenario = folder.scenario()
-    runner = ScenarioRunner(scenario, load_plugins(), run_dir=folder.path)
+    lock = RunLock(folder.path, wait_s=0.0)
     try:
+        lock.acquire()
+    except RunInProgress as busy:
+        raise SafeEmbodAIError(f"run in progress: {busy}; 'safeembodai ablate' writes the report when it ends") from None
+    try:
+        runner = ScenarioRunner(scenario, load_plugins(), run_dir=folder.path, save_trajectories=True)
         try:
-            results = runner.state.results()
-        except NotImplementedError:
-            raise SafeEmbodAIError(f"state store {scenario.state.use!r} of {run_dir} keeps no results to report") from None
+            try:
+                results = runner.state.results()
+            except NotImplementedError:
+                raise SafeEmbodAIError(f"state store {scenario.state.use!r} of {run_dir} keeps no results to report") from None
+            if not results:
+                raise SafeEmbodAIError(f"{run_dir} has no finished trial yet")
+            results = runner.in_trial_order(results)
+            runner.draw_missing_trajectories(results)
+        finally:
+            runner.close()
+        console = Console()
+        console.print(summary_table(scenario, results))
+        console.print(f"report: {escape(str(write_report(folder.path, scenario, results)))}")
     finally:
-        runner.close()
-    if not results:
-        raise SafeEmbodAIError(f"{run_dir} has no finished trial yet")
-    results = runner.in_trial_order(results)
-    console = Console()
-    console.print(summary_table(scenario, results))
-    console.print(f"report: {write_report(folder.path, scenario, results)}")
+        lock.release()

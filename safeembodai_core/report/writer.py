@@ -8,7 +8,9 @@ from pathlib import Path
 
 from ..metrics import CellMetrics, cell_metrics, group_by_cell
 from ..models import TrialResult
+from ..runner import trajectory_file
 from ..scenario import Scenario
+from ..ablation.error_kinds import count_crashed
 from .figures import draw_figures
 from .paper import comparison_rows
 
@@ -16,13 +18,15 @@ ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", 
              "tokens", "distance_mm", "collisions", "interventions", "retries")
 
 
-def _cells(results: list[TrialResult], budget: int) -> list[CellMetrics]:
-    return [cell_metrics(cell, budget) for cell in group_by_cell(results).values()]
+def _cells(results: list[TrialResult], budget: int) -> list[tuple[CellMetrics, int]]:
+    """Each cell's metrics with how many of its ``error`` trials crashed."""
+    return [(cell_metrics(cell, budget), count_crashed(cell)) for cell in group_by_cell(results).values()]
 
 
-def _row(m: CellMetrics) -> dict[str, object]:
+def _row(m: CellMetrics, crashed: int) -> dict[str, object]:
     row: dict[str, object] = {"environment": m.environment, "arm": m.arm, "condition": m.condition,
-                              "trials": m.trials, "errors": m.errors, "s_max": m.s_max, "s_max_from": m.s_max_from}
+                              "trials": m.trials, "errors": m.errors - crashed, "crashed": crashed,
+                              "s_max": m.s_max, "s_max_from": m.s_max_from}
     row.update({f"outcome_{k}": v for k, v in m.outcomes.items()})
     for name in ESTIMATES:
         estimate = getattr(m, name)
@@ -34,8 +38,9 @@ def _row(m: CellMetrics) -> dict[str, object]:
 def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResult]) -> Path:
     """Write the metrics files and report.md into ``folder``; return the report's path."""
     folder = Path(folder)
-    cells = _cells(results, scenario.max_steps)
-    rows = [_row(m) for m in cells]
+    counted = _cells(results, scenario.max_steps)
+    cells = [m for m, _ in counted]
+    rows = [_row(m, crashed) for m, crashed in counted]
     (folder / "metrics.json").write_text(json.dumps({"scenario": scenario.name, "cells": rows,
                                                      "trials": [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]},
                                                     indent=2), encoding="utf-8")
@@ -45,14 +50,16 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
         writer.writerows(rows)
     lines = [f"# {scenario.name}", "", scenario.description or "", "",
              f"{len(results)} trials, {scenario.trials} per cell, step budget {scenario.max_steps}.", "",
-             "| env | arm | condition | n | MOER | completed | ADR | TLR | steps* | tokens* | distance mm* | errors |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for m in cells:
+             "| env | arm | condition | n | MOER | completed | ADR | TLR | steps* | tokens* | distance mm* | errors | crashed |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for m, crashed in counted:
         lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {m.trials} | {m.moer.fmt()} | {m.completion.fmt()} "
                      f"| {m.adr.fmt()} | {m.tlr.fmt()} | {m.steps.fmt(1)} | {m.tokens.fmt(0)} | {m.distance_mm.fmt(0)} "
-                     f"| {m.errors} |")
+                     f"| {m.errors - crashed} | {crashed} |")
     lines += ["", "\\* over completed trials. Intervals are 95% (bootstrap for means, Wilson for proportions); "
-              "see docs/metrics.md for every formula.", ""]
+              "see docs/metrics.md for every formula. errors: trials ended by a backend outage or a reported "
+              "failure; crashed: trials ended by an unexpected exception in a component (a bug). Neither counts "
+              "in n or the metrics; both run again on resume.", ""]
     figures = draw_figures(cells, folder / "figures") if cells else []
     if figures:
         lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
@@ -69,9 +76,21 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     else:
         lines.append("No cell of this run matches a cell of the paper (environments OF/SO/DO/MO, arms baseline/safeembodai, "
                      "conditions no_attack/attack).")
-    trajectories = sorted((folder / "trajectories").glob("*.png")) if (folder / "trajectories").is_dir() else []
-    if trajectories:
-        lines += ["", "## Trajectories", "", f"{len(trajectories)} pictures in `trajectories/` (one per trial)."]
+    lines += _trajectories(folder, results)
     report = folder / "report.md"
     report.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return report
+
+
+def _trajectories(folder: Path, results: list[TrialResult]) -> list[str]:
+    """The report's word on the pictures: one per trial, or exactly how many and which are missing."""
+    missing = [r.spec.trial_id for r in results if not trajectory_file(folder, r.spec.trial_id).is_file()]
+    drawn = len(results) - len(missing)
+    if not drawn:
+        return []
+    lines = ["", "## Trajectories", ""]
+    if not missing:
+        return lines + [f"{drawn} pictures in `trajectories/` (one per trial)."]
+    shown = ", ".join(f"`{trial_id}`" for trial_id in missing[:5]) + (", ..." if len(missing) > 5 else "")
+    return lines + [f"{drawn} pictures in `trajectories/` for {len(results)} trials: {len(missing)} trials have none "
+                    f"({shown}); their environment could not draw them. `safeembodai report` tries again."]

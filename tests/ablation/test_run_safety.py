@@ -42,7 +42,7 @@ def test_resume_waits_for_orphaned_workers(repo, plugins, tmp_path):
     """)], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"
-        with pytest.raises(SafeEmbodAIError, match="still finishing trials"):
+        with pytest.raises(SafeEmbodAIError, match=f"still alive \\(pid {holder.pid}\\)"):
             Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True)
     finally:
         holder.kill()
