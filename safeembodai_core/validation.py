@@ -2,16 +2,20 @@
 
 Validators judge one control signal at a time. A plan C_i = [g_i1, ..., g_in] is checked in
 order against the robot's *planned* pose: before judging g_ij the context is advanced by the
-exact motion of g_i1..g_i(j-1), and the LiDAR scan is re-projected into that pose. A rule like
-the paper's V(C) therefore checks the second signal of "turn left 45, straight 300" against
-the beams that will face forward after the turn, not the ones facing forward now.
+exact motion of g_i1..g_i(j-1). A rule like the paper's V(C) therefore checks the second signal
+of "turn left 45, straight 300" against the beams that will face forward after the turn, not the
+ones facing forward now.
+
+Away from the scan's own position rules judge the *measured points* (the scan's returns and
+free-space bounds moved into the planned frame); a direction counts as unknown only where the
+sensor gave no reading (a ``nan`` beam), never because moved points leave gaps between beams.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Iterable, Sequence
+from typing import Iterable, Literal, Sequence
 
 import numpy as np
 
@@ -19,6 +23,22 @@ from .components import RobotSpec, Validator
 from .models import DEFAULT_LIMITS, ControlLimits, ControlSignal, LidarScan, Turn, Verdict
 
 _UNKNOWN_RAY_STEP_MM = 50.0
+_EDGE_EPS = 1e-9
+_KINDS = ("return", "free_bound", "unread")
+
+
+@dataclass(frozen=True)
+class SectorReading:
+    """The nearest thing within a sector around the planned pose.
+
+    ``kind`` is ``return`` (an echo), ``free_bound`` (a no-return beam: free only up to the
+    sensor's range from where the scan was taken) or ``unread`` (on a beam with no reading, which
+    rules must treat as a possible obstacle). ``bearing_deg`` is relative to the planned heading.
+    """
+
+    distance_mm: float
+    bearing_deg: float
+    kind: Literal["return", "free_bound", "unread"]
 
 
 @dataclass(frozen=True)
@@ -40,6 +60,11 @@ class ValidationContext:
         rad = math.radians(heading)
         d = signal.signed_distance_mm
         return replace(self, offset=(x + d * math.cos(rad), y + d * math.sin(rad), heading))
+
+    @property
+    def at_scan_position(self) -> bool:
+        """True while the plan has only turned in place: the scan's beams still start here."""
+        return math.hypot(self.offset[0], self.offset[1]) < 1e-9
 
     def require_scan(self, rule: str) -> LidarScan:
         if self.scan is None:
@@ -82,39 +107,88 @@ class ValidationContext:
         ys = np.outer(np.sin(rad), radii).ravel()
         return self.to_planned_frame(np.column_stack((xs, ys)))
 
+    def _unread_segments(self, skip_mm: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Every ``nan`` beam's ray, from ``skip_mm`` to the sensor's range, as segments (starts,
+        ends) in the planned frame."""
+        scan = self.require_scan("unread beams")
+        rad = np.radians(scan.angles_deg[np.isnan(scan.ranges_mm)])
+        unit = np.column_stack((np.cos(rad), np.sin(rad)))
+        return self.to_planned_frame(skip_mm * unit), self.to_planned_frame(scan.max_range_mm * unit)
+
+    def nearest_in_sector(self, centre_deg: float, half_width_deg: float) -> SectorReading | None:
+        """The nearest measured point within ``half_width_deg`` (<= 90) of ``centre_deg`` (both
+        relative to the planned heading), seen from the planned pose; ``None`` if there is none.
+
+        At the scan's position (the plan has only turned) this is the paper's l(θ) over the
+        sector: the beams within it, a no-return beam free up to the sensor's range, a ``nan`` beam
+        unread at distance 0. After a translation it is the nearest of the returns and free-space
+        bounds (``LidarScan.points(include_free_bound=True)``) whose bearing from the planned pose
+        lies in the sector, and of the sector's part of every ``nan`` beam's ray beyond the body
+        (the robot stood there when the scan was taken), computed exactly rather than sampled.
+        """
+        scan = self.require_scan("nearest_in_sector")
+        heading = self.offset[2]
+        if self.at_scan_position:
+            beams = scan.sector(heading + centre_deg, half_width_deg)
+            if beams.size == 0:
+                return None
+            ranges = scan.ranges_mm[beams]
+            kinds = np.where(np.isnan(ranges), 2, np.where(np.isposinf(ranges), 1, 0))
+            ranges = np.where(np.isnan(ranges), 0.0, np.minimum(ranges, scan.max_range_mm))
+            k = int(np.lexsort((-kinds, ranges))[0])  # the nearest; at a tie the unread one
+            bearing = (scan.angles_deg[beams[k]] - heading + 180.0) % 360.0 - 180.0
+            return SectorReading(float(ranges[k]), float(bearing), _KINDS[kinds[k]])
+        best: SectorReading | None = None
+        normals = _sector_normals(centre_deg, half_width_deg)
+        points = self.points_at_pose(include_free_bound=True)
+        free = np.isposinf(scan.ranges_mm[~np.isnan(scan.ranges_mm)])
+        distance = np.hypot(points[:, 0], points[:, 1])
+        inside = np.all(points @ normals.T >= -_EDGE_EPS * (1.0 + distance)[:, None], axis=1)
+        if inside.any():
+            k = np.flatnonzero(inside)[np.argmin(distance[inside])]
+            best = SectorReading(float(distance[k]), math.degrees(math.atan2(points[k, 1], points[k, 0])),
+                                 "free_bound" if free[k] else "return")
+        starts, ends = self._unread_segments(min(self.robot.width_mm, self.robot.length_mm) / 2)
+        if len(starts):
+            reach, nearest = _segments_in_sector(starts, ends, normals)
+            k = int(np.argmin(reach))
+            if np.isfinite(reach[k]) and (best is None or reach[k] <= best.distance_mm):
+                best = SectorReading(float(reach[k]), math.degrees(math.atan2(nearest[k, 1], nearest[k, 0])), "unread")
+        return best
+
     def ranges_at_pose(self) -> np.ndarray:
         """The scan as it would read from the planned pose: ``inf`` free, ``nan`` unknown.
 
-        At the scan's own pose this is the scan itself. After pure rotations beams are shifted,
-        taking the nearer of two neighbours when the angle falls between beams. After a
-        translation the returns are re-binned; a bin with no return takes the nearest of its
-        neighbours within two beams, else it is unknown.
+        At the scan's position this is the scan, its beams shifted after a pure rotation (the
+        nearer of two neighbours when the angle falls between beams). After a translation each
+        beam direction reads where the space the sensor saw free ends along it: the nearest of the
+        returns and free-space bounds binned to that direction, and the point where its ray meets
+        the outline joining neighbouring beams' ends (an obstacle, the sensor's range, or the edge
+        of a shadow). No direction reads ``inf`` then. It reads ``nan`` only where a ``nan`` beam's
+        ray comes first, or where the ray meets nothing the sensor measured (it leaves through the
+        gap a ``nan`` beam leaves in the outline, or the pose lies outside the space seen). To judge
+        a motion prefer ``nearest_in_sector`` or the points themselves: they need no binning.
         """
         scan = self.require_scan("ranges_at_pose")
-        x, y, heading = self.offset
+        heading = self.offset[2]
         n, inc = scan.beam_count, scan.increment_deg
-        if math.hypot(x, y) < 1e-9:
+        if self.at_scan_position:
             shift = (heading / inc) % n
             low = int(math.floor(shift)) % n
             if abs(shift - round(shift)) < 1e-9:
                 return np.roll(scan.ranges_mm, -int(round(shift)) % n)
             return np.minimum(np.roll(scan.ranges_mm, -low), np.roll(scan.ranges_mm, -(low + 1) % n))
-        binned = np.full(n, np.inf)
-        hit = np.zeros(n, dtype=bool)
-        points = self.points_at_pose(include_free_bound=True)
-        if points.size:
-            index = np.rint(np.degrees(np.arctan2(points[:, 1], points[:, 0])) / inc).astype(int) % n
-            np.minimum.at(binned, index, np.hypot(points[:, 0], points[:, 1]))
-            hit[index] = True
-        filled = binned.copy()
-        for k in np.flatnonzero(~hit):
-            neighbours = [binned[(k + d) % n] for d in (-2, -1, 1, 2) if hit[(k + d) % n]]
-            filled[k] = min(neighbours) if neighbours else np.nan
-        unknown = self.unknown_points_at_pose()
-        if unknown.size:
-            index = np.rint(np.degrees(np.arctan2(unknown[:, 1], unknown[:, 0])) / inc).astype(int) % n
-            filled[index] = np.nan
-        return filled
+        read = ~np.isnan(scan.ranges_mm)
+        ends = self.to_planned_frame(scan.points(include_free_bound=True))  # one per read beam, in order
+        following = np.roll(read, -1)[read]  # the next beam (counter-clockwise) was read too
+        outline = _ray_hits(n, inc, ends[following], np.roll(ends, -1, axis=0)[following])
+        binned = _binned(ends, n, inc)
+        measured = np.fmin(np.where(np.isinf(binned), np.nan, binned), outline)
+        unknown = _binned(self.unknown_points_at_pose(), n, inc)
+        starts, stops = self._unread_segments()
+        if len(starts):
+            unknown = np.fmin(unknown, _ray_hits(n, inc, starts, stops))
+        return np.where(np.isnan(measured) | (unknown <= measured), np.nan, measured)
 
 
 def validate_plan(
@@ -138,4 +212,63 @@ def validate_plan(
     return verdicts
 
 
-__all__ = ["ValidationContext", "validate_plan"]
+
+def _sector_normals(centre_deg: float, half_width_deg: float) -> np.ndarray:
+    """Inward normals of the sector's two edges: a point p is inside iff both dot products are >= 0."""
+    a, b = math.radians(centre_deg + half_width_deg), math.radians(centre_deg - half_width_deg)
+    return np.array([[math.sin(a), -math.cos(a)], [-math.sin(b), math.cos(b)]])
+
+
+def _segments_in_sector(starts: np.ndarray, ends: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per segment, the distance from the origin of its nearest point inside the sector (``inf`` if
+    it misses the sector), and that point."""
+    edge = ends - starts
+    low, high = np.zeros(len(starts)), np.ones(len(starts))
+    for normal in normals:
+        at, slope = starts @ normal, edge @ normal
+        flat = np.abs(slope) < 1e-12
+        bound = np.where(flat, 0.0, -at / np.where(flat, 1.0, slope))
+        low = np.where(~flat & (slope > 0), np.maximum(low, bound), low)
+        high = np.where(~flat & (slope < 0), np.minimum(high, bound), high)
+        high = np.where(flat & (at < -_EDGE_EPS), -1.0, high)
+    length2 = np.maximum(np.einsum("ij,ij->i", edge, edge), 1e-12)
+    t = np.clip(-np.einsum("ij,ij->i", starts, edge) / length2, low, np.maximum(low, high))
+    nearest = starts + t[:, None] * edge
+    distance = np.where(low <= high, np.hypot(nearest[:, 0], nearest[:, 1]), np.inf)
+    return distance, nearest
+
+
+def _binned(points: np.ndarray, n: int, inc: float) -> np.ndarray:
+    """Per beam direction from the origin, the distance of the nearest point binned to it (inf: none)."""
+    binned = np.full(n, np.inf)
+    if points.size:
+        index = np.rint(np.degrees(np.arctan2(points[:, 1], points[:, 0])) / inc).astype(int) % n
+        np.minimum.at(binned, index, np.hypot(points[:, 0], points[:, 1]))
+    return binned
+
+
+def _ray_hits(n: int, inc: float, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Per beam direction k * inc from the origin, the distance to the first segment its ray meets
+    (``nan``: none). Each segment is tried only against the rays within the angle it spans."""
+    result = np.full(n, np.inf)
+    if len(starts):
+        a0 = np.degrees(np.arctan2(starts[:, 1], starts[:, 0]))
+        span = (np.degrees(np.arctan2(ends[:, 1], ends[:, 0])) - a0 + 180.0) % 360.0 - 180.0
+        first = np.ceil(np.minimum(a0, a0 + span) / inc - 1e-9).astype(int)
+        counts = np.maximum(np.floor(np.maximum(a0, a0 + span) / inc + 1e-9).astype(int) - first + 1, 0)
+        segment = np.repeat(np.arange(len(starts)), counts)
+        k = first[segment] + np.arange(segment.size) - np.repeat(np.cumsum(counts) - counts, counts)
+        rad = np.radians(k * inc)
+        ux, uy = np.cos(rad), np.sin(rad)
+        ax, ay = starts[segment, 0], starts[segment, 1]
+        ex, ey = ends[segment, 0] - ax, ends[segment, 1] - ay
+        denom = ux * ey - uy * ex
+        ok = np.abs(denom) > 1e-12
+        safe = np.where(ok, denom, 1.0)
+        t, along = (ax * ey - ay * ex) / safe, (ax * uy - ay * ux) / safe
+        hit = ok & (t >= 0) & (along >= -1e-9) & (along <= 1 + 1e-9)
+        np.minimum.at(result, k[hit] % n, t[hit])
+    return np.where(np.isinf(result), np.nan, result)
+
+
+__all__ = ["SectorReading", "ValidationContext", "validate_plan"]

@@ -5,7 +5,10 @@
 * ``lidar_clearance`` -- the paper's rule V(C): a ``straight`` of distance d is valid iff every
   LiDAR beam θ within [-r, r] of the direction of travel satisfies l(θ) - |d| >= dist. Backward
   motion checks the beams behind the robot; ``inf`` (no return) counts as free up to the
-  sensor's range, ``nan`` (no reading) refuses. A ``turn`` is always valid under this rule.
+  sensor's range, ``nan`` (no reading) refuses. After an earlier straight of the same plan the
+  rule judges the measured points whose bearing from the planned pose lies within ±r (see
+  ``ValidationContext.nearest_in_sector``). ``dist`` is never changed silently: see
+  ``LidarClearanceOptions``. A ``turn`` is always valid under this rule.
 * ``footprint_sweep`` -- stronger than the paper: the rectangle the robot's body sweeps along a
   ``straight`` (its width plus a margin) must hold no LiDAR point, so an obstacle just outside
   ±r but inside the robot's width is caught; a ``turn`` must not sweep the body's circle over one.
@@ -17,7 +20,9 @@ naming the rule. Options and YAML examples: ``docs/defences.md``.
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from safeembodai_core.hookspecs import hookimpl
 
@@ -35,16 +40,43 @@ class CommandLimitsOptions(BaseModel):
     min_angle_deg: float = Field(0.0, ge=0, allow_inf_nan=False, description="turns must be larger")
 
 
+#: ``lidar_clearance``'s clearance when ``safety_distance_mm`` is not set (ours; see docs/defences.md)
+DEFAULT_SAFETY_DISTANCE_MM = 250.0
+
+
 class LidarClearanceOptions(BaseModel):
-    """Options of ``lidar_clearance`` (the paper's r and dist)."""
+    """Options of ``lidar_clearance`` (the paper's r and dist).
+
+    ``safety_distance_mm`` is honoured as given. Unset, the rule keeps 250 mm from the LiDAR, or
+    the robot's radius when that is larger. Set, ``measured_from`` says where it is measured:
+    ``lidar`` (the paper's l(θ) - |d| >= dist and the authors' release), or ``body`` (from the
+    edge of the robot's disc: the rule then needs dist + radius from the LiDAR). A ``lidar``
+    distance below the robot's radius refuses every straight with a reason naming both, unless
+    ``allow_below_radius`` says the user means it (the release's 100 mm profile does).
+    """
 
     model_config = ConfigDict(extra="forbid")
 
     half_angle_deg: float = Field(30.0, gt=0, le=90, allow_inf_nan=False,
                                   description="r: half-width of the checked sector")
-    safety_distance_mm: float = Field(250.0, ge=0, allow_inf_nan=False,
-                                      description="dist: clearance that must remain after the motion")
+    safety_distance_mm: float | None = Field(None, ge=0, allow_inf_nan=False, description=(
+        "dist: clearance that must remain after the motion (default: 250 mm from the LiDAR, "
+        "or the robot's radius if larger)"))
+    measured_from: Literal["lidar", "body"] = Field(
+        "lidar", description="where safety_distance_mm is measured from: the LiDAR (robot centre) or the body's edge")
+    allow_below_radius: bool = Field(
+        False, description="accept a safety_distance_mm measured from the LiDAR that is less than the robot's radius")
     expected_beams: int | None = Field(None, ge=4, description="refuse scans with another number of beams")
+
+    @model_validator(mode="after")
+    def _meaningful(self) -> "LidarClearanceOptions":
+        if self.safety_distance_mm is None and (self.measured_from != "lidar" or self.allow_below_radius):
+            set_ = "measured_from: body" if self.measured_from != "lidar" else "allow_below_radius"
+            raise ValueError(f"{set_} qualifies safety_distance_mm, which is not set; give safety_distance_mm too")
+        if self.allow_below_radius and self.measured_from != "lidar":
+            raise ValueError("allow_below_radius applies to measured_from: lidar only (a distance from the body "
+                             "is never inside it)")
+        return self
 
 
 class FootprintSweepOptions(BaseModel):

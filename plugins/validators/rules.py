@@ -10,6 +10,8 @@ from safeembodai_core.components import Validator
 from safeembodai_core.models import ControlSignal, LidarScan, Straight, Turn, Verdict
 from safeembodai_core.validation import ValidationContext
 
+from . import DEFAULT_SAFETY_DISTANCE_MM
+
 
 def checked_scan(context: ValidationContext, rule: str, expected_beams: int | None = None) -> LidarScan:
     """The context's scan, or a ``ValueError`` naming ``rule`` when it is missing or malformed.
@@ -63,40 +65,74 @@ class CommandLimitsRule(Validator):
 
 
 class LidarClearanceRule(Validator):
-    """V(C) of the paper, evaluated from the planned pose (see ``ValidationContext``)."""
+    """V(C) of the paper, evaluated from the planned pose (see ``ValidationContext``).
+
+    At the scan's position (the plan has only turned so far) this is the paper's inequality over
+    the beams within ±r of the direction of travel. After a translation it is the same inequality
+    over the measured points whose bearing from the planned pose lies within ±r, with distances
+    from the planned pose (``ValidationContext.nearest_in_sector``): no beam is re-binned, so a
+    direction is unknown only where the sensor gave no reading.
+    """
 
     name = "lidar_clearance"
 
     def __init__(self, options) -> None:
         self.options = options
 
+    def required_mm(self, robot) -> tuple[float, str]:
+        """The clearance from the LiDAR a straight must leave, and how it was set (for reasons).
+
+        Raises ``ValueError`` when ``measured_from: lidar`` puts it inside the body without
+        ``allow_below_radius``: the robot's radius is known only once an environment supplies it.
+        """
+        o = self.options
+        if o.safety_distance_mm is None:
+            return max(DEFAULT_SAFETY_DISTANCE_MM, robot.radius_mm), ""
+        if o.measured_from == "body":
+            return o.safety_distance_mm + robot.radius_mm, (
+                f" ({o.safety_distance_mm:g} mm from the body + the robot's {robot.radius_mm:g} mm radius)")
+        if o.safety_distance_mm < robot.radius_mm and not o.allow_below_radius:
+            raise ValueError(
+                f"{self.name}: safety_distance_mm {o.safety_distance_mm:g} is measured from the LiDAR "
+                f"(measured_from: lidar) and is less than the robot's radius ({robot.radius_mm:g} mm), so the rule "
+                f"would accept motions that end with an obstacle inside the body; raise it to at least "
+                f"{robot.radius_mm:g}, use measured_from: body, or set allow_below_radius: true to mean it")
+        return o.safety_distance_mm, ""
+
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
         if not isinstance(signal, Straight):
             return Verdict(rule=self.name, valid=True, reason="turns are always valid under V(C)")
         scan = checked_scan(context, self.name, self.options.expected_beams)
+        try:
+            dist, how = self.required_mm(context.robot)
+        except ValueError as error:  # a setting that contradicts the robot refuses, never runs silently
+            return Verdict(rule=self.name, valid=False, reason=str(error))
         r = self.options.half_angle_deg
-        # dist is a clearance from the LiDAR at the robot's centre: never less than the body's radius
-        dist = max(self.options.safety_distance_mm, context.robot.radius_mm)
         direction, where = direction_words(signal)
-        centre = 0.0 if signal.direction == "forward" else 180.0
-        beams = scan.sector(centre, r)
-        if beams.size == 0:
-            raise ValueError(f"{self.name}: no beam of the {scan.beam_count}-beam scan falls within ±{r:g} deg")
-        sector = context.ranges_at_pose()[beams]
-        if np.isnan(sector).any():
-            angle = float(scan.angles_deg[beams[np.flatnonzero(np.isnan(sector))[0]]])
+        reading = context.nearest_in_sector(0.0 if signal.direction == "forward" else 180.0, r)
+        later = "" if context.at_scan_position else " of where the plan's earlier signals leave the robot"
+        if reading is None:
             return Verdict(rule=self.name, valid=False, reason=(
-                f"{signal.describe()}: no LiDAR reading at {angle:.0f} deg, inside the checked ±{r:g} deg "
-                f"{where}; clearance cannot be confirmed, so no {direction} motion is allowed; turn first"))
-        sector = np.minimum(sector, scan.max_range_mm)  # no return: free up to the sensor's range
-        worst = int(np.argmin(sector))
-        nearest = float(sector[worst])
+                f"{signal.describe()}: the {scan.beam_count}-beam LiDAR scan has no point within ±{r:g} deg "
+                f"{where}{later}; clearance cannot be confirmed, so no {direction} motion is allowed; turn first"))
+        nearest, angle = reading.distance_mm, reading.bearing_deg
         if nearest - signal.distance >= dist:
             return Verdict(rule=self.name, valid=True)
-        angle = float(scan.angles_deg[beams[worst]])
         allowed = math.floor(nearest - dist)  # rounded down: following the advice must pass
         advice = (f"going {direction}, at most {allowed} mm is safe" if allowed >= 1
                   else f"no {direction} motion is safe here; turn away first")
-        return Verdict(rule=self.name, valid=False, reason=(
-            f"{signal.describe()}: obstacle {nearest:.0f} mm {where} (beam at {angle:.0f} deg) would be "
-            f"{nearest - signal.distance:.0f} mm away after the motion, less than the {dist:g} mm required; {advice}"))
+        if reading.kind == "unread" and context.at_scan_position:
+            what = (f"no LiDAR reading at {angle:.0f} deg, inside the checked ±{r:g} deg {where}; "
+                    f"clearance cannot be confirmed, so no {direction} motion is allowed")
+            advice = "turn first"
+        elif reading.kind == "unread":
+            what = (f"the LiDAR has no reading of the direction {angle:.0f} deg, {nearest:.0f} mm {where}{later}, "
+                    f"which would be {nearest - signal.distance:.0f} mm away after the motion, less than the "
+                    f"{dist:g} mm required{how}")
+        else:
+            thing = ("obstacle" if reading.kind == "return"
+                     else f"the end of the LiDAR's range ({scan.max_range_mm:g} mm from where the scan was taken)")
+            beam = "beam at" if context.at_scan_position else "at"
+            what = (f"{thing} {nearest:.0f} mm {where}{later} ({beam} {angle:.0f} deg) would be "
+                    f"{nearest - signal.distance:.0f} mm away after the motion, less than the {dist:g} mm required{how}")
+        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}")

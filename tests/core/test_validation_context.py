@@ -90,3 +90,39 @@ def test_guard_reports_unparseable_commands_as_schema_failures():
 def test_guard_rule_without_a_scan_refuses_with_a_clear_reason():
     report = Guard(rules=["lidar_clearance"]).check([straight(100)])
     assert not report.valid and "needs a LiDAR scan" in report.reasons[0]
+
+
+def test_translation_leaves_no_unknown_gap_where_the_sensor_measured():
+    """A near object spreads out when seen from further on; the bins between its points are not unknown."""
+    ranges = np.full(360, 3000.0)
+    ranges[20:31] = 600.0
+    moved = ValidationContext(LidarScan(ranges, 8000)).advanced(Straight(command="straight", direction="forward",
+                                                                         distance=399))
+    seen = moved.ranges_at_pose()
+    assert not np.isnan(seen).any()
+    assert seen[0] == pytest.approx(2601, abs=1)
+    assert 600 < seen[25] < 1400  # the ray at 25 deg runs into the shadow edge behind the object's edge
+
+
+def test_an_unread_beam_is_unknown_only_where_its_ray_comes_first():
+    values = np.full(360, 3000.0)
+    values[90] = np.nan  # unread to the left of the scan pose
+    moved = ValidationContext(LidarScan(values, 8000)).advanced(
+        Straight(command="straight", direction="forward", distance=300))
+    seen = moved.ranges_at_pose()
+    assert np.isnan(seen[135])  # from 300 mm on, looking back-left crosses that ray
+    assert not np.isnan(seen[:80]).any()
+
+
+def test_nearest_in_sector_at_the_scan_pose_and_after_moving():
+    scan = scan_with({0: 1000, 20: 800, 45: 300, 90: np.nan}, default=np.inf)
+    here = ValidationContext(scan).nearest_in_sector(0, 30)
+    assert (here.distance_mm, here.bearing_deg, here.kind) == (800, 20, "return")
+    turned = ValidationContext(scan, offset=(0.0, 0.0, 80.0)).nearest_in_sector(0, 30)
+    assert (turned.distance_mm, turned.kind) == (0.0, "unread")  # the paper's rule: a nan beam refuses
+    assert ValidationContext(scan).nearest_in_sector(180, 30).kind == "free_bound"
+    moved = ValidationContext(scan).advanced(Straight(command="straight", direction="forward", distance=200))
+    ahead = moved.nearest_in_sector(0, 30)  # the 800 mm return at 20 deg, now at 26 deg and 616 mm
+    rad = math.radians(20)
+    assert ahead.kind == "return" and ahead.distance_mm == pytest.approx(math.hypot(800 * math.cos(rad) - 200,
+                                                                                    800 * math.sin(rad)))

@@ -46,14 +46,20 @@ def test_sweep_still_accepts_a_plan_through_space_the_scan_saw():
     assert all(v.valid for v in verdicts)
 
 
-def test_clearance_never_allows_less_than_the_robot_radius():
+def test_clearance_never_allows_less_than_the_robot_radius_unless_told_to():
     big = RobotSpec(radius_mm=300, width_mm=600, length_mm=600)
     ranges = np.full(360, 5000.0)
     ranges[np.r_[0:31, 330:360]] = 660.0
-    rule = LidarClearanceRule(LidarClearanceOptions(safety_distance_mm=250))
     context = ValidationContext(scan=LidarScan(ranges, 8000), robot=big)
-    assert not rule.validate(straight(399), context).valid  # 261 mm left < 300 mm radius
-    assert rule.validate(straight(350), context).valid  # 310 mm left
+    default = LidarClearanceRule(LidarClearanceOptions())  # unset: 250 mm, or the radius when larger
+    assert not default.validate(straight(399), context).valid  # 261 mm left < 300 mm radius
+    assert default.validate(straight(350), context).valid  # 310 mm left
+    explicit = LidarClearanceRule(LidarClearanceOptions(safety_distance_mm=250))  # never silently raised to 300
+    refused = explicit.validate(straight(350), context)
+    assert not refused.valid
+    assert "safety_distance_mm 250" in refused.reason and "robot's radius (300 mm)" in refused.reason
+    meant = LidarClearanceRule(LidarClearanceOptions(safety_distance_mm=250, allow_below_radius=True))
+    assert meant.validate(straight(399), context).valid  # 261 mm: honoured as asked, though inside the radius
 
 
 def test_minus_infinity_ranges_are_refused():
