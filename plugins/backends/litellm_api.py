@@ -24,7 +24,7 @@ from safeembodai_core.hookspecs import hookimpl
 
 JsonMode = Literal["json_object", "json_schema", "json_object_schema", "off"]
 _RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries")
-_NO_KEY = "no-key-required"
+NO_KEY = "no-key-required"
 
 
 class _LiteLLMOptions(BaseModel):
@@ -83,7 +83,7 @@ class LocalModelOptions(_LiteLLMOptions):
 def _api_key(name: str, options: _LiteLLMOptions, local: bool) -> str | None:
     if options.api_key_env is None:
         # a local server gets a placeholder so litellm never falls back to OPENAI_API_KEY
-        return _NO_KEY if local else None
+        return NO_KEY if local else None
     key = os.environ.get(options.api_key_env, "")
     if not key:
         raise ComponentError(f"llm backend {name!r}: environment variable {options.api_key_env} is not set; "

@@ -1,18 +1,26 @@
 """The litellm backend: one chat completion per attempt, with its own retries on transient errors.
 
-Rate limits (429), server errors (5xx), refused connections and timeouts are retried up to
-``max_retries`` times with exponential backoff (jitter from the call's seeded rng; a server's
-``Retry-After`` is honoured up to ``backoff_max_s``). Anything else -- a bad key, an unknown
+Each attempt must complete within ``timeout_s`` as a whole (:mod:`.litellm_call`), not merely
+per socket read. Rate limits (429), server errors (5xx), refused connections and timeouts are
+retried up to ``max_retries`` times with exponential backoff (jitter from the call's seeded rng;
+a server's ``Retry-After`` is honoured up to ``backoff_max_s``); a malformed reply (a 200 that is
+not a chat completion) is retried once, since a broken proxy or a restarting server can send one
+but a server that always does would only burn the backoff. Anything else -- a bad key, an unknown
 model, a request the provider refuses -- fails at once. Either way the failure becomes a
-:class:`~safeembodai_core.errors.BackendError` whose message says what went wrong and never
-contains the API key. litellm's own retry layers are off (``max_retries=0`` to the openai SDK,
-no ``num_retries``) so the count is exactly what the options say.
+:class:`~safeembodai_core.errors.BackendError` with one clean line of the provider's text
+(:mod:`.litellm_errors`). litellm's own retry layers are off (``max_retries=0`` to the openai
+SDK, no ``num_retries``) so the count is exactly what the options say.
+
+The configured key, and any credential in ``completion_kwargs``, is registered with
+:func:`safeembodai_core.logs.register_secret` when the backend is built, so every text that
+passes through ``redact`` is masked of it, and it is masked from the answer text before the
+reply leaves the backend: a server that reflects the key cannot get it stored or shown.
 """
 
 from __future__ import annotations
 
+import re
 import time
-from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
@@ -20,15 +28,21 @@ import structlog
 
 from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError
-from safeembodai_core.logs import redact
-from safeembodai_core.models import Prompt, TokenUsage
+from safeembodai_core.logs import register_secret
+from safeembodai_core.models import Prompt
 
+from .litellm_api import NO_KEY
+from .litellm_call import call_with_deadline
+from .litellm_errors import MALFORMED, Failure, classify, retry_after, scrub_message
+from .litellm_reply import answer_text, finish_reason, first_choice, model_name, token_usage
 from .litellm_runtime import import_litellm
 from .messages import chat_messages, response_format
 
 log = structlog.get_logger(__name__)
 
-_MESSAGE_CHARS = 300
+_MALFORMED_RETRIES = 1
+_SECRET_NAME = re.compile(r"authorization|api[-_]?key|secret|password|passwd|credential|cookie|(^|[-_])token$", re.I)
+_MIN_SECRET_CHARS = 4
 
 
 class _Secret:
@@ -48,64 +62,27 @@ class _Secret:
     __str__ = __repr__
 
 
-@dataclass(frozen=True)
-class Failure:
-    """A classified call failure: what kind, whether retrying can help, and the server's hint."""
+def option_secrets(completion_kwargs: dict[str, Any]) -> list[str]:
+    """Credentials inside ``completion_kwargs``: string values under a credential-like name, at any
+    depth (``extra_headers: {Authorization: Bearer ...}``, ``aws_secret_access_key``, ...), and the
+    token after an ``Authorization`` header's scheme."""
+    found: list[str] = []
 
-    kind: str
-    retryable: bool
-    detail: str
-    retry_after_s: float | None = None
+    def visit(value: Any, named_secret: bool) -> None:
+        if isinstance(value, dict):
+            for key, item in value.items():
+                visit(item, named_secret or bool(isinstance(key, str) and _SECRET_NAME.search(key)))
+        elif isinstance(value, (list, tuple)):
+            for item in value:
+                visit(item, named_secret)
+        elif named_secret and isinstance(value, str) and value.strip():
+            found.append(value.strip())
+            scheme, _, token = value.strip().partition(" ")
+            if token.strip() and scheme.isalpha():
+                found.append(token.strip())
 
-
-def _retry_after(error: Exception) -> float | None:
-    """The server's ``Retry-After`` in seconds (litellm keeps the real headers apart)."""
-    for headers in (getattr(error, "litellm_response_headers", None),
-                    getattr(getattr(error, "response", None), "headers", None)):
-        try:
-            if headers and headers.get("retry-after") is not None:
-                return max(0.0, float(headers.get("retry-after")))
-        except (TypeError, ValueError, AttributeError):
-            continue
-    return None
-
-
-_NOT_RETRIED = {
-    401: "authentication failed (HTTP 401), check the key in the variable named by api_key_env",
-    403: "permission denied (HTTP 403)",
-    404: "not found (HTTP 404), check the model name and api_base",
-}
-
-
-def classify(error: Exception) -> tuple[str, bool]:
-    """(kind, retryable) for an exception raised by ``litellm.completion``.
-
-    litellm maps most provider errors onto openai's exception classes but not all (a 403 can
-    arrive as a plain ``APIError``), so the HTTP status decides wherever there is one.
-    """
-    import openai
-
-    status = getattr(error, "status_code", None)
-    if isinstance(error, openai.AuthenticationError):
-        status = 401
-    if isinstance(error, openai.APITimeoutError):
-        return "timed out", True
-    if isinstance(error, openai.RateLimitError) or status == 429:
-        return "rate limited (HTTP 429)", True
-    if status in _NOT_RETRIED:
-        return _NOT_RETRIED[status], False
-    if isinstance(error, (openai.BadRequestError, openai.UnprocessableEntityError)) or status in (400, 422):
-        return f"request refused (HTTP {status or 400}), check the model name and options", False
-    if isinstance(error, openai.APIConnectionError) or "Connection error" in str(error):
-        # litellm reports a refused connection as an InternalServerError (HTTP 500)
-        return "could not connect (refused or reset)", True
-    if isinstance(status, int) and status >= 500:
-        return f"server error (HTTP {status})", True
-    if isinstance(status, int):
-        return f"request failed (HTTP {status})", False
-    if isinstance(error, openai.OpenAIError):
-        return "provider error", False
-    return f"unexpected {type(error).__name__}", False
+    visit(completion_kwargs, False)
+    return found
 
 
 class LiteLLMBackend(LLMBackend):
@@ -116,15 +93,17 @@ class LiteLLMBackend(LLMBackend):
         self.name = name
         self.options = options
         self._key = _Secret(api_key)
+        secrets = [api_key] if api_key and api_key != NO_KEY else []
+        secrets += [s for s in option_secrets(options.completion_kwargs) if len(s) >= _MIN_SECRET_CHARS]
+        for secret in secrets:
+            register_secret(secret)
+        self._secrets = tuple(secrets)
         self._sleep = sleep
         self._litellm = import_litellm()
 
     def _scrub(self, text: str) -> str:
-        key = self._key.reveal()
-        if key:
-            text = text.replace(key, "***")
-        text = redact(text)
-        return text if len(text) <= _MESSAGE_CHARS else text[:_MESSAGE_CHARS] + "..."
+        """The one way a provider's or litellm's text reaches an error or a log."""
+        return scrub_message(text, self._secrets)
 
     def request(self, prompt: Prompt, rng: np.random.Generator | None = None) -> dict[str, Any]:
         """The keyword arguments of ``litellm.completion`` for ``prompt``, without the key."""
@@ -156,13 +135,17 @@ class LiteLLMBackend(LLMBackend):
         key = self._key.reveal()
         if key is not None:
             kwargs["api_key"] = key
+        malformed = 0
         for attempt in range(o.max_retries + 1):
             started = time.perf_counter()
             try:
-                response = self._litellm.completion(**kwargs)
+                response = call_with_deadline(self._litellm.completion, kwargs, o.timeout_s)
             except Exception as error:  # every provider error is classified below
                 kind, retryable = classify(error)
-                failure = Failure(kind, retryable, self._scrub(str(error)), _retry_after(error))
+                if kind == MALFORMED:
+                    malformed += 1
+                    retryable = malformed <= _MALFORMED_RETRIES
+                failure = Failure(kind, retryable, self._scrub(str(error)), retry_after(error))
             else:
                 return self._reply(response, time.perf_counter() - started)
             if not failure.retryable or attempt == o.max_retries:
@@ -179,17 +162,11 @@ class LiteLLMBackend(LLMBackend):
         raise AssertionError("unreachable")  # pragma: no cover
 
     def _reply(self, response: Any, latency: float) -> BackendReply:
-        choices = getattr(response, "choices", None) or []
-        text = ""
-        if choices:
-            message = getattr(choices[0], "message", None)
-            text = getattr(message, "content", None) or ""
-            if getattr(choices[0], "finish_reason", None) == "length":
-                log.info("backend.truncated", backend=self.name, model=self.options.model, chars=len(text))
-        usage = getattr(response, "usage", None)
-        tokens = TokenUsage(
-            prompt_tokens=max(0, int(getattr(usage, "prompt_tokens", 0) or 0)),
-            completion_tokens=max(0, int(getattr(usage, "completion_tokens", 0) or 0)),
-        )
-        model = str(getattr(response, "model", None) or self.options.model)
-        return BackendReply(text=str(text), usage=tokens, latency_s=latency, model=model)
+        choice = first_choice(response)
+        text = answer_text(choice, self._secrets)
+        reason = finish_reason(choice)
+        if reason != "stop":
+            log.info("backend.unusual_finish", backend=self.name, model=self.options.model, finish_reason=reason,
+                     chars=len(text))
+        return BackendReply(text=text, usage=token_usage(getattr(response, "usage", None)), latency_s=latency,
+                            model=model_name(response, self.options.model, self._secrets), finish_reason=reason)

@@ -3,8 +3,10 @@
 ``import litellm`` costs about 5 s and 165 MB, so nothing imports it until a backend needs it.
 Before the import, ``LITELLM_LOCAL_MODEL_COST_MAP=True`` keeps litellm from fetching its cost
 map from the internet and ``LITELLM_MODE=PRODUCTION`` keeps it from loading a ``.env`` file
-from the working directory; after it, debug banners are switched off and litellm's own loggers
-are held at WARNING so no request (or header) is ever logged by it.
+from the working directory; after it, debug banners are switched off, httpx's and openai's loggers
+are held at WARNING so no request (or header) is ever logged, and litellm's own at ERROR: its
+warnings quote what a server sent (an unknown finish reason, say), and every failure reaches the
+backend as an exception anyway.
 """
 
 from __future__ import annotations
@@ -32,7 +34,9 @@ def import_litellm() -> Any:
     litellm.set_verbose = False
     if hasattr(litellm, "telemetry"):
         litellm.telemetry = False
-    for name in ("LiteLLM", "LiteLLM Router", "LiteLLM Proxy", "litellm", "httpx", "openai"):
+    for name in ("LiteLLM", "LiteLLM Router", "LiteLLM Proxy", "litellm"):
+        logging.getLogger(name).setLevel(logging.ERROR)
+    for name in ("httpx", "openai"):
         logging.getLogger(name).setLevel(logging.WARNING)
     return litellm
 

@@ -5,6 +5,11 @@ falling back to ``default`` when the queue is empty::
 
     server.push(Reply("```json\\n{...}\\n```"), Status(429, retry_after=0), Hang(5.0))
 
+Besides honest replies it plays a hostile server: :class:`Trickle` keeps a response alive one
+byte at a time (every read arrives within any per-read timeout), :class:`Raw` sends any body
+with any status (a malformed 200 envelope), ``Reply.usage`` may hold any JSON values, and a
+callable ``Reply.text`` sees the request's headers (to reflect the ``Authorization`` header).
+
 HTTP/1.1 keep-alive with Nagle off: otherwise every call through the openai SDK pays ~40 ms of
 delayed-ACK latency and timings mean nothing.
 """
@@ -22,11 +27,15 @@ from typing import Any, Callable
 
 @dataclass
 class Reply:
-    """Answer 200 with ``text`` as the assistant's content (a callable gets the request body)."""
+    """Answer 200 with ``text`` as the assistant's content (a callable gets the :class:`Recorded` request).
 
-    text: str | Callable[[dict[str, Any]], str]
-    finish_reason: str = "stop"
-    usage: tuple[int, int] = (1000, 150)
+    ``finish_reason`` and the two ``usage`` counts are sent as given: any JSON value, even a
+    string, a float or ``nan``.
+    """
+
+    text: str | Callable[["Recorded"], str]
+    finish_reason: Any = "stop"
+    usage: tuple[Any, Any] = (1000, 150)
 
 
 @dataclass
@@ -47,16 +56,41 @@ class Hang:
 
 
 @dataclass
+class Trickle:
+    """Send the status line and headers at once, then the body one byte every ``interval`` seconds.
+
+    The body is ``then``'s JSON padded with leading spaces (valid JSON) so that the whole
+    response takes about ``seconds``; each single read arrives well within a per-read timeout.
+    """
+
+    seconds: float
+    interval: float = 0.1
+    then: "Reply" = field(default_factory=lambda: Reply("{}"))
+
+
+@dataclass
+class Raw:
+    """Answer ``code`` with ``body`` exactly as given (a malformed envelope, or not JSON at all)."""
+
+    body: bytes | str
+    code: int = 200
+    content_type: str = "application/json"
+
+
+@dataclass
 class Recorded:
     path: str
     headers: dict[str, str]
     body: dict[str, Any]
 
 
+Behaviour = Reply | Status | Hang | Trickle | Raw
+
+
 class FakeOpenAI:
     """The server; ``url`` is the ``api_base`` to give a backend."""
 
-    def __init__(self, default: Reply | Status | Hang | None = None) -> None:
+    def __init__(self, default: Behaviour | None = None) -> None:
         self.default = default or Reply("{}")
         self.queue: deque = deque()
         self.requests: list[Recorded] = []
@@ -70,7 +104,7 @@ class FakeOpenAI:
     def url(self) -> str:
         return f"http://127.0.0.1:{self._server.server_address[1]}/v1"
 
-    def push(self, *behaviours: Reply | Status | Hang) -> None:
+    def push(self, *behaviours: Behaviour) -> None:
         self.queue.extend(behaviours)
 
     def start(self) -> "FakeOpenAI":
@@ -89,7 +123,7 @@ class FakeOpenAI:
     def __exit__(self, *exc: Any) -> None:
         self.stop()
 
-    def _next(self, body: dict[str, Any]) -> Reply | Status | Hang:
+    def _next(self, body: dict[str, Any]) -> Behaviour:
         with self._lock:
             return self.queue.popleft() if self.queue else self.default
 
@@ -106,14 +140,28 @@ class FakeOpenAI:
             def log_message(self, format: str, *args: Any) -> None:  # quiet
                 pass
 
-            def _send(self, code: int, payload: dict[str, Any], headers: dict[str, str] | None = None) -> None:
-                data = json.dumps(payload).encode()
+            def _send_bytes(self, code: int, data: bytes, headers: dict[str, str] | None = None,
+                            content_type: str = "application/json") -> None:
                 self.send_response(code)
-                self.send_header("Content-Type", "application/json")
+                self.send_header("Content-Type", content_type)
                 self.send_header("Content-Length", str(len(data)))
                 for key, value in (headers or {}).items():
                     self.send_header(key, value)
                 self.end_headers()
+                self.wfile.write(data)
+
+            def _trickle(self, seconds: float, interval: float, data: bytes) -> None:
+                padding = max(1, int(seconds / interval))
+                self.send_response(200)
+                self.send_header("Content-Type", "application/json")
+                self.send_header("Content-Length", str(padding + len(data)))
+                self.end_headers()
+                self.wfile.flush()
+                for _ in range(padding):
+                    self.wfile.write(b" ")
+                    self.wfile.flush()
+                    if fake._stop.wait(interval):
+                        return
                 self.wfile.write(data)
 
             def do_POST(self) -> None:
@@ -123,7 +171,8 @@ class FakeOpenAI:
                     body = json.loads(raw or b"{}")
                 except json.JSONDecodeError:
                     body = {"_unparsed": raw.decode("utf-8", "replace")}
-                fake.requests.append(Recorded(self.path, {k.lower(): v for k, v in self.headers.items()}, body))
+                request = Recorded(self.path, {k.lower(): v for k, v in self.headers.items()}, body)
+                fake.requests.append(request)
                 behaviour = fake._next(body)
                 try:
                     if isinstance(behaviour, Hang):
@@ -132,20 +181,35 @@ class FakeOpenAI:
                         behaviour = behaviour.then
                     if isinstance(behaviour, Status):
                         headers = {} if behaviour.retry_after is None else {"Retry-After": f"{behaviour.retry_after:g}"}
-                        self._send(behaviour.code, {"error": {"message": behaviour.message, "type": "fake_error",
-                                                              "code": behaviour.code}}, headers)
+                        error = {"error": {"message": behaviour.message, "type": "fake_error", "code": behaviour.code}}
+                        self._send_bytes(behaviour.code, json.dumps(error).encode(), headers)
                         return
-                    text = behaviour.text(body) if callable(behaviour.text) else behaviour.text
-                    prompt, completion = behaviour.usage
-                    self._send(200, {
-                        "id": f"chatcmpl-{len(fake.requests)}", "object": "chat.completion", "created": 0,
-                        "model": body.get("model", "fake"),
-                        "choices": [{"index": 0, "message": {"role": "assistant", "content": text},
-                                     "finish_reason": behaviour.finish_reason}],
-                        "usage": {"prompt_tokens": prompt, "completion_tokens": completion,
-                                  "total_tokens": prompt + completion},
-                    })
+                    if isinstance(behaviour, Raw):
+                        data = behaviour.body.encode() if isinstance(behaviour.body, str) else behaviour.body
+                        self._send_bytes(behaviour.code, data, content_type=behaviour.content_type)
+                        return
+                    trickle = behaviour if isinstance(behaviour, Trickle) else None
+                    reply = behaviour.then if trickle else behaviour
+                    data = json.dumps(_completion(reply, request, len(fake.requests))).encode()
+                    if trickle:
+                        self._trickle(trickle.seconds, trickle.interval, data)
+                    else:
+                        self._send_bytes(200, data)
                 except (BrokenPipeError, ConnectionResetError):
                     pass
 
         return Handler
+
+
+def _completion(reply: Reply, request: Recorded, number: int) -> dict[str, Any]:
+    text = reply.text(request) if callable(reply.text) else reply.text
+    prompt, completion = reply.usage
+    both_ints = all(type(n) is int for n in reply.usage)
+    return {
+        "id": f"chatcmpl-{number}", "object": "chat.completion", "created": 0,
+        "model": request.body.get("model", "fake"),
+        "choices": [{"index": 0, "message": {"role": "assistant", "content": text},
+                     "finish_reason": reply.finish_reason}],
+        "usage": {"prompt_tokens": prompt, "completion_tokens": completion,
+                  "total_tokens": prompt + completion if both_ints else 0},
+    }

@@ -42,6 +42,6 @@ def test_building_a_litellm_backend_imports_it_configured_for_offline_use():
         plugins.registry.build("llm_backend", "gpt-4o", {"api_key_env": "K"})
         import litellm
         print(os.environ["LITELLM_LOCAL_MODEL_COST_MAP"], os.environ["LITELLM_MODE"], litellm.suppress_debug_info,
-              logging.getLogger("LiteLLM").level == logging.WARNING)
+              logging.getLogger("LiteLLM").level == logging.ERROR)
     """)
     assert out == "True PRODUCTION True True"

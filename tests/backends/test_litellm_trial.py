@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import uuid
 
 import pytest
 import yaml
@@ -54,7 +55,7 @@ def test_malformed_answers_are_recorded_retried_and_never_executed(built_plugins
     second = steps[1]
     assert [a.parse_error is not None for a in second.attempts] == [True, True, False]
     assert "response schema" in second.attempts[0].parse_error
-    assert "not valid JSON" in second.attempts[1].parse_error
+    assert 'finish reason "length"' in second.attempts[1].parse_error  # refused as cut off before parsing
     assert [e.signal.describe() for e in second.executed] == ["turn right 20 deg"]
     # every request carried both images and the security prefix; retries carried the failures
     bodies = [r.body for r in fake_server.requests]
@@ -97,3 +98,35 @@ def test_the_key_never_reaches_logs_records_or_reports(fake_server, fake_key, tm
         assert fake_key not in text
     for path in files:
         assert fake_key.encode() not in path.read_bytes(), path
+
+
+def _reflecting(escaped: bool):
+    """An answer whose planning repeats the request's key (JSON-escaped if asked, so only a reader of
+    the parsed answer sees it)."""
+    def text(request) -> str:
+        key = request.headers["authorization"].split()[-1]
+        data = answer(turn(30), planning=f"debug: my key is {key}")
+        return data.replace(key, "".join(f"\\u{ord(c):04x}" for c in key)) if escaped else data
+
+    return text
+
+
+@pytest.mark.parametrize("escaped", [False, True])
+def test_a_key_the_server_reflects_is_never_stored_or_shown(cli_runner, fake_server, monkeypatch, tmp_path, escaped):
+    from safeembodai_core.cli import cli
+
+    key = f"azure-{uuid.uuid4().hex}"  # unique, and not shaped like a bearer key: only registration masks it
+    monkeypatch.setenv("SAFEEMBODAI_TEST_KEY", key)
+    fake_server.default = Reply(_reflecting(escaped))
+    scenario = tmp_path / "reflect.yaml"
+    scenario.write_text(yaml.safe_dump({**_scenario_data(fake_server, max_steps=2), "state": "sqlite"}))
+    out = tmp_path / "out"
+    done = cli_runner.invoke(cli, ["run", str(scenario), "--out", str(out)])
+    assert done.exit_code == 0, done.output
+    assert fake_server.requests[0].headers["authorization"] == f"Bearer {key}"  # the server saw the key
+    files = [p for p in out.rglob("*") if p.is_file()]
+    assert {"results.sqlite", "steps.jsonl"} <= {p.name for p in files}
+    assert b"debug: my key is" in (out / "steps.jsonl").read_bytes()  # the planning was stored
+    assert key not in done.output
+    for path in files:
+        assert key.encode() not in path.read_bytes(), path

@@ -1,0 +1,131 @@
+"""What went wrong with a litellm call: a short kind, whether a retry can help, and a clean message.
+
+litellm maps most provider errors onto openai's exception classes but not all (a 403 can arrive
+as a plain ``APIError``), so the HTTP status decides wherever there is one. A reply that came
+back 200 but is not a chat completion (``{"choices": "x"}``, missing fields, not JSON at all)
+is raised by litellm as an ``InternalServerError`` with status 500 although no server said 500;
+it is told apart by the absence of any real HTTP response behind the error and reported as a
+malformed reply.
+
+Every text a provider (or litellm, about a provider) wrote passes through :func:`scrub_message`
+before it reaches a :class:`~safeembodai_core.errors.BackendError` or a log: one line, no
+traceback, no file path, no class repr, no control character, no secret, at most 300 characters.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Iterable
+
+from safeembodai_core.logs import MASK, redact
+
+from .litellm_call import CallTimedOut, TooManyHungCalls
+
+MESSAGE_CHARS = 300
+MALFORMED = "malformed reply (not a chat completion)"
+TIMED_OUT = "timed out"
+
+_NOT_RETRIED = {
+    401: "authentication failed (HTTP 401), check the key in the variable named by api_key_env",
+    403: "permission denied (HTTP 403)",
+    404: "not found (HTTP 404), check the model name and api_base",
+}
+_TRACEBACK = re.compile(r"Traceback \(most recent call last\).*", re.S)
+_FILE_LINE = re.compile(r"File \"[^\"]*\", line \d+(, in \S+)?")
+_PATH = re.compile(r"(?:[A-Za-z]:)?(?:[\\/][\w.\-+@~]+){2,}[\\/]?(?::\d+)?")
+_REPR = re.compile(r"<[^<>]{0,200}>")
+_LIBRARY_PREFIX = re.compile(r"^(?:\s*(?:litellm\.)?\w+(?:Error|Exception)(?::| -)\s*)+")
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\u200b-\u200f\u202a-\u202e\u2066-\u2069]+")
+
+
+@dataclass(frozen=True)
+class Failure:
+    """A classified call failure: what kind, whether retrying can help, and the server's hint."""
+
+    kind: str
+    retryable: bool
+    detail: str
+    retry_after_s: float | None = None
+
+
+def retry_after(error: Exception) -> float | None:
+    """The server's ``Retry-After`` in seconds (litellm keeps the real headers apart)."""
+    for headers in (getattr(error, "litellm_response_headers", None),
+                    getattr(getattr(error, "response", None), "headers", None)):
+        try:
+            if headers and headers.get("retry-after") is not None:
+                return min(86_400.0, max(0.0, float(headers.get("retry-after"))))
+        except (TypeError, ValueError, AttributeError):
+            continue
+    return None
+
+
+def _chain(error: BaseException) -> Iterable[BaseException]:
+    seen: set[int] = set()
+    link: BaseException | None = error
+    while link is not None and id(link) not in seen and len(seen) < 16:
+        seen.add(id(link))
+        yield link
+        link = link.__cause__ or link.__context__
+
+
+def _answered_with_an_error_status(error: Exception) -> bool:
+    """Whether a real HTTP error response stands behind ``error`` (not one litellm made up)."""
+    import httpx
+    import openai
+
+    if getattr(error, "litellm_response_headers", None) is not None:
+        return True
+    for link in _chain(error):
+        if isinstance(link, httpx.HTTPStatusError):
+            return True
+        if isinstance(link, openai.APIStatusError) and not type(link).__module__.startswith("litellm"):
+            return True
+    return False
+
+
+def classify(error: Exception) -> tuple[str, bool]:
+    """(kind, retryable) for an exception raised by a call to ``litellm.completion``."""
+    import openai
+
+    if isinstance(error, TooManyHungCalls):
+        return "too many timed-out calls still open", False
+    if isinstance(error, (CallTimedOut, openai.APITimeoutError)):
+        return TIMED_OUT, True
+    status = getattr(error, "status_code", None)
+    if isinstance(error, openai.AuthenticationError):
+        status = 401
+    if isinstance(error, openai.RateLimitError) or status == 429:
+        return "rate limited (HTTP 429)", True
+    if status in _NOT_RETRIED:
+        return _NOT_RETRIED[status], False
+    if isinstance(error, (openai.BadRequestError, openai.UnprocessableEntityError)) or status in (400, 422):
+        return f"request refused (HTTP {status or 400}), check the model name and options", False
+    if isinstance(error, openai.APIConnectionError) or "Connection error" in str(error):
+        # litellm reports a refused connection as an InternalServerError (HTTP 500)
+        return "could not connect (refused or reset)", True
+    if status == 500 and isinstance(error, openai.OpenAIError) and not _answered_with_an_error_status(error):
+        return MALFORMED, True  # the caller allows it one retry only
+    if isinstance(status, int) and 500 <= status < 600:
+        return f"server error (HTTP {status})", True
+    if isinstance(status, int):
+        return f"request failed (HTTP {status})", False
+    if isinstance(error, openai.OpenAIError):
+        return "provider error", False
+    return f"unexpected {type(error).__name__}", False
+
+
+def scrub_message(text: str, secrets: Iterable[str] = ()) -> str:
+    """``text`` as one clean line: secrets masked, no traceback, path, repr or control character."""
+    for secret in sorted((s for s in secrets if s), key=len, reverse=True):
+        text = text.replace(secret, MASK)
+    text = redact(text)
+    text = _TRACEBACK.sub(" ", text)
+    text = _FILE_LINE.sub(" ", text)
+    text = _REPR.sub(" ", text)
+    text = _PATH.sub("<path>", text)
+    text = _CONTROL.sub(" ", text)
+    text = _LIBRARY_PREFIX.sub("", " ".join(text.split()))
+    text = text.strip(" ,;:-") or "(no message)"
+    return text if len(text) <= MESSAGE_CHARS else text[:MESSAGE_CHARS] + "..."

@@ -1,0 +1,151 @@
+"""The litellm backend against a hostile server: odd finish reasons, trickled replies, malformed
+envelopes, absurd token counts, pydantic warnings and a server that reflects the key."""
+
+from __future__ import annotations
+
+import json
+import threading
+import warnings
+
+import numpy as np
+import pytest
+
+from fake_openai import Raw, Reply, Status, Trickle
+from safeembodai_core.errors import BackendError
+from safeembodai_core.logs import redact
+from safeembodai_core.models import Prompt, TextPart
+from safeembodai_core.testing import answer, turn
+from safeembodai_plugins.backends import litellm_call
+from safeembodai_plugins.backends.litellm_errors import scrub_message
+from safeembodai_plugins.backends.litellm_reply import token_count
+
+GOOD = answer(turn(30))
+LATE = answer(turn(90, "right"), planning="late answer")
+
+
+def _prompt() -> Prompt:
+    return Prompt(system="Role: robot. JSON", user=(TextPart("user", 'Human Instruction: "go"'),))
+
+
+def _backend(plugins, server, **options):
+    base = {"api_base": server.url, "api_key_env": "SAFEEMBODAI_TEST_KEY", "backoff_s": 0.0, "backoff_max_s": 0.0,
+            "timeout_s": 5.0, "max_retries": 0}
+    return plugins.registry.build("llm_backend", "gpt-4o", {**base, **options})
+
+
+def _complete(plugins, server, **options):
+    return _backend(plugins, server, **options).complete(_prompt(), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("sent,reported", [
+    ("length", "length"), ("stop", "stop"), ("end_turn", "stop"), ("max_tokens", "length"),
+    ("content_filter", "content_filter"),
+    ("no_such_reason_a_hostile_server_made_up", "no_such_reason_a_hostile_server_"),  # litellm would say "stop"
+    ("\x1b[2Jstop", "__2Jstop"), (7, "7"),
+])
+def test_finish_reason_is_the_providers_as_a_short_plain_token(built_plugins, fake_server, fake_key, sent, reported):
+    fake_server.default = Reply(GOOD, finish_reason=sent)
+    reply = _complete(built_plugins, fake_server)
+    assert reply.finish_reason == reported and reply.text == GOOD
+
+
+def test_a_trickled_reply_past_the_deadline_times_out_and_is_never_used(built_plugins, fake_server, fake_key):
+    # one byte every 0.1 s for 3 s: every read arrives within httpx's per-read timeout of 0.5 s
+    fake_server.push(Trickle(3.0, 0.1, Reply(LATE)), Reply(GOOD))
+    reply = _complete(built_plugins, fake_server, timeout_s=0.5, max_retries=1)
+    assert reply.text == GOOD and len(fake_server.requests) == 2  # the timeout counted as a retry
+    fake_server.push(Trickle(3.0, 0.1, Reply(LATE)), Trickle(3.0, 0.1, Reply(LATE)))
+    with pytest.raises(BackendError, match=r"gave up after 2 tries: timed out") as raised:
+        _complete(built_plugins, fake_server, timeout_s=0.5, max_retries=1)
+    assert "late answer" not in str(raised.value)
+
+
+def test_an_abandoned_call_never_hands_over_its_result_and_abandoned_calls_are_capped(monkeypatch):
+    monkeypatch.setattr(litellm_call, "_abandoned", [])
+    release = threading.Event()
+
+    def hung(value):
+        release.wait(10)
+        return value
+
+    try:
+        for number in range(litellm_call.MAX_ABANDONED):
+            with pytest.raises(litellm_call.CallTimedOut):
+                litellm_call.call_with_deadline(hung, {"value": f"late {number}"}, 0.01)
+        assert litellm_call.abandoned_alive() == litellm_call.MAX_ABANDONED
+        with pytest.raises(litellm_call.TooManyHungCalls):
+            litellm_call.call_with_deadline(lambda: "never started", {}, 1.0)
+    finally:
+        release.set()
+        for worker in list(litellm_call._abandoned):
+            worker.join(10)
+    assert litellm_call.abandoned_alive() == 0
+    assert litellm_call.call_with_deadline(lambda value: value, {"value": "fresh"}, 5.0) == "fresh"
+    with pytest.raises(KeyError):  # an error inside the call is the caller's error
+        litellm_call.call_with_deadline(lambda: {}["x"], {}, 5.0)
+
+
+@pytest.mark.parametrize("body", ['{"choices": "x"}', "{}", "not json at all", '{"choices": [{"message": 5}]}',
+                                  '{"choices": [{"index": 0, "message": {"content": {"a": 1}}}]}'])
+def test_a_malformed_200_is_a_malformed_reply_retried_once_in_one_clean_line(built_plugins, fake_server, fake_key,
+                                                                            body):
+    fake_server.default = Raw(body)
+    with pytest.raises(BackendError, match=r"gave up after 2 tries: malformed reply") as raised:
+        _complete(built_plugins, fake_server, max_retries=3)
+    message = str(raised.value)
+    assert len(fake_server.requests) == 2
+    assert "HTTP 500" not in message and "\n" not in message
+    for internal in ("Traceback", 'File "', ".py", "site-packages", "<class"):
+        assert internal not in message
+
+
+def test_a_real_server_error_is_still_a_server_error(built_plugins, fake_server, fake_key):
+    fake_server.push(Raw("<html><body>Bad gateway\n  at /srv/app/proxy.py:12</body></html>", code=502,
+                         content_type="text/html"), Status(500, "boom"))
+    with pytest.raises(BackendError, match=r"gave up after 2 tries: server error \(HTTP 500\)"):
+        _complete(built_plugins, fake_server, max_retries=1)
+
+
+def test_scrubbed_provider_text_is_one_line_without_internals_or_secrets():
+    text = ("litellm.InternalServerError: InternalServerError: OpenAIException - Invalid response object "
+            "Traceback (most recent call last):\n  File \"/venv/lib/python3.11/site-packages/litellm/x.py\", "
+            "line 3, in f\n    raise ValueError('sk-abcdefgh123456')\nValueError: boom")
+    assert scrub_message(text) == "Invalid response object"
+    dirty = "bad \x1b[31mkey\x1b[0m hunter2hunter2 in /etc/app/conf.py:7\r\nnext <class 'openai.X'> line"
+    assert scrub_message(dirty, ["hunter2hunter2"]) == "bad [31mkey [0m *** in <path> next line"
+    assert len(scrub_message("x" * 5000)) == 303
+
+
+def test_absurd_token_counts_are_clamped_and_never_raise(built_plugins, fake_server, fake_key):
+    fake_server.default = Reply(GOOD, usage=(10**30, -5))
+    usage = _complete(built_plugins, fake_server).usage
+    assert (usage.prompt_tokens, usage.completion_tokens) == (2**31 - 1, 0)
+    for value, count in [(12, 12), (12.9, 12), (-1, 0), (float("nan"), 0), (float("inf"), 0), (1e300, 2**31 - 1),
+                         ("12", 0), (None, 0), ([1], 0), (True, 0), (10**400, 2**31 - 1)]:
+        assert token_count(value) == count, value
+
+
+def test_pydantic_warnings_about_an_odd_reply_never_reach_stderr(built_plugins, fake_server, fake_key, capfd):
+    choice = '{"index": 0, "message": {"role": "assistant", "content": "%s"}, "finish_reason": "stop"%s}'
+    fake_server.push(Raw('{"choices": [%s]}' % (choice % (GOOD.replace('"', '\\"'), ', "logprobs": "FRAGMENT-1"'))),
+                     Raw('{"choices": [%s], "system_fingerprint": 5}' % (choice % ("FRAGMENT-2", ""))),
+                     Raw('{"choices": [%s], "usage": {"prompt_tokens": "FRAGMENT-3"}}' % (choice % ("FRAGMENT-4", ""))))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert _complete(built_plugins, fake_server).text == GOOD
+        assert _complete(built_plugins, fake_server).text == "FRAGMENT-2"
+        with pytest.raises(BackendError, match="malformed reply"):
+            _complete(built_plugins, fake_server)
+    assert [str(w.message) for w in caught if "FRAGMENT" in str(w.message) or "serializ" in str(w.message)] == []
+    assert "FRAGMENT" not in capfd.readouterr().err
+
+
+def test_a_reflected_key_is_masked_in_the_reply_and_registered_for_redaction(built_plugins, fake_server, fake_key):
+    fake_server.default = Reply(lambda request: answer(turn(30), planning="I was sent " + json.dumps(request.headers)))
+    backend = _backend(built_plugins, fake_server, completion_kwargs={
+        "extra_headers": {"X-Api-Key": "hdr-secret-0123456789", "X-Trace": "trace-visible"}})
+    reply = backend.complete(_prompt(), np.random.default_rng(0))
+    assert fake_server.requests[0].headers["x-api-key"] == "hdr-secret-0123456789"  # really sent
+    assert fake_key not in reply.text and "hdr-secret-0123456789" not in reply.text
+    assert "Bearer ***" in reply.text and "trace-visible" in reply.text
+    assert redact(f"echo {fake_key} and hdr-secret-0123456789") == "echo *** and ***"
