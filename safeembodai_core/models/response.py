@@ -191,7 +191,8 @@ def parse_response(text: str, limits: ControlLimits = DEFAULT_LIMITS, *, finish_
     except ResponseParseError:
         raise
     except Exception as error:  # any other failure to read untrusted text is a refusal, not a crash
-        log.warning("answer.unreadable", error=type(error).__name__, detail=str(error)[:200])
+        # quoted: the message may hold LLM text, lone surrogates included, that a log cannot encode
+        log.warning("answer.unreadable", error=type(error).__name__, detail=quote_untrusted(error, 200))
         raise ResponseParseError(
             f"answer could not be read ({type(error).__name__}); send exactly one valid JSON object"
         ) from None
