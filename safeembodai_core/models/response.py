@@ -58,8 +58,9 @@ MAX_FINISH_REASON_CHARS = 64
 # reached without litellm: Anthropic "end_turn"/"stop_sequence", Hugging Face "eos"/"eos_token",
 # Cohere "COMPLETE" (compared case-insensitively). Everything else -- "length", "content_filter",
 # "tool_calls", "error", ... -- is refused. None means the backend does not report a reason and is
-# accepted: the strict parser still refuses a cut-off object. Note that litellm maps reasons it
-# does not know (and some errors) to "stop"; that is litellm's reading, not ours.
+# accepted: the strict parser still refuses a cut-off object. litellm maps reasons it does not
+# know (and some errors) to "stop"; the built-in litellm backend reports the provider's own
+# reason instead (plugins/backends/litellm_reply.py), which is then refused here.
 NORMAL_FINISH_REASONS = frozenset({"stop", "end_turn", "stop_sequence", "eos", "eos_token", "complete"})
 
 
