@@ -44,14 +44,19 @@ class Cautious(LLMBackend):
 
 
 class ListStore:
+    """A minimal third-party store: ``record_step`` replaces the step's earlier record (the
+    write-ahead contract: a step is recorded before its plan runs, then again with its results)."""
+
     def __init__(self):
-        self.records, self.results = [], []
+        self.records, self.results, self.writes = [], [], []
 
     def begin_trial(self, spec):
         self.records.clear()
+        self.writes.clear()
 
     def record_step(self, record):
-        self.records.append(record)
+        self.writes.append(record.status)
+        self.records = [r for r in self.records if r.step != record.step] + [record]
 
     def reference_state(self, trial_id, step):
         return None
@@ -92,6 +97,7 @@ def test_every_component_kind_can_come_from_a_third_party_plugin():
     result = runner.run(trial_spec(scenario, "corridor", "guarded", "calm", 0))
     assert result.outcome == Outcome.COMPLETED
     assert STORE.results[-1] == result and len(STORE.records) == result.steps
+    assert STORE.writes == ["executing", "done"] * result.steps  # every plan on record before it ran
     first = STORE.records[0].executed[0].signal
     assert first.distance == 390  # a third of 1500 mm capped by the plan: from our perception and backend
 
