@@ -149,3 +149,12 @@ def test_a_reflected_key_is_masked_in_the_reply_and_registered_for_redaction(bui
     assert fake_key not in reply.text and "hdr-secret-0123456789" not in reply.text
     assert "Bearer ***" in reply.text and "trace-visible" in reply.text
     assert redact(f"echo {fake_key} and hdr-secret-0123456789") == "echo *** and ***"
+
+
+def test_credentials_in_completion_kwargs_are_found_and_nothing_else():
+    from safeembodai_plugins.backends.litellm_client import option_secrets
+
+    found = option_secrets({"extra_headers": {"Authorization": "Bearer tok-123456789", "X-Trace": "visible-1"},
+                            "aws_secret_access_key": "aws-secret-987654321", "azure_ad_token": "ad-token-55555",
+                            "max_completion_tokens": 50, "tokenizer": "gpt2-visible", "top_p": 0.5})
+    assert found == ["Bearer tok-123456789", "tok-123456789", "aws-secret-987654321", "ad-token-55555"]
