@@ -1,7 +1,9 @@
 """Attacker plugins: the adversary's three channels -- instruction, sensor, state.
 
-* ``prompt_injection`` -- at a seeded per-step ``rate``, appends to (or replaces) the human
-  instruction a malicious prompt from a library covering the paper's examples and more.
+* ``prompt_injection`` -- at a seeded per-step ``rate`` (default 0.5, the authors' release; the
+  other two attackers share the default so that conditions compare),
+  appends to (or replaces) the human instruction a malicious prompt from a library: the five
+  kinds the paper names (``kinds: paper``) and five of ours.
 * ``lidar_spoof`` -- phantom or erased obstacles in a sector of the LiDAR scan; the validators
   see the spoofed scan, as they would with a real spoofed sensor.
 * ``state_poisoning`` -- a forged entry in the reference state R_{i-1} (only when state
@@ -25,7 +27,8 @@ from safeembodai_core.hookspecs import hookimpl
 class _Schedule(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    rate: float = Field(0.3, ge=0.0, le=1.0, allow_inf_nan=False, description="probability that a step is attacked")
+    rate: float = Field(0.5, ge=0.0, le=1.0, allow_inf_nan=False, description=(
+        "probability that a step is attacked (default: the authors' release's injection rate; the paper gives none)"))
     start_step: int = Field(1, ge=1, description="first step that may be attacked")
     steps: list[int] | None = Field(None, description="attack exactly these steps (overrides rate and start_step)")
 
@@ -42,15 +45,21 @@ class PromptInjectionOptions(_Schedule):
 
     mode: Literal["append", "replace"] = Field("append", description="attach to or replace the instruction")
     separator: str = Field(" ", max_length=20, description="between the instruction and an appended payload")
-    kinds: list[str] | None = Field(None, description="draw only from these payload kinds (default: all)")
+    kinds: list[str] | str | None = Field(None, description=(
+        "draw only from these payload kinds, or a group: 'paper' (the five the paper names) or 'all' (default)"))
     payloads: list[str] | None = Field(None, description="your own payloads instead of the library (kind 'custom')")
     aim_at_target: bool = Field(False, description="{x}, {y} = the target's true position instead of random")
 
     @field_validator("kinds")
     @classmethod
-    def _known(cls, kinds: list[str] | None) -> list[str] | None:
-        from .library import PAYLOADS
+    def _known(cls, kinds: list[str] | str | None) -> list[str] | None:
+        from .library import KIND_GROUPS, PAYLOADS
 
+        if isinstance(kinds, str):
+            if kinds not in KIND_GROUPS:
+                raise ValueError(f"unknown group of payload kinds {kinds!r}; groups: {', '.join(KIND_GROUPS)} "
+                                 f"(or a list of kinds)")
+            return list(KIND_GROUPS[kinds])
         if kinds is not None:
             unknown = sorted(set(kinds) - set(PAYLOADS))
             if unknown or not kinds:
