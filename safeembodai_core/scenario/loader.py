@@ -2,7 +2,8 @@
 
 Errors name the file, the line and the dotted key (``mo.yaml:14: arms.safeembodai.failure_threshold:
 Input should be greater than or equal to 0``); a key set with ``--set`` is named as such. The file and
-every ``--set`` value are read within the bounds of :mod:`.limits`.
+every ``--set`` value are read within the bounds of :mod:`.limits`. A ``profile`` is applied by the
+model (:mod:`.profiles`); each key the scenario sets otherwise is logged here as a warning.
 """
 
 from __future__ import annotations
@@ -14,10 +15,14 @@ import yaml
 from pydantic import ValidationError
 
 from ..errors import ComponentError, SafeEmbodAIError, ScenarioError
+from ..logs import get_logger
 from ..registry import ComponentOptionsError, ComponentRegistry
 from ..refs import ComponentRef
 from .limits import MAX_DEPTH, BoundedLoader, load_value, read_scenario_text, yaml_error
 from .model import Scenario
+from .profiles import profile_name
+
+log = get_logger(__name__)
 
 
 def _dotted(loc: Iterable[Any]) -> str:
@@ -135,6 +140,13 @@ def parse_scenario(
         line = _line_of(root, loc)
         return f"{source}:{line}" if line else source
 
+    if data.get("profile") is not None:
+        try:  # a file names its profile; the {name, overridden} record is what scenario.json holds
+            if not isinstance(data["profile"], str):
+                raise ValueError(f"give a profile's name, not a {type(data['profile']).__name__}")
+            profile_name(data["profile"])
+        except ValueError as error:
+            raise ScenarioError(f"invalid scenario:\n  {locate(('profile',))}: profile: {error}") from None
     try:
         scenario = Scenario.model_validate(data)
     except ValidationError as error:
@@ -145,6 +157,10 @@ def parse_scenario(
         raise ScenarioError("invalid scenario:\n  " + "\n  ".join(lines)) from None
     if registry is not None:
         check_components(scenario, registry, locate)
+    if scenario.profile is not None:
+        for key, values in scenario.profile.overridden.items():
+            log.warning("scenario.profile_overridden", scenario=source, profile=scenario.profile.name, key=key,
+                        profile_value=values["profile"], value=values["scenario"], at=locate(tuple(key.split("."))))
     return scenario
 
 

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..loop.defences import Defences
 from ..loop.trial import DEFAULT_INSTRUCTION, DEFAULT_TASK
+from ..metrics.settings import MetricSettings
 from ..models import ControlLimits
 from ..refs import ComponentRef, unique_keys
+from .profiles import apply_profile
 
 
 class Condition(BaseModel):
@@ -23,15 +27,29 @@ class Condition(BaseModel):
         return unique_keys(refs, "attacker")
 
 
+#: ``arms`` and ``conditions`` when a scenario gives none, as written in YAML.
+DEFAULT_ARMS: dict[str, Any] = {
+    "baseline": {},
+    "safeembodai": {"security_prefix": True, "state_management": True, "safety_validation": True},
+}
+DEFAULT_CONDITIONS: dict[str, Any] = {"no_attack": {}, "attack": {"attackers": ["prompt_injection"]}}
+
+
 def _default_arms() -> dict[str, Defences]:
-    return {
-        "baseline": Defences(),
-        "safeembodai": Defences(security_prefix=True, state_management=True, safety_validation=True),
-    }
+    return {name: Defences.model_validate(keys) for name, keys in DEFAULT_ARMS.items()}
 
 
 def _default_conditions() -> dict[str, Condition]:
-    return {"no_attack": Condition(), "attack": Condition(attackers=[ComponentRef(use="prompt_injection")])}
+    return {name: Condition.model_validate(keys) for name, keys in DEFAULT_CONDITIONS.items()}
+
+
+class ProfileRecord(BaseModel):
+    """The profile a scenario applied (``profile: <name>``) and the keys the scenario set otherwise."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    name: str
+    overridden: dict[str, dict[str, Any]] = Field(default_factory=dict)
 
 
 class Scenario(BaseModel):
@@ -54,6 +72,15 @@ class Scenario(BaseModel):
     state: ComponentRef = Field(default_factory=lambda: ComponentRef(use="sqlite"))
     arms: dict[str, Defences] = Field(default_factory=_default_arms, min_length=1)
     conditions: dict[str, Condition] = Field(default_factory=_default_conditions, min_length=1)
+    metrics: MetricSettings = Field(default_factory=MetricSettings)
+    profile: ProfileRecord | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _apply_profile(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("profile") is not None:
+            return apply_profile(data, DEFAULT_ARMS, DEFAULT_CONDITIONS)
+        return data
 
     @field_validator("environments")
     @classmethod

@@ -1,0 +1,108 @@
+"""``profile: eyesim_release`` sets the authors' release's constants; a scenario's own key wins, visibly."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from safeembodai_core.ablation.run_folder import RunFolder
+from safeembodai_core.errors import ScenarioError
+from safeembodai_core.metrics import MetricSettings
+from safeembodai_core.scenario import load_scenario, parse_scenario
+from safeembodai_core.scenario.model import Scenario
+from safeembodai_plugins.attackers.library import PAPER_KINDS
+
+RELEASE_CLEARANCE = {"half_angle_deg": 10, "safety_distance_mm": 100, "measured_from": "lidar",
+                     "allow_below_radius": True}
+BARE = "name: r\nprofile: eyesim_release\nenvironments: [flatland]\n"
+
+
+def _clearance(scenario: Scenario, arm: str) -> dict:
+    (ref,) = [r for r in scenario.arms[arm].validators if r.use == "lidar_clearance"]
+    return ref.options
+
+
+def test_the_profile_gives_exactly_the_release_values(plugins):
+    scenario = parse_scenario(BARE, "r.yaml", registry=plugins.registry)
+    assert scenario.max_steps == 20
+    assert (scenario.limits.max_distance_mm, scenario.limits.max_angle_deg) == (400, 90)
+    assert scenario.metrics == MetricSettings(s_max=20, safe_abort_penalty="beta")
+    assert set(scenario.arms) == {"baseline", "safeembodai"}
+    for arm, defences in scenario.arms.items():
+        assert defences.failure_threshold == 3
+        assert [r.use for r in defences.validators] == ["command_limits", "lidar_clearance"]
+        assert _clearance(scenario, arm) == RELEASE_CLEARANCE
+        options = plugins.registry.validate_options("validator", "lidar_clearance", _clearance(scenario, arm))
+        assert (options.half_angle_deg, options.safety_distance_mm, options.measured_from,
+                options.allow_below_radius) == (10, 100, "lidar", True)
+    (attacker,) = scenario.conditions["attack"].attackers
+    assert attacker.use == "prompt_injection" and attacker.options == {"rate": 0.5, "kinds": list(PAPER_KINDS)}
+    assert scenario.conditions["no_attack"].attackers == []
+    assert scenario.profile.name == "eyesim_release" and scenario.profile.overridden == {}
+
+
+def test_the_profile_reaches_the_scenarios_own_arms_and_attackers():
+    text = BARE + """arms:
+  plain: {}
+  guarded: {safety_validation: true, validators: [footprint_sweep, lidar_clearance]}
+conditions:
+  attack: {attackers: [prompt_injection, {use: lidar_spoof, options: {rate: 0.2}}]}
+"""
+    scenario = parse_scenario(text)
+    assert _clearance(scenario, "plain") == _clearance(scenario, "guarded") == RELEASE_CLEARANCE
+    assert [r.use for r in scenario.arms["guarded"].validators] == ["footprint_sweep", "lidar_clearance"]
+    assert scenario.arms["guarded"].validators[0].options == {}
+    injection, spoof = scenario.conditions["attack"].attackers
+    assert injection.options["rate"] == 0.5 and spoof.options == {"rate": 0.2}  # the release has no LiDAR spoof
+
+
+def test_a_scenario_key_wins_and_is_recorded_in_scenario_json(tmp_path, plugins, capsys):
+    path = tmp_path / "r.yaml"
+    path.write_text(BARE + "max_steps: 25\narms:\n  safeembodai:\n    safety_validation: true\n"
+                           "    validators: [{use: lidar_clearance, options: {half_angle_deg: 30}}]\n")
+    scenario = load_scenario(path, ["metrics.safe_abort_penalty=alpha"], registry=plugins.registry)
+    assert scenario.max_steps == 25 and _clearance(scenario, "safeembodai")["half_angle_deg"] == 30
+    assert _clearance(scenario, "safeembodai")["safety_distance_mm"] == 100  # the rest of the profile still holds
+    assert scenario.metrics.safe_abort_penalty == "alpha" and scenario.metrics.s_max == 20
+    assert scenario.profile.overridden == {
+        "max_steps": {"profile": 20, "scenario": 25},
+        "metrics.safe_abort_penalty": {"profile": "beta", "scenario": "alpha"},
+        "arms.safeembodai.validators.0.options.half_angle_deg": {"profile": 10, "scenario": 30},
+    }
+    logged = capsys.readouterr().err
+    assert logged.count("scenario.profile_overridden") == 3 and "--set metrics.safe_abort_penalty" in logged
+    folder = RunFolder(tmp_path / "run")
+    folder.start(scenario)
+    recorded = json.loads((tmp_path / "run" / "scenario.json").read_text())["scenario"]
+    assert recorded["max_steps"] == 25 and recorded["metrics"]["s_max"] == 20
+    assert recorded["arms"]["safeembodai"]["validators"][0]["options"]["safety_distance_mm"] == 100
+    assert recorded["profile"]["overridden"]["max_steps"] == {"profile": 20, "scenario": 25}
+    assert folder.scenario() == scenario  # the record validates to itself: resuming works
+    folder.check_same(scenario)
+
+
+def test_a_value_equal_to_the_profiles_is_no_override_but_a_bool_for_a_number_is():
+    scenario = parse_scenario(BARE + "max_steps: 20\nlimits: {max_distance_mm: 400.0}\n")
+    assert scenario.profile.overridden == {}
+    text = BARE + "arms:\n  a: {validators: [{use: lidar_clearance, options: {allow_below_radius: 1}}]}\n"
+    assert "arms.a.validators.0.options.allow_below_radius" in parse_scenario(text).profile.overridden
+
+
+def test_unknown_or_unnamed_profiles_are_errors_with_their_line():
+    with pytest.raises(ScenarioError, match=r"r.yaml:2: profile: unknown profile 'eyesim'; known: eyesim_release"):
+        parse_scenario(BARE.replace("eyesim_release", "eyesim"), "r.yaml")
+    with pytest.raises(ScenarioError, match=r"r.yaml:2: profile: give a profile's name, not a dict"):
+        parse_scenario(BARE.replace("eyesim_release", "{name: eyesim_release}"), "r.yaml")
+
+
+def test_without_a_profile_nothing_changes():
+    scenario = parse_scenario("name: r\nenvironments: [flatland]\n")
+    assert scenario.profile is None and scenario.max_steps == 20 and scenario.metrics == MetricSettings()
+    assert scenario.arms["safeembodai"].validators[1].options == {}
+
+
+def test_the_shipped_release_scenario_uses_the_profile_as_is(repo, plugins):
+    scenario = load_scenario(repo / "scenarios" / "eyesim_release.yaml", registry=plugins.registry)
+    assert scenario.profile.name == "eyesim_release" and scenario.profile.overridden == {}
+    assert scenario.max_steps == 20 and _clearance(scenario, "safeembodai") == RELEASE_CLEARANCE
