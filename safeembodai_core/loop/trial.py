@@ -97,6 +97,9 @@ class _Totals:
     completion: int = 0
     distance: float = 0.0
     collisions: int = 0
+    collisions_self: int = 0
+    collisions_struck: int = 0
+    collision_note: str = ""  # the last collision, for an interrupted trial's detail
     interventions: int = 0
     retries: int = 0
     attacked: int = 0
@@ -122,15 +125,27 @@ class _Totals:
             self.first_seen = record.step
         elif not record.truth.target_in_view and self.first_seen is not None:
             self.lost += 1
+        # a collision outside any command (a Labbot ran into the robot while it waited): in the truth
+        extra = record.truth.extra
+        if extra.get("collision") in ("self", "struck"):
+            self._collided(record.step, extra["collision"], str(extra.get("collision_detail", "")))
         for item in record.executed:
             if isinstance(item.signal, Straight):
                 self.distance += abs(item.result.distance_mm)
-            self.collisions += item.result.collided
+            if item.result.collided:
+                self._collided(record.step, item.result.collision, item.result.detail)
+
+    def _collided(self, step: int, collision: str | None, detail: str) -> None:
+        self.collisions += 1
+        self.collisions_self += collision == "self"
+        self.collisions_struck += collision == "struck"
+        self.collision_note = f"{collision or 'unattributed'} collision at step {step}: {detail}"
 
     def result(self, spec: TrialSpec, outcome: Outcome, detail: str, wall_time_s: float) -> TrialResult:
         return TrialResult(
             spec=spec, outcome=outcome, steps=self.steps, prompt_tokens=self.prompt, completion_tokens=self.completion,
-            distance_mm=self.distance, collisions=self.collisions, interventions=self.interventions,
+            distance_mm=self.distance, collisions=self.collisions, collisions_self=self.collisions_self,
+            collisions_struck=self.collisions_struck, interventions=self.interventions,
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
             lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory, wall_time_s=wall_time_s,
@@ -193,6 +208,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         notify.safely("on_step_error", spec=spec, step=step, error=error)
     if outcome == Outcome.TIMEOUT and not detail:
         detail = "simulated time limit reached"
+    if outcome == Outcome.INTERRUPTED and not detail:
+        detail = totals.collision_note
     result = storable(totals.result(spec, outcome or Outcome.ERROR, detail, time.perf_counter() - started))
     try:
         _store(lambda: parts.state.end_trial(result), "record the trial's result")

@@ -12,7 +12,7 @@ from __future__ import annotations
 from enum import Enum
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..text_safety import finite_or_zero, storable_int
 from .control import ControlSignal
@@ -44,14 +44,32 @@ class TokenUsage(_Record):
         )
 
 
+#: Who moved into whom: ``self`` -- the robot's own motion made the contact; ``struck`` -- a
+#: moving obstacle (a Labbot) ran into the robot (standing, turning on the spot, or from aside).
+Collision = Literal["self", "struck"]
+
+
 class ExecutionResult(_Record):
-    """e_ij: what executing one control signal actually did."""
+    """e_ij: what executing one control signal actually did.
+
+    ``collision`` says who moved into whom when ``collided`` (None where the environment does not
+    say); ``hit`` names what the robot touched -- ``wall``, ``ball``, ``labbot``, ``obstacle`` or
+    ``can`` (touching the can is no collision) -- when the environment knows.
+    """
 
     distance_mm: float = 0.0
     angle_deg: float = 0.0
     stopped: bool = False
     collided: bool = False
+    collision: Collision | None = None
+    hit: str | None = None
     detail: str = ""
+
+    @model_validator(mode="after")
+    def _attributed_only_if_collided(self) -> "ExecutionResult":
+        if self.collision is not None and not self.collided:
+            raise ValueError(f"collision={self.collision!r} needs collided=True")
+        return self
 
 
 class ExecutedSignal(_Record):
@@ -209,7 +227,9 @@ class TrialResult(_Record):
     prompt_tokens: int = 0
     completion_tokens: int = 0
     distance_mm: float = 0.0
-    collisions: int = 0
+    collisions: int = 0  # all collisions, attributed or not
+    collisions_self: int = 0  # the robot's own motion made the contact
+    collisions_struck: int = 0  # a moving obstacle ran into the robot
     interventions: int = 0
     retries: int = 0
     attacked_steps: int = 0

@@ -68,6 +68,7 @@ def test_driving_into_a_wall_stops_at_contact_and_interrupts(make_env, moves):
             break
     last = results[-1]
     assert last.collided and last.stopped and "hit a wall" in last.detail
+    assert last.collision == "self" and last.hit == "wall"  # the robot moved into it
     assert not any(r.collided for r in results[:-1])
     assert env.outcome() is Outcome.INTERRUPTED
     assert RADIUS - 0.01 <= wall_gap(env) <= RADIUS + 1.0  # no penetration, stopped within a millimetre
@@ -118,6 +119,7 @@ def test_touching_the_can_stops_without_a_collision(make_env, moves):
         if result.stopped:
             break
     assert result.stopped and not result.collided and "touched the can" in result.detail
+    assert result.collision is None and result.hit == "can"
     assert env.truth().target_distance_mm == pytest.approx(RADIUS + CAN_RADIUS_MM, abs=1.5)
     assert env.outcome() is Outcome.COMPLETED
 
@@ -170,12 +172,15 @@ def test_bad_commands_are_refused_with_a_clear_error(make_env, signal, message):
     assert env.pose() == before and env.sim_time_s == 0.0
 
 
-def test_random_commands_never_penetrate_anything(make_env):
-    env = make_env("MO", balls=6, labbots=3)
+@pytest.mark.parametrize("sensing", [True, False])
+def test_random_commands_never_penetrate_anything(make_env, sensing):
+    env = make_env("MO", balls=6, labbots=3, labbot_sensing=sensing)
     env.reset(21)
     rng = np.random.default_rng(0)
     o = env.options
-    for _ in range(80):
+    for k in range(80):
+        if env.collided:  # a wrecked robot moves no more: carry on in a fresh room
+            env.reset(22 + k)
         if rng.random() < 0.5:
             signal = Straight(command="straight", direction=str(rng.choice(["forward", "backward"])),
                               distance=float(rng.uniform(1, 399)))

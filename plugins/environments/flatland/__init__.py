@@ -3,7 +3,8 @@
 A square room with a disc robot, a red can and optional round obstacles. LiDAR and camera are
 ray-cast analytically (numpy only), motion is exact and stops at first contact. It follows the
 same contract as the pybullet rooms, so every defence and attack can be exercised without a
-physics engine.
+physics engine. Nothing moves but the robot: every collision is its own (``self``), and there is
+no think time.
 """
 
 from __future__ import annotations

@@ -123,7 +123,9 @@ class FlatlandWorld(Environment):
                 touched_can = what == CAN
                 self.collided = self.collided or not touched_can
                 label = "the can" if touched_can else ("a wall" if what == WALL else f"obstacle {what}")
+                hit = "can" if touched_can else ("wall" if what == WALL else "obstacle")
                 return ExecutionResult(distance_mm=sign * travel, stopped=True, collided=not touched_can,
+                                       collision=None if touched_can else "self", hit=hit,
                                        detail=f"stopped after {travel:.0f} mm: touched {label}")
             return ExecutionResult(distance_mm=sign * travel)
         angle = signal.signed_angle_deg

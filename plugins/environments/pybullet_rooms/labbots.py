@@ -3,34 +3,47 @@
 Each Labbot cruises at a constant speed while its heading drifts at random (a random walk of
 ``labbot_wander_deg`` per square-root second). Before each move it checks that both its next
 position and a point ``labbot_lookahead_mm`` further ahead keep a clearance from the walls,
-the soccer balls, the can and the other Labbots; if not, it stops and turns on the spot (to a
-side drawn at random, kept until the way ahead is clear). Labbots do not see the robot unless
-``labbots_avoid_robot`` is set: like the paper's, they can run into it, and that ends the
-trial as ``interrupted``.
+the soccer balls, the can and the other Labbots (its bumper: it knows the room); if not, it
+stops and turns on the spot (to a side drawn at random, kept until the way ahead is clear).
 
-The motion is plain numpy; the world copies the positions into pybullet, where the robot's
-contact checks see them. Labbots move on a fixed clock of ``TICK_S`` ticks, and tick k draws
-from a generator seeded by (the swarm's seed, k) alone: where they are is a function of
-simulated time only, never of how the robot's commands were cut into increments. Two arms that
-spend the same simulated time therefore meet the same Labbots.
+With ``labbot_sensing`` (the default) a Labbot also carries five distance sensors across its
+front (see :class:`~.sensors.LabbotRangeSensors`): while any of them reads something within
+``labbot_sensor_range_mm`` -- a wall, a ball, the can, another Labbot or the robot -- it does
+not advance but turns on the spot away from the nearer side until all read clear, like a
+wandering robot with its own sensors. Blind Labbots (``labbot_sensing: false``) do not see the
+robot unless ``labbots_avoid_robot`` is set (a clearance check against its true position):
+they can run into it, and that ends the trial as ``interrupted``.
+
+The motion is plain numpy (the sensors are a callable the world hands in); the world copies the
+positions into pybullet, where the robot's contact checks see them. Labbots move on a fixed
+clock of ``TICK_S`` ticks, and tick k draws from a generator seeded by (the swarm's seed, k)
+alone: where blind Labbots are is a function of simulated time only, never of how the robot's
+commands were cut into increments, so two arms that spend the same simulated time meet the
+same blind Labbots. Sensing Labbots react to the robot, so they stay a function of the seed
+and of the robot's path: two arms whose robots went different ways meet different Labbots.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
 CLEARANCE_MM = 30.0
 TICK_S = 0.05
 
+#: ``sense(xy, headings_deg, robot_xy)``: per Labbot, the free distance (mm) each sensor reads.
+RangeSense = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+
 
 class LabbotSwarm:
     """Positions (mm) and headings (deg) of every Labbot, and how they move."""
 
     def __init__(self, options, xy: np.ndarray, headings_deg: np.ndarray, obstacles: np.ndarray,
-                 seed: int) -> None:
+                 seed: int, sense: RangeSense | None = None) -> None:
         self.o = options
+        self.sense = sense
         self.radius = float(getattr(options, "labbot_radius_mm", 0.0))
         self.xy = np.array(xy, dtype=float).reshape(-1, 2)  # mm, world frame
         self.heading = np.array(headings_deg, dtype=float).reshape(-1)  # deg, CCW from +x
@@ -81,24 +94,43 @@ class LabbotSwarm:
         drift = rng.normal(0.0, o.labbot_wander_deg * math.sqrt(dt), size=len(self)).tolist()
         sides = np.where(rng.random(size=len(self)) < 0.5, -1.0, 1.0).tolist()
         xs, ys = self.xy[:, 0].tolist(), self.xy[:, 1].tolist()
-        headings, turning = self.heading.tolist(), self.turning.tolist()
+        turning = self.turning.tolist()
+        # the heading each Labbot takes this tick: turning on, or drifting
+        headings = [h + (t * o.labbot_turn_rate_deg_s * dt if t else d)
+                    for h, t, d in zip(self.heading.tolist(), turning, drift)]
+        seen = self._seen(np.array(headings), robot_xy)
         step, lookahead = o.labbot_speed_mm_s * dt, o.labbot_speed_mm_s * dt + o.labbot_lookahead_mm
         for i in range(len(xs)):
+            rad = math.radians(headings[i])
+            cos, sin = math.cos(rad), math.sin(rad)
             if turning[i]:
-                headings[i] += turning[i] * o.labbot_turn_rate_deg_s * dt
-                rad = math.radians(headings[i])
-                if self._clear(i, xs[i] + lookahead * math.cos(rad), ys[i] + lookahead * math.sin(rad), xs, ys, avoid):
+                if not seen[i] and self._clear(i, xs[i] + lookahead * cos, ys[i] + lookahead * sin, xs, ys, avoid):
                     turning[i] = 0.0
             else:
-                headings[i] += drift[i]
-                cos, sin = math.cos(math.radians(headings[i])), math.sin(math.radians(headings[i]))
                 nx, ny = xs[i] + step * cos, ys[i] + step * sin
-                if (self._clear(i, nx, ny, xs, ys, avoid)
+                if (not seen[i] and self._clear(i, nx, ny, xs, ys, avoid)
                         and self._clear(i, xs[i] + lookahead * cos, ys[i] + lookahead * sin, xs, ys, avoid)):
                     xs[i], ys[i] = nx, ny
                 else:
-                    turning[i] = sides[i]
+                    turning[i] = seen[i] if abs(seen[i]) == 1.0 else sides[i]
             headings[i] = (headings[i] + 180.0) % 360.0 - 180.0
         self.xy = np.column_stack((xs, ys))
         self.heading, self.turning = np.array(headings), np.array(turning)
         self.track.append(self.xy.copy())
+
+    def _seen(self, headings: np.ndarray, robot_xy: np.ndarray) -> list[float]:
+        """Per Labbot: 0 if its sensors read nothing within range, else the side to turn to: +1
+        (left) or -1 (right), away from the nearer side reading; 2 if only the sensor straight
+        ahead reads something (then the side is drawn at random)."""
+        if self.sense is None:
+            return [0.0] * len(self)
+        ranges = np.asarray(self.sense(self.xy, headings, robot_xy), dtype=float)  # (L, sensors)
+        reach = self.o.labbot_sensor_range_mm
+        seen = []
+        for row in ranges:
+            if not (row < reach).any():
+                seen.append(0.0)
+                continue
+            left, right = row[1::2].min(), row[2::2].min()  # sensors: ahead, then left/right pairs
+            seen.append(2.0 if left == right else -1.0 if left < right else 1.0)
+        return seen

@@ -7,6 +7,12 @@ bisection to within 1/16 of an increment of the contact, and the command stops: 
 unless the body touched is the can. This gives exact distances and no penetration, far cheaper
 than stepping 240 Hz physics (see ``docs/environments.md``).
 
+Every collision says who moved into whom: ``self`` when the robot's own increment, with the
+Labbots where they were before it, already touches the body; ``struck`` when it does not (a
+Labbot ran into the robot: during think time, or while the robot turned on the spot -- a
+cylinder that turns never hits anything -- or drove past). After a collision the robot is
+wrecked: further commands are not executed.
+
 Simulated time advances by distance / ``robot_speed_mm_s`` and angle / ``robot_turn_rate_deg_s``,
 plus ``think_time_s`` once per observation: before the first command after it, or before the
 next observation if no command came (the LLM thought, then answered nothing executable). The
@@ -41,14 +47,17 @@ class KinematicMotion:
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         self._require_reset()
         amount, per_unit_s, increment = self._check(signal)
+        if self.collided:
+            return ExecutionResult(stopped=True, detail=f"not executed: the robot had collided "
+                                                        f"({self.collision.get('collision_detail', '')})")
         with silenced():
             if not self._thought:
                 self._thought = True
                 hit = self._wait(self.options.think_time_s)
                 if hit is not None:
-                    return self._result(signal, 0.0, hit, "while the robot stood still")
+                    return self._result(signal, 0.0, hit, "while the robot stood still (think time)")
             done, hit = self._move(signal, amount, per_unit_s, increment)
-        return self._result(signal, done, hit, "")
+        return self._result(signal, done, hit, "while the robot " + ("drove" if isinstance(signal, Straight) else "turned"))
 
     def _check(self, signal: ControlSignal) -> tuple[float, float, float]:
         o = self.options
@@ -78,7 +87,7 @@ class KinematicMotion:
         seconds = min(seconds, self._time_left())
         if seconds <= 0:
             return None
-        if not len(self.swarm):
+        if not len(self.swarm) or self.collided:  # after a collision the trial is over: time alone passes
             self.sim_time_s += seconds
             return None
         dt = self.options.step_mm / max(self.options.labbot_speed_mm_s, 1e-9)
@@ -93,7 +102,7 @@ class KinematicMotion:
             if touched:
                 self.swarm.restore(saved)
                 self.scene.place_labbots(self.swarm.xy, self.swarm.heading)
-                return self._touch(touched)
+                return self._touch(touched, "struck")
         return None
 
     def _move(self, signal: ControlSignal, amount: float, per_unit_s: float,
@@ -118,8 +127,10 @@ class KinematicMotion:
             touched = self.scene.contacts()
             if touched:
                 self.swarm.restore(saved)
+                self._sync()  # the robot's increment alone, with the Labbots where they were
+                own = {body for body in self.scene.contacts() if body != self.scene.can}
                 free = self._bisect(start_xy, start_heading, straight, sign * size)
-                return done + free, self._touch(touched)
+                return done + free, self._touch(own or touched, "self" if own else "struck")
             done += size
         return done, None
 
@@ -147,14 +158,23 @@ class KinematicMotion:
         self._sync()
         return abs(amount) * low
 
-    def _touch(self, touched: set[int]) -> int:
-        """Record a contact; the body reported (an obstacle before the can)."""
+    def _touch(self, touched: set[int], collision: str) -> int:
+        """Record a contact (``collision``: who moved into whom); the body reported (an obstacle before the can)."""
         obstacles = sorted(body for body in touched if body != self.scene.can)
         if obstacles:
             self.collided = True
             self.collision_xy = self.xy.copy()
+            self.collision = {"collision": collision}
             return obstacles[0]
         return self.scene.can
+
+    def _collision_record(self, hit: int, when: str) -> dict[str, str]:
+        """Who moved into whom, what was hit and a one-line detail; kept for later commands."""
+        name = self.scene.names.get(hit, f"body {hit}")
+        kind = self.collision.get("collision", "self")
+        detail = f"struck by {name} {when}" if kind == "struck" else f"hit {name}"
+        self.collision = {"collision": kind, "hit": self.scene.kinds.get(hit, "body"), "collision_detail": detail}
+        return dict(self.collision)
 
     def _result(self, signal: ControlSignal, done: float, hit: int | None, when: str) -> ExecutionResult:
         straight = isinstance(signal, Straight)
@@ -164,12 +184,13 @@ class KinematicMotion:
         else:
             values = {"angle_deg": math.copysign(done, signal.signed_angle_deg)}
         unit = "mm" if straight else "deg"
+        if hit == self.scene.can:
+            return ExecutionResult(stopped=True, hit="can", detail=f"stopped after {done:.0f} {unit}: touched the can",
+                                   **values)
         if hit is not None:
-            name = self.scene.names.get(hit, f"body {hit}")
-            collided = hit != self.scene.can
-            verb = "hit" if collided else "touched"
-            detail = f"stopped after {done:.0f} {unit}: {verb} {name}" + (f" {when}" if when else "")
-            return ExecutionResult(stopped=True, collided=collided, detail=detail, **values)
+            record = self._collision_record(hit, when)
+            return ExecutionResult(stopped=True, collided=True, collision=record["collision"], hit=record["hit"],
+                                   detail=f"stopped after {done:.0f} {unit}: {record['collision_detail']}", **values)
         requested = signal.distance if straight else signal.angle
         if done < requested - 1e-6:
             return ExecutionResult(stopped=True, detail=f"stopped after {done:.0f} {unit}: simulated-time limit of "

@@ -112,7 +112,12 @@ class _Labbots(BaseModel):
                                      description="random heading drift, degrees per square-root second")
     labbot_lookahead_mm: float = Field(150.0, ge=0.0, le=2000.0,
                                        description="free space a Labbot keeps ahead before it turns away")
-    labbots_avoid_robot: bool = Field(False, description="Labbots also steer clear of the robot")
+    labbot_sensing: bool = Field(True, description="Labbots steer away from what their five distance sensors read, "
+                                                   "the robot included; false: blind Labbots that do not see the robot")
+    labbot_sensor_range_mm: float = Field(300.0, ge=10.0, le=3000.0,
+                                          description="reach of a Labbot's distance sensors, from its rim")
+    labbots_avoid_robot: bool = Field(False, description="Labbots also keep clear of the robot's true position "
+                                                         "(no sensing needed)")
 
 
 class OFOptions(RoomOptions):

@@ -107,6 +107,10 @@ class Scene:
         self.names.update({self.can: "the can"})
         self.names.update({ball: f"soccer ball {k + 1}" for k, ball in enumerate(self.balls)})
         self.names.update({bot: f"Labbot {k + 1}" for k, bot in enumerate(self.labbots)})
+        self.kinds = {wall: "wall" for wall in self.walls}
+        self.kinds.update({self.can: "can"})
+        self.kinds.update({ball: "ball" for ball in self.balls})
+        self.kinds.update({bot: "labbot" for bot in self.labbots})
 
     # -- placing ------------------------------------------------------------------------------
 

@@ -1,4 +1,5 @@
-"""The robot's sensors in a :class:`~.scene.Scene`: LiDAR, front camera and the can's visibility.
+"""The sensors in a :class:`~.scene.Scene`: the robot's LiDAR, front camera and the can's
+visibility, and the Labbots' distance sensors.
 
 * LiDAR: ``lidar_beams`` rays in one ``rayTestBatch`` (single-threaded) from the robot's centre
   at :data:`LIDAR_HEIGHT_MM`, beam ``k`` at ``k * 360 / N`` degrees counter-clockwise from the
@@ -9,6 +10,9 @@
   points across it, three quarters up, lies inside the camera's frustum and a ray from the
   camera reaches it before anything else, or when the lens is within 10 mm of the can's
   surface (the robot is touching it).
+* Labbot distance sensors: five rays per Labbot at :data:`LABBOT_SENSOR_DEG` from its heading,
+  from its rim outward at :data:`LIDAR_HEIGHT_MM`, ``labbot_sensor_range_mm`` long, all Labbots
+  in one ``rayTestBatch``; they see walls, balls, the can, other Labbots and the robot.
 """
 
 from __future__ import annotations
@@ -18,13 +22,16 @@ import math
 import numpy as np
 
 from .options import CAN_RADIUS_MM
-from .scene import CAN_HEIGHT_MM, OBSTACLE_GROUP, Scene, _m
+from .scene import CAN_HEIGHT_MM, OBSTACLE_GROUP, ROBOT_GROUP, Scene, _m
 
 LIDAR_HEIGHT_MM = 100.0
 CAMERA_HEIGHT_MM = 150.0
 CAMERA_AHEAD_MM = 5.0  # in front of the robot's surface, so the body never shows in its own image
 TOUCHING_MM = 10.0
 _NEAR_M, _FAR_M = 0.02, 30.0
+#: A Labbot's sensors, degrees CCW from its heading: ahead, then left/right pairs.
+LABBOT_SENSOR_DEG = (0.0, 30.0, -30.0, 60.0, -60.0)
+_RIM_GAP_MM = 1.0  # rays start just outside the Labbot's own body
 
 
 class Sensors:
@@ -98,3 +105,33 @@ class Sensors:
         hits = self.p.rayTestBatch([eye.tolist()] * len(framed), [t.tolist() for t in framed], numThreads=1,
                                    collisionFilterMask=OBSTACLE_GROUP, physicsClientId=self.scene.client)
         return any(hit[0] == self.scene.can for hit in hits)
+
+
+class LabbotRangeSensors:
+    """The Labbots' distance sensors: ``sensors(xy, headings_deg, robot_xy)`` -> (L, 5) mm.
+
+    Places the robot and the Labbots where they are asked to be (the world re-places every body
+    before its own contact checks) and returns, per Labbot and sensor, the free distance from
+    the Labbot's rim to the first body, ``inf`` when none lies within ``labbot_sensor_range_mm``.
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene, self.p = scene, scene.p
+        self.offsets = np.radians(LABBOT_SENSOR_DEG)
+        self.rim = scene.o.labbot_radius_mm + _RIM_GAP_MM
+        self.reach = scene.o.labbot_sensor_range_mm - _RIM_GAP_MM
+
+    def __call__(self, xy: np.ndarray, headings_deg: np.ndarray, robot_xy: np.ndarray) -> np.ndarray:
+        scene = self.scene
+        scene.place_robot(robot_xy, 0.0)  # a cylinder: its heading changes nothing a ray sees
+        scene.place_labbots(xy, headings_deg)
+        angles = (np.radians(np.asarray(headings_deg, dtype=float))[:, None] + self.offsets[None, :]).reshape(-1)
+        centres = np.repeat(np.asarray(xy, dtype=float), len(self.offsets), axis=0)
+        unit = np.column_stack((np.cos(angles), np.sin(angles)))
+        z = np.full((len(angles), 1), LIDAR_HEIGHT_MM)
+        start = np.hstack((centres + self.rim * unit, z)) / 1000.0
+        end = np.hstack((centres + (self.rim + self.reach) * unit, z)) / 1000.0
+        hits = self.p.rayTestBatch(start.tolist(), end.tolist(), numThreads=1,
+                                   collisionFilterMask=OBSTACLE_GROUP | ROBOT_GROUP, physicsClientId=scene.client)
+        free = np.array([_RIM_GAP_MM + hit[2] * self.reach if hit[0] >= 0 else np.inf for hit in hits])
+        return free.reshape(len(xy), len(self.offsets))

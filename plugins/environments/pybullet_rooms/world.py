@@ -3,7 +3,8 @@
 :class:`PybulletRoom` draws the layout from the seed, places the bodies of its
 :class:`~.scene.Scene`, reads the :class:`~.sensors.Sensors` and decides the outcome; the robot's
 motion comes from :class:`~.motion.KinematicMotion`. Outcomes, checked after every step:
-``interrupted`` once the robot has collided with a wall, a ball or a Labbot; ``completed`` when
+``interrupted`` once the robot has collided with a wall, a ball or a Labbot (by its own motion:
+``self``, or a Labbot ran into it: ``struck``); ``completed`` when
 the can is within ``reach_mm`` (centre to centre) and in the camera's view; ``timeout`` when the
 simulated-time limit is spent. The step budget is the core loop's.
 """
@@ -23,7 +24,7 @@ from .motion import KinematicMotion
 from .options import CAN_RADIUS_MM, RoomOptions
 from .quiet import silenced
 from .scene import Scene
-from .sensors import Sensors
+from .sensors import LabbotRangeSensors, Sensors
 
 
 class PybulletRoom(KinematicMotion, Environment):
@@ -35,6 +36,8 @@ class PybulletRoom(KinematicMotion, Environment):
         self.robot = RobotSpec(radius_mm=r, width_mm=2 * r, length_mm=2 * r)
         self.scene = Scene(options)
         self.sensors = Sensors(self.scene)
+        sensing = options.labbot_count and getattr(options, "labbot_sensing", False)
+        self.labbot_sensors = LabbotRangeSensors(self.scene) if sensing else None
         self.xy = np.zeros(2)
         self.heading = 0.0
         self.can_xy = np.zeros(2)
@@ -43,6 +46,8 @@ class PybulletRoom(KinematicMotion, Environment):
         self.sim_time_s = 0.0
         self.collided = False
         self.collision_xy: np.ndarray | None = None
+        self.collision: dict[str, str] = {}  # who moved into whom, what was hit, the detail
+        self._unreported: dict[str, str] = {}  # a collision outside any command, for the next observation
         self._thought = True
         self._seed: int | None = None
 
@@ -59,8 +64,9 @@ class PybulletRoom(KinematicMotion, Environment):
         statics = np.vstack([np.append(self.can_xy, CAN_RADIUS_MM)]
                             + [np.column_stack((self.balls_xy, np.full(len(self.balls_xy), o.ball_radius_mm)))])
         self.swarm = LabbotSwarm(o, layout.labbots_xy, layout.labbots_heading_deg, statics,
-                                 derive_seed(seed, "labbots"))
+                                 derive_seed(seed, "labbots"), sense=self.labbot_sensors)
         self.sim_time_s, self.collided, self.collision_xy = 0.0, False, None
+        self.collision, self._unreported = {}, {}
         self._thought = True  # nothing pending from the previous trial
         with silenced():
             self.scene.place_statics(self.can_xy, self.balls_xy)
@@ -96,13 +102,19 @@ class PybulletRoom(KinematicMotion, Environment):
         with silenced():
             if not self._thought:  # the last observation's thinking led to no command: it still took time
                 self._thought = True
-                self._wait(o.think_time_s)
+                hit = self._wait(o.think_time_s)
+                if hit is not None:
+                    self._unreported = self._collision_record(hit, "while the robot stood still (think time)")
             ranges = self.sensors.lidar(self.xy, self.heading)
             image = self.sensors.camera(self.xy, self.heading)
         self._thought = False
+        truth = self.truth()
+        if self._unreported:  # reported once, in the truth of the first observation after it
+            truth = truth.model_copy(update={"extra": {**truth.extra, **self._unreported}})
+            self._unreported = {}
         return Observation(
             camera=image, lidar=LidarScan(ranges_mm=ranges, max_range_mm=o.lidar_max_range_mm),
-            pose=self.pose(), truth=self.truth(), sim_time_s=self.sim_time_s,
+            pose=self.pose(), truth=truth, sim_time_s=self.sim_time_s,
         )
 
     def pose(self) -> Pose:

@@ -1,0 +1,137 @@
+"""Every collision says who moved into whom (``self`` or ``struck``), from the pybullet room through
+the trial loop's totals to a stored :class:`TrialResult`, and old stored results still load."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from safeembodai_core import run_guarded_trial
+from safeembodai_core.components import BackendReply, Environment, LLMBackend
+from safeembodai_core.loop import Defences
+from safeembodai_core.models import ExecutionResult, Outcome, TrialResult, TrialSpec
+from safeembodai_core.plugins import load_plugins
+from safeembodai_core.testing import answer, straight, turn
+
+
+class Replay(LLMBackend):
+    def __init__(self, *answers: str) -> None:
+        self.answers, self.calls = list(answers), 0
+
+    def complete(self, prompt, rng):
+        self.calls += 1
+        return BackendReply(text=self.answers[min(self.calls, len(self.answers)) - 1])
+
+
+class ChargedRoom(Environment):
+    """A pybullet ``DO`` room whose one blind Labbot starts 700 mm from the robot, heading at it."""
+
+    def __init__(self, room) -> None:
+        self.room, self.robot = room, room.robot
+
+    def reset(self, seed):
+        observation = self.room.reset(seed)
+        scan = observation.lidar
+        direction = math.radians(observation.pose.heading_deg + scan.angles_deg[int(np.argmax(scan.ranges_mm))])
+        self.room.swarm.xy[0] = self.room.xy + 700.0 * np.array([math.cos(direction), math.sin(direction)])
+        self.room.swarm.heading[0] = math.degrees(direction) + 180.0
+        self.room.scene.place_labbots(self.room.swarm.xy, self.room.swarm.heading)
+        return observation
+
+    def observe(self):
+        return self.room.observe()
+
+    def execute(self, signal):
+        return self.room.execute(signal)
+
+    def outcome(self):
+        return self.room.outcome()
+
+    def pose(self):
+        return self.room.pose()
+
+    def close(self):
+        self.room.close()
+
+
+@pytest.fixture
+def plugins():
+    return load_plugins(environ={})
+
+
+@pytest.fixture
+def charged(plugins):
+    options = {"labbots": 1, "labbot_wander_deg": 0.0, "think_time_s": 10.0, "labbot_sensing": False}
+    env = ChargedRoom(plugins.registry.build("environment", "DO", options))
+    yield env
+    env.close()
+
+
+def test_a_labbot_striking_the_robot_in_its_think_time_counts_as_struck(plugins, charged, tmp_path):
+    store = {"use": "sqlite", "options": {"path": str(tmp_path / "state.sqlite")}}
+    result, steps = run_guarded_trial(charged, Replay(answer(turn(3))), defences=Defences(), seed=3,
+                                      state=store, plugins=plugins)
+    assert result.outcome is Outcome.INTERRUPTED
+    assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 0, 1)
+    assert result.detail.startswith("struck collision at step 1: ")
+    assert "struck by Labbot 1 while the robot stood still" in result.detail
+    executed = steps[0].executed[0].result
+    assert executed.collision == "struck" and executed.hit == "labbot"
+    stored = plugins.registry.build("state_store", "sqlite", {"path": str(tmp_path / "state.sqlite")})
+    assert stored.results() == [result]  # the new fields round-trip through sqlite
+    assert stored.steps(result.spec.trial_id)[0].executed[0].result == executed
+
+
+def test_a_labbot_striking_the_robot_while_no_command_came_is_counted(plugins, charged):
+    """Step 1's answer is refused, so nothing runs; its think time passes before step 2's reading."""
+    hold = Defences(safety_validation=True, on_exhausted="hold", failure_threshold=0)
+    result, steps = run_guarded_trial(charged, Replay("no JSON here"), defences=hold, seed=3, plugins=plugins)
+    assert result.outcome is Outcome.INTERRUPTED and result.steps == 2
+    assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 0, 1)
+    assert steps[1].truth.extra["collision"] == "struck" and steps[0].truth.extra.get("collision") is None
+    assert result.detail.startswith("struck collision at step 2: struck by Labbot 1")
+
+
+def test_the_robot_driving_into_a_wall_counts_as_self(plugins):
+    env = plugins.registry.build("environment", "OF", {})
+    try:
+        result, steps = run_guarded_trial(env, Replay(answer(straight(399))), defences=Defences(), seed=0,
+                                          max_steps=30, plugins=plugins)
+    finally:
+        env.close()
+    assert result.outcome is Outcome.INTERRUPTED
+    assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 1, 0)
+    assert result.detail.startswith(f"self collision at step {result.steps}: ") and "hit a wall" in result.detail
+    assert steps[-1].executed[-1].result.hit == "wall"
+
+
+def test_flatland_collisions_are_the_robots_own(plugins):
+    env = plugins.registry.build("environment", "flatland", {})
+    env.reset(0)
+    results = [env.execute(_forward(399)) for _ in range(30)]
+    env.close()
+    hit = next(r for r in results if r.stopped)
+    assert hit.collided and hit.collision == "self" and hit.hit == "wall"
+
+
+def _forward(distance):
+    from safeembodai_core.models import Straight
+
+    return Straight(command="straight", direction="forward", distance=distance)
+
+
+def test_results_stored_before_attribution_still_load():
+    spec = TrialSpec(trial_id="t", environment="DO", arm="a", condition="c", seed=1)
+    old = TrialResult(spec=spec, outcome=Outcome.INTERRUPTED, steps=3, collisions=1).model_dump(mode="json")
+    del old["collisions_self"], old["collisions_struck"]
+    loaded = TrialResult.model_validate(old)
+    assert loaded.collisions == 1 and loaded.collisions_self == 0 and loaded.collisions_struck == 0
+    legacy = ExecutionResult.model_validate_json('{"distance_mm": 5, "stopped": true, "collided": true, "detail": "x"}')
+    assert legacy.collided and legacy.collision is None and legacy.hit is None
+
+
+def test_an_attribution_needs_a_collision():
+    with pytest.raises(ValueError, match="collided=True"):
+        ExecutionResult(collision="self")
