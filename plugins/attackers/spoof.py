@@ -52,10 +52,12 @@ class LidarSpoofAttacker(Attacker):
         ranges = np.array(scan.ranges_mm, dtype=np.float64, copy=True)
         sector = f"{centre - o.half_width_deg:.0f}..{centre + o.half_width_deg:.0f} deg"
         if o.mode == "phantom":
-            distance = o.distance_mm if o.distance_mm is not None else drawn_distance
-            distance = min(distance, scan.max_range_mm)
+            wanted = o.distance_mm if o.distance_mm is not None else drawn_distance
+            distance = min(wanted, scan.max_range_mm)  # a LiDAR reports nothing beyond its range
             ranges[beams] = np.fmin(ranges[beams], distance)  # fmin: a phantom also fills missing beams
-            kind, payload = "phantom_obstacle", f"phantom obstacle at {distance:.0f} mm over {sector} ({beams.size} beams)"
+            capped = f" (asked {wanted:.0f} mm, capped at the scan's range)" if distance < wanted else ""
+            kind, payload = "phantom_obstacle", (f"phantom obstacle at {distance:.0f} mm{capped} over {sector} "
+                                                 f"({beams.size} beams)")
         else:
             ranges[beams] = np.inf
             kind, payload = "erased_obstacle", f"returns erased over {sector} ({beams.size} beams)"

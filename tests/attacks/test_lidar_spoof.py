@@ -97,3 +97,12 @@ def test_in_a_trial_erasing_the_scan_defeats_safety_validation(validator):
     assert honest.outcome == Outcome.SAFE_ABORT and honest.collisions == 0
     assert fooled.outcome == Outcome.INTERRUPTED and fooled.collisions == 1
     assert all(s.attacks and s.attacks[0].kind == "erased_obstacle" for s in steps)
+
+
+def test_a_phantom_beyond_the_scans_range_is_capped_and_says_so(spoof):
+    target = surface(wall_scan(8000.0))
+    (record,) = spoof(centre_deg=0, half_width_deg=5, distance_mm=7000).attack(target)
+    assert np.all(target.observation.lidar.ranges_mm[wall_scan().sector(0, 5)] == 6000.0)
+    assert "phantom obstacle at 6000 mm (asked 7000 mm, capped at the scan's range)" in record.payload
+    (plain,) = spoof(centre_deg=0, half_width_deg=5, distance_mm=500).attack(surface(wall_scan(8000.0)))
+    assert "capped" not in plain.payload
