@@ -8,12 +8,14 @@ ROOTS = {"safeembodai_core": "safeembodai_core", "plugins": "safeembodai_plugins
 
 
 def test_every_package_folder_is_listed(repo):
+    """Data-only folders count too: setuptools warns about (and will drop) one it is not told about."""
     listed = set(tomllib.loads((repo / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     found = set()
     for folder, name in ROOTS.items():
-        for init in (repo / folder).rglob("__init__.py"):
-            relative = init.parent.relative_to(repo / folder)
-            found.add(".".join((name, *relative.parts)))
+        for path in (repo / folder).rglob("*"):
+            if path.is_file() and "__pycache__" not in path.parts and not path.name.startswith("."):
+                relative = path.parent.relative_to(repo / folder)
+                found.add(".".join((name, *relative.parts)))
     assert found == listed, f"missing from pyproject: {sorted(found - listed)}; stale: {sorted(listed - found)}"
 
 

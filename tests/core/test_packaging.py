@@ -36,7 +36,7 @@ def installed(tmp_path_factory, repo):
     root = tmp_path_factory.mktemp("pkg")
     source = root / "source"
     shutil.copytree(repo, source, ignore=IGNORE)
-    _run(sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", root / "wheels", source)
+    built = _run(sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", root / "wheels", source)
     wheel = next((root / "wheels").glob("safeembodai-*.whl"))
     env_dir = root / "venv"
     venv.create(env_dir, with_pip=True)
@@ -46,11 +46,33 @@ def installed(tmp_path_factory, repo):
     _run(python, "-m", "pip", "install", "-q", "--no-deps", "--no-index", wheel)
     work = root / "elsewhere"
     work.mkdir()
-    return python, work
+    return python, work, built.stdout + built.stderr, wheel
+
+
+BUILD_WARNINGS = ("SetuptoolsDeprecationWarning", "BuildBackendWarning", "is deprecated", "absent from the `packages`",
+                  "Package would be ignored")
+
+
+def test_the_wheel_builds_without_setuptools_warnings(installed):
+    """A deprecation (``license`` as a table stops building after 2027-02-18) or an unlisted data folder
+    (setuptools will stop shipping it) is a future broken install: fail now."""
+    log = installed[2]
+    found = [marker for marker in BUILD_WARNINGS if marker in log]
+    assert not found, f"setuptools warned ({found}):\n{log}"
+
+
+def test_the_wheel_ships_templates_and_data(installed):
+    import zipfile
+
+    names = set(zipfile.ZipFile(installed[3]).namelist())
+    assert {"safeembodai_prompts/security/paper.j2", "safeembodai_prompts/system.j2",
+            "safeembodai_core/data/paper_results.json", "safeembodai_core/py.typed"} <= names
+    metadata = next(n for n in names if n.endswith(".dist-info/METADATA"))
+    assert "License-Expression: MIT" in zipfile.ZipFile(installed[3]).read(metadata).decode()
 
 
 def test_wheel_runs_a_scenario_outside_the_source_tree(installed, repo):
-    python, work = installed
+    python, work, _, _ = installed
     where = _run(python, "-c", "import safeembodai_core, safeembodai_plugins, safeembodai_prompts; "
                               "print(safeembodai_core.__file__); print(safeembodai_prompts.TEMPLATE_DIR)", cwd=work).stdout
     assert str(repo) not in where and "site-packages" in where
@@ -61,7 +83,7 @@ def test_wheel_runs_a_scenario_outside_the_source_tree(installed, repo):
 
 
 def test_example_plugin_is_found_through_its_entry_point(installed, repo):
-    python, work = installed
+    python, work, _, _ = installed
     _run(python, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--no-index",
          repo / "docs" / "examples" / "safeembodai-example-plugin")
     listing = json.loads(_run(python, "-m", "safeembodai_core", "plugins", "--json", cwd=work).stdout)
