@@ -105,3 +105,31 @@ def test_plugins_can_add_commands():
     from click.testing import CliRunner
 
     assert CliRunner().invoke(group, ["hello"]).output == "hi from a plugin\n"
+
+
+def test_plugins_piped_prints_one_tab_separated_line_per_component():
+    piped = subprocess.run(f"'{sys.executable}' -m safeembodai_core plugins | grep -c lidar_clearance", shell=True,
+                           capture_output=True, text=True, timeout=120)
+    assert piped.stdout.strip() == "1", piped.stdout + piped.stderr
+    lines = subprocess.run([sys.executable, "-m", "safeembodai_core", "plugins"], capture_output=True, text=True,
+                           timeout=120).stdout.splitlines()
+    assert "validator\tlidar_clearance\tvalidators\tbuilt-in\tsafeembodai_plugins.validators" in lines
+    assert all(len(line.split("\t")) == 5 for line in lines), lines
+
+
+def test_plugins_at_a_terminal_never_breaks_an_identifier():
+    from rich.console import Console
+
+    from safeembodai_core.cli.plugins_cmd import render
+    from safeembodai_core.plugins import load_plugins
+
+    rows = load_plugins(environ={}).describe()
+    for width in (80, 30):
+        console = Console(width=width, record=True, force_terminal=True, color_system=None)
+        render(rows, console)
+        lines = console.export_text().splitlines()
+        words = {word.rstrip(",") for line in lines for word in line.split()}
+        for row in rows:
+            assert {row["name"], row["module"], *row["components"], *row["hooks"]} <= words, (width, row)
+        if width == 80:
+            assert max(map(len, lines)) <= 80
