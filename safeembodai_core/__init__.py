@@ -5,7 +5,8 @@ cv2) is imported until a run or a :class:`Guard` asks for one.
 
 * Guard your own robot: :class:`Guard` (see ``docs/library.md``).
 * Run the guarded loop around your own parts: :func:`run_guarded_trial`.
-* Write a plugin: :mod:`safeembodai_core.hookspecs` and :data:`hookimpl` (see ``docs/plugins.md``).
+* Write a plugin: :mod:`safeembodai_core.hookspecs` and :data:`hookimpl` (see ``docs/plugins.md``);
+  test it with :mod:`safeembodai_core.testing`. Every name in ``__all__`` is documented in ``docs/``.
 """
 
 from importlib import import_module
@@ -15,7 +16,7 @@ __version__ = "0.1.0"
 
 #: public name -> module that defines it (imported on first use, PEP 562)
 _EXPORTS = {
-    "Guard": "api", "GuardReport": "api", "run_guarded_trial": "api",
+    "Guard": "api", "GuardReport": "api", "run_guarded_trial": "api", "AttackSchedule": "attacks",
     "Attacker": "components", "AttackSurface": "components", "BackendReply": "components",
     "BuildContext": "components", "Environment": "components", "LLMBackend": "components",
     "Perception": "components", "PromptBuilder": "components", "RobotSpec": "components",
@@ -44,6 +45,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover
     from .api import Guard, GuardReport, run_guarded_trial  # noqa: F401
+    from .attacks import AttackSchedule  # noqa: F401
     from .components import (  # noqa: F401
         Attacker, AttackSurface, BackendReply, BuildContext, Environment, LLMBackend, Perception,
         PromptBuilder, RobotSpec, StateStore, Validator,

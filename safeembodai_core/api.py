@@ -19,6 +19,7 @@ Components may be given as objects or as registered names (with options). See ``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Sequence
 
@@ -33,6 +34,7 @@ from .models import (
     ControlSignal,
     LidarScan,
     LLMResponse,
+    Pose,
     ResponseParseError,
     StepRecord,
     TrialResult,
@@ -65,12 +67,26 @@ class GuardReport:
         return [f"{v.rule}: {v.reason}" for v in self.verdicts if not v.valid]
 
 
-def _components(plugins: Plugins, kind: str, items: Iterable[Any]) -> list[tuple[str, Any]]:
+def _pose(pose: Any) -> Pose | None:
+    """A caller's pose (a Pose, a dict of its fields, or ``(x_mm, y_mm, heading_deg)``); finite or refused."""
+    if pose is None:
+        return None
+    if not isinstance(pose, Pose):
+        pose = Pose.model_validate(pose) if isinstance(pose, dict) else Pose(
+            **dict(zip(("x_mm", "y_mm", "heading_deg"), pose, strict=True)))
+    if not all(math.isfinite(v) for v in (pose.x_mm, pose.y_mm, pose.heading_deg)):
+        raise ValueError(f"pose must be finite, got {pose!r}")
+    return pose
+
+
+def _components(plugins: Plugins, kind: str, items: Iterable[Any], seed: int = 0) -> list[tuple[str, Any]]:
+    """Build named components (as the scenario runner does: ``label`` is the key, ``seed`` the trial's)."""
     built = []
     for item in items:
         if isinstance(item, (str, dict, ComponentRef)):
             r = ref(item)
-            built.append((r.key, plugins.registry.build(kind, r.use, r.options, BuildContext(r.use, kind, label=r.key))))
+            context = BuildContext(r.use, kind, seed=seed, label=r.key)
+            built.append((r.key, plugins.registry.build(kind, r.use, r.options, context)))
         else:
             built.append((getattr(item, "name", type(item).__name__), item))
     return built
@@ -92,25 +108,28 @@ class Guard:
         self.robot = robot
         self.limits = limits
 
-    def _context(self, lidar_mm: Any, max_range_mm: float) -> ValidationContext:
+    def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any) -> ValidationContext:
         scan = None
         if lidar_mm is not None:
             scan = lidar_mm if isinstance(lidar_mm, LidarScan) else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm)
-        return ValidationContext(scan=scan, robot=self.robot, limits=self.limits)
+        return ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=_pose(pose))
 
-    def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0) -> GuardReport:
+    def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
+              pose: Any = None) -> GuardReport:
         """Validate ``commands`` (dicts as the LLM writes them, or signal models) in order.
 
         ``lidar_mm``: ranges in mm, beam k at k*360/N degrees counter-clockwise from the heading
-        (``inf`` = no return, ``nan`` = no reading), or a :class:`LidarScan`. Commands that do not
-        even parse get a ``schema`` verdict and are not judged further.
+        (``inf`` = no return, ``nan`` = no reading), or a :class:`LidarScan`. ``pose``: where the
+        robot is in your map's frame -- a :class:`~safeembodai_core.models.Pose` or
+        ``(x_mm, y_mm, heading_deg)`` -- for rules about places (``context.start_pose``); None if
+        unknown. Commands that do not even parse get a ``schema`` verdict and are not judged further.
         """
         try:
             signals = _SIGNALS.validate_python(list(commands), context={"limits": self.limits})
         except ValidationError as error:
             reason = describe_schema_error(error, most=5)  # keys and tags the LLM wrote come back quoted
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=reason)])
-        verdicts = validate_plan(signals, self._context(lidar_mm, max_range_mm), self.rules)
+        verdicts = validate_plan(signals, self._context(lidar_mm, max_range_mm, pose), self.rules)
         return GuardReport(signals=signals, verdicts=verdicts)
 
     def check_answer(
@@ -120,19 +139,22 @@ class Guard:
         finish_reason: str | None = None,
         lidar_mm: Any = None,
         max_range_mm: float = 10_000.0,
+        pose: Any = None,
     ) -> GuardReport:
         """Parse an LLM's raw answer (untrusted) and validate its control signals.
 
         The reading is the guarded loop's (:func:`~safeembodai_core.models.parse_response`):
         duplicate keys, several JSON objects, huge numbers and the like give a ``schema`` verdict.
         Pass the provider's ``finish_reason`` when you have it: an answer that did not end with a
-        normal stop (``"length"``, ``"content_filter"``, ...) is refused the same way.
+        normal stop (``"length"``, ``"content_filter"``, ...) is refused the same way. ``lidar_mm``,
+        ``max_range_mm`` and ``pose`` are as for :meth:`check`.
         """
         try:
             response = parse_response(text, self.limits, finish_reason=finish_reason)
         except ResponseParseError as error:
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))])
-        report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm)
+        report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm,
+                            pose=pose)
         report.response = response
         return report
 
@@ -156,22 +178,24 @@ def run_guarded_trial(
     """Run one guarded trial around your own parts; return the result and every step record.
 
     Validators come from ``defences.validators`` (names and options, as in a scenario) and run
-    only when ``defences.safety_validation`` is on.
+    only when ``defences.safety_validation`` is on. Components named here are built as a
+    scenario builds them: ``BuildContext.seed`` is ``seed`` (0 for the environment, which gets
+    ``seed`` in ``reset``, and the state store, which outlives trials).
     """
     plugins = plugins or load_plugins()
     defences = defences if isinstance(defences, Defences) else Defences.model_validate(defences or {})
 
-    def one(kind: str, item: Any) -> Any:
-        return _components(plugins, kind, [item])[0][1]
+    def one(kind: str, item: Any, seed: int = seed) -> Any:
+        return _components(plugins, kind, [item], seed)[0][1]
 
     parts = TrialParts(
-        environment=one("environment", environment),
+        environment=one("environment", environment, 0),
         perception=one("perception", perception),
         prompt_builder=one("prompt_builder", prompt_builder),
-        state=one("state_store", state),
+        state=one("state_store", state, 0),
         backend=one("llm_backend", backend),
-        validators=_components(plugins, "validator", defences.validators),
-        attackers=_components(plugins, "attacker", attackers),
+        validators=_components(plugins, "validator", defences.validators, seed),
+        attackers=_components(plugins, "attacker", attackers, seed),
     )
     settings = LoopSettings(max_steps=max_steps, defences=defences, limits=limits,
                             **({"instruction": instruction} if instruction else {}))

@@ -39,12 +39,19 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class BuildContext:
-    """Passed to every component factory: who is building and with which seed material."""
+    """Passed to every component factory: who is building and with which seed material.
+
+    ``component`` is the registered name, ``kind`` the component kind, ``seed`` the trial's seed
+    for per-trial components (0 for environments, which get it in ``reset``, state stores and
+    ``Guard``'s rules), ``label`` the key of this use (the scenario's ``label:``, else the
+    registered name; None only when built without a context), ``run_dir`` the run folder (None
+    outside ``safeembodai run`` / ``ablate``). See ``docs/plugin_hooks.md``.
+    """
 
     component: str
     kind: str
     seed: int = 0
-    label: str | None = None  # the scenario's name for this use of the component
+    label: str | None = None  # the key of this use of the component: its label, else the name
     run_dir: str | None = None
 
 
@@ -213,8 +220,11 @@ class AttackSurface:
     ``instruction`` is the human instruction h_i, ``observation`` the raw sensor readings (a
     spoofed LiDAR also fools the validators, as a real one would), ``reference_state`` R_{i-1}
     (None when state management is off or on the first step). ``rng`` is seeded from the
-    trial seed, the attacker's name and the step index only, so every arm of an ablation sees
-    the same attacks at the same steps.
+    trial seed, the attacker's key and the step index only, so every arm of an ablation sees
+    the same attacks at the same steps (:class:`~safeembodai_core.attacks.AttackSchedule` decides
+    when). ``step`` counts from 1; ``limits`` are the scenario's actuation limits. The
+    ``observation`` is a shallow copy: reassign its fields, never write into its arrays; the
+    validators' pose comes from the real observation, not from this copy.
     """
 
     step: int

@@ -36,6 +36,8 @@ from .models import (
 from .plugins import Plugins, load_plugins
 from .scenario import Scenario, parse_scenario
 
+__all__ = ["CorridorWorld", "answer", "inline_plugins", "run_tiny_trial", "straight", "tiny_scenario", "turn"]
+
 
 def straight(distance: float, direction: str = "forward", justification: str = "") -> dict[str, Any]:
     """A ``straight`` control signal as the LLM would write it."""
@@ -75,7 +77,13 @@ def tiny_scenario(
     registry: Any = None,
     **top: Any,
 ) -> Scenario:
-    """A one-cell scenario on flatland with the scripted backend replaying ``responses``."""
+    """A one-cell scenario (arm ``arm``, condition ``condition``) on flatland with the scripted
+    backend replaying ``responses``.
+
+    ``arm`` is the arm's defences, ``attackers`` the condition's attackers, ``environment`` a
+    name or ``{"use": ..., "options": ...}``. Any other keyword is a top-level scenario key that
+    replaces the default: ``backend={"use": "mock"}``, ``perception="text"``, ``seed=7``, ...
+    """
     import yaml
 
     data: dict[str, Any] = {
@@ -99,7 +107,11 @@ def run_tiny_trial(
     index: int = 0,
     **scenario_kwargs: Any,
 ) -> tuple[TrialResult, list[StepRecord]]:
-    """Run one trial of :func:`tiny_scenario` with ``plugins`` added; return its result and steps."""
+    """Run trial ``index`` of :func:`tiny_scenario` with ``plugins`` added; return its result and steps.
+
+    ``scenario_kwargs`` go to :func:`tiny_scenario` (``arm=``, ``attackers=``, ``environment=``,
+    ``max_steps=``, and top-level keys such as ``backend=``).
+    """
     from .runner import ScenarioRunner, trial_spec
 
     loaded = inline_plugins(*plugins)

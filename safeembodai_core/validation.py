@@ -20,7 +20,7 @@ from typing import Iterable, Literal, Sequence
 import numpy as np
 
 from .components import RobotSpec, Validator
-from .models import DEFAULT_LIMITS, ControlLimits, ControlSignal, LidarScan, Turn, Verdict
+from .models import DEFAULT_LIMITS, ControlLimits, ControlSignal, LidarScan, Pose, Turn, Verdict
 
 _UNKNOWN_RAY_STEP_MM = 50.0
 _EDGE_EPS = 1e-9
@@ -43,14 +43,26 @@ class SectorReading:
 
 @dataclass(frozen=True)
 class ValidationContext:
-    """What a validator knows: the scan taken at the start of the step, the robot's body, the
-    actuation limits, and the planned pose ``offset`` (x mm, y mm, heading deg) relative to
-    the pose where the scan was taken."""
+    """What a validator knows when it judges one signal of a plan (``docs/plugin_hooks.md``).
+
+    * ``scan``: the LiDAR scan read at the start of the step (as attackers left it: a spoofed
+      sensor fools the rules too), or None when the environment has no LiDAR.
+    * ``robot``: the robot's body (:class:`RobotSpec`, mm).
+    * ``limits``: the actuation limits of the scenario.
+    * ``offset``: ``(x_mm, y_mm, heading_deg)``, the planned pose reached by the plan's earlier
+      signals, in the *scan frame* (the robot frame where the scan was taken: x forward, y left,
+      heading counter-clockwise). ``(0, 0, 0)`` for a plan's first signal.
+    * ``start_pose``: where the robot really is at the start of the step, in the environment's
+      world (room) frame, as the environment reports it -- never the attacked copy an attacker
+      may alter; None when the environment reports no pose. :attr:`planned_pose` is it moved by
+      ``offset``.
+    """
 
     scan: LidarScan | None
     robot: RobotSpec = RobotSpec()
     limits: ControlLimits = DEFAULT_LIMITS
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    start_pose: Pose | None = None
 
     def advanced(self, signal: ControlSignal) -> "ValidationContext":
         """The context after ``signal`` is executed exactly as commanded."""
@@ -60,6 +72,19 @@ class ValidationContext:
         rad = math.radians(heading)
         d = signal.signed_distance_mm
         return replace(self, offset=(x + d * math.cos(rad), y + d * math.sin(rad), heading))
+
+    @property
+    def planned_pose(self) -> Pose | None:
+        """The planned pose in the world (room) frame: ``start_pose`` moved by ``offset``; None
+        without a ``start_pose``. Its heading is wrapped to [-180, 180)."""
+        if self.start_pose is None:
+            return None
+        x, y, heading = self.offset
+        start = self.start_pose
+        rad = math.radians(start.heading_deg)
+        c, s = math.cos(rad), math.sin(rad)
+        return Pose(x_mm=start.x_mm + x * c - y * s, y_mm=start.y_mm + x * s + y * c,
+                    heading_deg=(start.heading_deg + heading + 180.0) % 360.0 - 180.0)
 
     @property
     def at_scan_position(self) -> bool:

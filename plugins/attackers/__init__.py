@@ -10,37 +10,25 @@
   management puts one in the prompt).
 
 Each attacked step is recorded as ground truth (attacker, channel, kind, payload), so detection
-is scored exactly. Per-step randomness comes from the step's own stream (trial seed, attacker
-key, step), and each attacker draws the same count of numbers whether it attacks or not: every
-arm sees the same attacks at the same steps. Options and YAML examples: ``docs/attacks.md``.
+is scored exactly. Every options model subclasses :class:`safeembodai_core.attacks.AttackSchedule`
+(``rate``, ``start_step``, ``steps``) and every attacker asks its ``fires(target)`` first, the
+schedule a third-party attacker reuses. Per-step randomness comes from the step's own stream
+(trial seed, attacker key, step), and each attacker draws the same count of numbers whether it
+attacks or not: every arm sees the same attacks at the same steps. Options and YAML examples:
+``docs/attacks.md``.
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
+from safeembodai_core.attacks import AttackSchedule
 from safeembodai_core.hookspecs import hookimpl
 
 
-class _Schedule(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-    rate: float = Field(0.5, ge=0.0, le=1.0, allow_inf_nan=False, description=(
-        "probability that a step is attacked (default: the authors' release's injection rate; the paper gives none)"))
-    start_step: int = Field(1, ge=1, description="first step that may be attacked")
-    steps: list[int] | None = Field(None, description="attack exactly these steps (overrides rate and start_step)")
-
-    @field_validator("steps")
-    @classmethod
-    def _positive(cls, steps: list[int] | None) -> list[int] | None:
-        if steps is not None and any(s < 1 for s in steps):
-            raise ValueError("steps are numbered from 1")
-        return steps
-
-
-class PromptInjectionOptions(_Schedule):
+class PromptInjectionOptions(AttackSchedule):
     """Options of ``prompt_injection``."""
 
     mode: Literal["append", "replace"] = Field("append", description="attach to or replace the instruction")
@@ -74,7 +62,7 @@ class PromptInjectionOptions(_Schedule):
         return payloads
 
 
-class LidarSpoofOptions(_Schedule):
+class LidarSpoofOptions(AttackSchedule):
     """Options of ``lidar_spoof``."""
 
     mode: Literal["phantom", "erase"] = Field("phantom", description="add a fake obstacle or hide real ones")
@@ -94,7 +82,7 @@ class LidarSpoofOptions(_Schedule):
         return self
 
 
-class StatePoisoningOptions(_Schedule):
+class StatePoisoningOptions(AttackSchedule):
     """Options of ``state_poisoning``."""
 
     start_step: int = Field(2, ge=1, description="first step that may be attacked (step 1 has no state)")

@@ -18,13 +18,6 @@ from .library import PAYLOADS
 COORDINATE_RANGE_MM = 3000
 
 
-def scheduled(step: int, roll: float, rate: float, start_step: int, steps: list[int] | None) -> bool:
-    """Whether ``step`` is attacked: listed in ``steps``, or from ``start_step`` on when ``roll < rate``."""
-    if steps is not None:
-        return step in steps
-    return step >= start_step and roll < rate
-
-
 class PromptInjectionAttacker(Attacker):
     """Injects a payload from :data:`PAYLOADS` (or the user's own) at a seeded per-step rate."""
 
@@ -48,10 +41,10 @@ class PromptInjectionAttacker(Attacker):
     def attack(self, target: AttackSurface) -> list[AttackRecord]:
         o = self.options
         rng = target.rng
-        roll = float(rng.random())
+        fires = o.fires(target)
         pick = int(rng.integers(len(self.pool)))
         x, y = (int(v) for v in rng.integers(-COORDINATE_RANGE_MM, COORDINATE_RANGE_MM + 1, size=2))
-        if not scheduled(target.step, roll, o.rate, o.start_step, o.steps):
+        if not fires:
             return []
         kind, template = self.pool[pick]
         x, y = self._coordinates(target, x, y)

@@ -18,8 +18,6 @@ import numpy as np
 from safeembodai_core.components import Attacker, AttackSurface
 from safeembodai_core.models import AttackRecord, LidarScan
 
-from .injection import scheduled
-
 
 class LidarSpoofAttacker(Attacker):
     """Rewrites the beams of one sector of the scan; see the module docstring."""
@@ -39,11 +37,11 @@ class LidarSpoofAttacker(Attacker):
     def attack(self, target: AttackSurface) -> list[AttackRecord]:
         o = self.options
         rng = target.rng
-        roll = float(rng.random())
+        fires = o.fires(target)
         drawn_centre = float(rng.uniform(-180.0, 180.0))
         drawn_distance = float(rng.uniform(o.min_distance_mm, o.max_distance_mm))
         scan = target.observation.lidar
-        if scan is None or not scheduled(target.step, roll, o.rate, o.start_step, o.steps):
+        if scan is None or not fires:
             return []
         centre = self._centre(target, drawn_centre)
         beams = scan.sector(centre, o.half_width_deg)

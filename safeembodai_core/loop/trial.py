@@ -24,7 +24,7 @@ from typing import Any
 
 from .. import seeds
 from ..components import Attacker, AttackSurface, Environment, LLMBackend, Perception, PromptBuilder, StateStore, Validator
-from ..errors import SafeEmbodAIError, StateStoreError
+from ..errors import BackendError, SafeEmbodAIError, StateStoreError
 from ..logs import get_logger
 from ..models import (
     DEFAULT_LIMITS,
@@ -141,7 +141,8 @@ class _Totals:
         self.collisions_struck += collision == "struck"
         self.collision_note = f"{collision or 'unattributed'} collision at step {step}: {detail}"
 
-    def result(self, spec: TrialSpec, outcome: Outcome, detail: str, wall_time_s: float) -> TrialResult:
+    def result(self, spec: TrialSpec, outcome: Outcome, detail: str, wall_time_s: float,
+               error_kind: str | None = None) -> TrialResult:
         return TrialResult(
             spec=spec, outcome=outcome, steps=self.steps, prompt_tokens=self.prompt, completion_tokens=self.completion,
             distance_mm=self.distance, collisions=self.collisions, collisions_self=self.collisions_self,
@@ -149,12 +150,13 @@ class _Totals:
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
             lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory, wall_time_s=wall_time_s,
+            error_kind=error_kind if outcome == Outcome.ERROR else None,
         )
 
 
 def error_result(spec: TrialSpec, detail: str) -> TrialResult:
     """The result of a trial that could not even start (its components failed to build)."""
-    return storable(_Totals().result(spec, Outcome.ERROR, detail, 0.0))
+    return storable(_Totals().result(spec, Outcome.ERROR, detail, 0.0, "build"))
 
 
 def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugins: Any = None) -> TrialResult:
@@ -169,7 +171,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
     started = time.perf_counter()
     totals = _Totals()
     outcome: Outcome | None = None
-    detail, step = "", 0
+    detail, step, error_kind = "", 0, "crash"
     try:
         notify("before_trial", spec=spec)
         _store(lambda: parts.state.begin_trial(spec), "begin the trial")
@@ -200,6 +202,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
             outcome, detail = Outcome.TIMEOUT, f"step budget of {settings.max_steps} spent"
     except SafeEmbodAIError as error:  # backend outage, plugin failure, unreadable store
         outcome, detail = Outcome.ERROR, str(error)
+        error_kind = ("backend" if isinstance(error, BackendError) else
+                      "store" if isinstance(error, StateStoreError) else "reported")
         log.warning("trial.error", trial=spec.trial_id, step=step, error=detail)
         notify.safely("on_step_error", spec=spec, step=step, error=error)
     except Exception as error:  # a component bug must not take the whole ablation down
@@ -210,14 +214,14 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         detail = "simulated time limit reached"
     if outcome == Outcome.INTERRUPTED and not detail:
         detail = totals.collision_note
-    result = storable(totals.result(spec, outcome or Outcome.ERROR, detail, time.perf_counter() - started))
+    result = storable(totals.result(spec, outcome or Outcome.ERROR, detail, time.perf_counter() - started, error_kind))
     try:
         _store(lambda: parts.state.end_trial(result), "record the trial's result")
     except StateStoreError as error:  # the trial is not on record as finished: resuming re-runs it
         log.warning("trial.unrecorded", trial=spec.trial_id, error=str(error))
         was = f"{result.outcome.value}: {result.detail}" if result.detail else result.outcome.value
         result = storable(totals.result(spec, Outcome.ERROR, f"{error} (the trial had ended {was})",
-                                        time.perf_counter() - started))
+                                        time.perf_counter() - started, "store"))
         try:
             parts.state.end_trial(result)
         except Exception as again:  # the caller still gets the result; the store is beyond help
@@ -253,7 +257,9 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
         security_prefix=defences.prefix_variant, reference_state=surface.reference_state,
         limits=settings.limits, task=settings.task,
     )
-    context = ValidationContext(scan=surface.observation.lidar, robot=parts.environment.robot, limits=settings.limits)
+    # the scan as attacked (a spoofed sensor fools the rules too); the pose as the world reports it
+    context = ValidationContext(scan=surface.observation.lidar, robot=parts.environment.robot, limits=settings.limits,
+                                start_pose=observation.pose)
     attempts, response = decide(
         request, builder=parts.prompt_builder, backend=parts.backend,
         validators=parts.validators if defences.safety_validation else [],
