@@ -3,7 +3,9 @@
 For each step: the prompt summary (the human instruction as the LLM received it, the attacks
 that shaped it, tokens), every attempt's answer (perception with attack flags, plan, control
 signals with their justifications) and verdicts, then what was executed with what result.
-Without ``--trial`` it lists the trials in the file.
+Without ``--trial`` it lists the trials in the file, ids never cut (they are what ``--trial``
+takes). ``--trial N`` names trial N of every cell: in a run of several cells it must be narrowed
+with ``--env/--arm/--condition`` or given as a full id, and the error lists the candidates.
 
 Stored text is printed literally (rich ``Text``, never markup) and through
 :func:`~safeembodai_core.text_safety.terminal_text`: an escape sequence or NUL an answer held
@@ -15,10 +17,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from rich.console import Console, Group
+from rich.measure import Measurement
 from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
+from safeembodai_core.cli.run_cmd import plural, trial_ending
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import Attempt, StepRecord
 from safeembodai_core.text_safety import terminal_text as shown
@@ -56,19 +60,30 @@ def pick_trial(trials: list[dict], wanted: str, environment: str | None, arm: st
         raise StateStoreError(f"no trial {wanted!r} in this run (with the filters given); trials: {known}"
                               + (" ..." if len(rows) > 8 else ""))
     if len(matches) > 1:
-        raise StateStoreError(f"trial {wanted!r} exists in {len(matches)} cells: {', '.join(matches)}; "
-                              "narrow it with --env/--arm/--condition or pass the full trial id")
+        listed = "".join(f"\n  {shown(trial_id)}" for trial_id in matches)
+        raise StateStoreError(f"trial {wanted!r} exists in {len(matches)} cells; pass one of these full ids to "
+                              f"--trial, or narrow it with --env/--arm/--condition:{listed}")
     return matches[0]
 
 
 def trial_list(trials: list[dict]) -> Table:
-    table = Table(title="trials")
-    for column in ("trial id", "seed", "status", "outcome", "steps"):
-        table.add_column(column)
+    """The trials as a compact table; ids never wrap (:func:`print_uncut` keeps them whole)."""
+    table = Table(title="trials", box=None, padding=(0, 2, 0, 0), pad_edge=False, header_style="bold underline")
+    for column in ("trial id", "status", "outcome", "steps"):
+        table.add_column(column, no_wrap=True, justify="right" if column == "steps" else "left")
     for row in trials:
-        table.add_row(*(Text(shown(str(v))) for v in (row["trial_id"], row["seed"], row["status"], row["outcome"] or "-",
+        table.add_row(*(Text(shown(str(v))) for v in (row["trial_id"], row["status"], row["outcome"] or "-",
                                                        row["steps"])))
     return table
+
+
+def print_uncut(console: Console, table: Table) -> None:
+    """Print ``table`` whole: wider than the console, it is printed at its own width (the terminal
+    wraps the lines) rather than squeezed, since squeezing would cut the ids."""
+    natural = Measurement.get(console, console.options.update_width(10_000), table).maximum
+    if natural > console.width:
+        table.width = natural
+    console.print(table, crop=False)
 
 
 def _attempt(attempt: Attempt) -> Text:
@@ -110,7 +125,7 @@ def step_panel(record: StepRecord) -> Panel:
         head.append(f"attack ({shown(attack.attacker)}, {attack.channel}, {shown(attack.kind)}): ", style="bold red")
         head.append(f"{shown(attack.payload)}\n")
     usage = record.usage
-    head.append(f"{len(record.attempts)} attempt(s), {usage.prompt_tokens} prompt + "
+    head.append(f"{plural(len(record.attempts), 'attempt')}, {usage.prompt_tokens} prompt + "
                 f"{usage.completion_tokens} completion tokens", style="dim")
     if record.truth.target_in_view:
         head.append("; target in view", style="dim")
@@ -141,23 +156,26 @@ def show_run(run: str, trial: str | None, *, environment: str | None = None, arm
     try:
         trials = store.trials()
         if trial is None:
-            console.print(trial_list([row for row in trials if in_cell(row, environment, arm, condition)]))
+            print_uncut(console, trial_list([row for row in trials if in_cell(row, environment, arm, condition)]))
             return
         trial_id = pick_trial(trials, trial, environment, arm, condition)
+        seed = next(row["seed"] for row in trials if row["trial_id"] == trial_id)
         steps = store.steps(trial_id)
         result = store.result(trial_id)
     finally:
         store.close()
-    console.print(Text(shown(trial_id), style="bold"))
+    console.print(Text.assemble((shown(trial_id), "bold"), f" (seed {seed})"))
     for record in steps:
         console.print(step_panel(record))
     if result is None:
         console.print("trial did not finish (no result stored)")
     else:
+        ending = trial_ending(result, steps)
         line = Text("outcome: ")
         line.append(result.outcome.value, style="bold")
-        line.append(f" after {result.steps} steps ({shown(result.detail or 'no detail')}); distance {result.distance_mm:.0f} mm, "
-                    f"collisions {result.collisions}, interventions {result.interventions}, tokens {result.tokens}")
+        line.append(f" after {plural(result.steps, 'step')}" + (f" ({shown(ending)})" if ending else "")
+                    + f"; distance {result.distance_mm:.0f} mm, collisions {result.collisions}, "
+                    f"interventions {result.interventions}, tokens {result.tokens}")
         console.print(line)
 
 

@@ -117,8 +117,8 @@ class SqliteStateStore(StateStore):
             if self.readonly:
                 if not self.path.is_file():
                     raise StateStoreError(f"state store {str(self.path)!r}: no such database file")
-                conn = sqlite3.connect(self.path.resolve().as_uri() + "?mode=ro", uri=True,
-                                       timeout=self.timeout_s, isolation_level=None, check_same_thread=False)
+                conn = sqlite3.connect(self._readonly_uri(), uri=True, timeout=self.timeout_s, isolation_level=None,
+                                       check_same_thread=False)
             else:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 conn = sqlite3.connect(str(self.path), timeout=self.timeout_s, isolation_level=None,
@@ -136,6 +136,20 @@ class SqliteStateStore(StateStore):
             raise self._error("open the database", error) from None
         self._conn, self._pid = conn, os.getpid()
         return conn
+
+    def _readonly_uri(self) -> str:
+        """Read without leaving anything behind in a folder that is only being looked at.
+
+        A read-only connection to a WAL database creates ``-wal`` and ``-shm`` files and, unable to
+        checkpoint, never removes them. Without a ``-wal`` file no writer has the database open (a
+        writer's connection keeps one; the last writer to close removes it), so the file is opened
+        ``immutable``: no lock, no journal, nothing created. With one (a run still writing, or a
+        writer that was killed), ``mode=ro`` reads the log too, sharing the files that already exist.
+        """
+        uri = self.path.resolve().as_uri() + "?mode=ro"
+        if not Path(f"{self.path}-wal").exists():
+            uri += "&immutable=1"
+        return uri
 
     def _switch_to_wal(self, conn: sqlite3.Connection) -> None:
         """Enable WAL, waiting up to ``timeout_s`` for other processes creating the same file.

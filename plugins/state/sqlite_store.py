@@ -71,8 +71,9 @@ def register_commands(cli):
     @cli.command("show")
     @click.argument("run", type=click.Path(exists=True))
     @click.option("--trial", "trial", default=None, metavar="N|ID",
-                  help="Trial index or full trial id (environment/arm/condition/index); omit to list trials.")
-    @click.option("--env", "environment", default=None, help="Only trials of this environment label.")
+                  help="Trial index (with --env/--arm/--condition when several cells have one) or full trial id "
+                       "(environment/arm/condition/index); omit to list trials.")
+    @click.option("--env", "--environment", "environment", default=None, help="Only trials of this environment label.")
     @click.option("--arm", default=None, help="Only trials of this arm.")
     @click.option("--condition", default=None, help="Only trials of this condition.")
     def show(run, trial, environment, arm, condition):

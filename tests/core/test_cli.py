@@ -133,3 +133,34 @@ def test_plugins_at_a_terminal_never_breaks_an_identifier():
             assert {row["name"], row["module"], *row["components"], *row["hooks"]} <= words, (width, row)
         if width == 80:
             assert max(map(len, lines)) <= 80
+
+
+def test_run_summary_says_what_ended_an_interrupted_trial(cli_runner, repo, tmp_path, monkeypatch):
+    """Even from a result without a detail (an older store, an environment that gave none): the
+    collision on record in the trial's last executed step."""
+    from safeembodai_core.runner import ScenarioRunner
+
+    run = ScenarioRunner.run
+    monkeypatch.setattr(ScenarioRunner, "run", lambda self, spec: run(self, spec).model_copy(update={"detail": ""}))
+    result = cli_runner.invoke(cli, ["run", str(repo / "scenarios/quickstart.yaml"), "--arm", "baseline",
+                                     "--condition", "attack", "--trial", "1", "--out", str(tmp_path / "t")],
+                               env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    summary = next(line for line in result.output.splitlines() if line.startswith("flatland/baseline/attack/1:"))
+    assert "interrupted after 2 steps (self collision at step 2: straight forward" in summary, summary
+    assert "no detail" not in result.output
+
+
+def test_trial_ending_and_plural():
+    from safeembodai_core.cli.run_cmd import plural, trial_ending
+    from safeembodai_core.models import Outcome, StepRecord, TrialResult, TrialSpec
+    from safeembodai_core.models.observation import GroundTruth
+
+    spec = TrialSpec(trial_id="E/a/c/0", environment="E", arm="a", condition="c", seed=0)
+    assert plural(1, "step") == "1 step" and plural(0, "step") == "0 steps"
+    assert trial_ending(TrialResult(spec=spec, outcome=Outcome.COMPLETED, steps=3), []) == ""
+    assert trial_ending(TrialResult(spec=spec, outcome=Outcome.TIMEOUT, steps=3, detail="budget"), []) == "budget"
+    waited = StepRecord(trial_id="E/a/c/0", step=4, instruction="go",
+                        truth=GroundTruth(extra={"collision": "struck", "collision_detail": "a Labbot ran into it"}))
+    ending = trial_ending(TrialResult(spec=spec, outcome=Outcome.INTERRUPTED, steps=4), [waited])
+    assert ending == "struck collision before step 4: a Labbot ran into it"

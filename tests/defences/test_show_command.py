@@ -43,7 +43,8 @@ def test_show_prints_every_step_with_response_verdicts_and_execution(cli_runner,
     assert "attempt 2: accepted" in out and "human_instruction [ATTACK]" in out
     assert "the instruction looks malicious" in out
     assert "executed:" in out and "turn left 30 deg -> done" in out
-    assert "outcome: timeout after 2 steps" in out
+    assert "outcome: timeout after 2 steps" in out and "no detail" not in out
+    assert "flatland/arm/condition/0 (seed " in out
 
 
 def test_show_accepts_the_database_file_and_the_full_trial_id(cli_runner, run_dir):
@@ -100,3 +101,83 @@ def test_show_prints_stored_text_literally_even_when_it_looks_like_markup(tmp_pa
     show_run(str(path), "OF/a/c/0", console=Console(width=200))
     out = capsys.readouterr().out
     assert "[type=value_error, input=x] and [/x] closing" in out
+
+
+CELLS = [("OF", arm, condition) for arm in ("baseline", "safeembodai")
+         for condition in ("no_attack", "template_injection")]
+
+
+@pytest.fixture
+def ablation_dir(tmp_path):
+    """A run folder like an ablation's: trials 0 to 3 in each of 4 cells, stored and closed."""
+    from safeembodai_core.models import Outcome, TrialResult, TrialSpec
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    store = SqliteStateStore(tmp_path / "results.sqlite")
+    for environment, arm, condition in CELLS:
+        for index in range(4):
+            spec = TrialSpec(trial_id=f"{environment}/{arm}/{condition}/{index}", environment=environment, arm=arm,
+                             condition=condition, index=index, seed=2**62 + index)
+            store.begin_trial(spec)
+            store.end_trial(TrialResult(spec=spec, outcome=Outcome.COMPLETED, steps=index, detail="reached the can"))
+    store.close()
+    return tmp_path
+
+
+def test_an_index_in_several_cells_lists_the_full_ids_and_exits_non_zero(ablation_dir):
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "show", str(ablation_dir), "--trial", "3"],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode != 0 and "Traceback" not in done.stderr
+    assert "exists in 4 cells" in done.stderr
+    listed = [line.strip() for line in done.stderr.splitlines()[1:]]
+    assert listed == [f"{e}/{a}/{c}/3" for e, a, c in CELLS]
+
+
+def test_cell_filters_or_a_full_id_pick_one_trial(cli_runner, ablation_dir):
+    narrowed = invoke(cli_runner, ablation_dir, "--trial", "3", "--environment", "OF", "--arm", "safeembodai",
+                      "--condition", "no_attack")
+    assert narrowed.exit_code == 0, narrowed.output
+    assert "OF/safeembodai/no_attack/3" in narrowed.output and "after 3 steps (reached the can)" in narrowed.output
+    one = invoke(cli_runner, ablation_dir, "--trial", "OF/baseline/no_attack/1")
+    assert one.exit_code == 0, one.output
+    assert "after 1 step (reached the can)" in one.output
+
+
+@pytest.mark.parametrize("width", [80, 30])
+def test_the_listing_never_cuts_a_trial_id(ablation_dir, width):
+    from rich.console import Console
+
+    from safeembodai_plugins.state.review import show_run
+
+    console = Console(width=width, record=True, color_system=None)
+    show_run(str(ablation_dir), None, console=console)
+    lines = console.export_text().splitlines()
+    ids = {line.split()[0] for line in lines if line.strip()}
+    assert {f"{e}/{a}/{c}/{i}" for e, a, c in CELLS for i in range(4)} <= ids
+    if width == 80:
+        assert max(map(len, lines)) <= 80
+
+
+def test_show_leaves_nothing_behind_in_the_folder_it_reads(cli_runner, ablation_dir):
+    before = sorted(path.name for path in ablation_dir.iterdir())
+    assert invoke(cli_runner, ablation_dir).exit_code == 0
+    assert invoke(cli_runner, ablation_dir, "--trial", "OF/baseline/no_attack/2").exit_code == 0
+    assert sorted(path.name for path in ablation_dir.iterdir()) == before
+
+
+def test_show_reads_a_run_whose_writer_is_still_open(cli_runner, tmp_path):
+    """A live run's last trials are still in the -wal file: a read-only look must see them too."""
+    from safeembodai_core.models import Outcome, TrialResult, TrialSpec
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    store = SqliteStateStore(tmp_path / "results.sqlite")
+    try:
+        spec = TrialSpec(trial_id="OF/a/c/0", environment="OF", arm="a", condition="c", seed=1)
+        store.begin_trial(spec)
+        store.end_trial(TrialResult(spec=spec, outcome=Outcome.TIMEOUT, steps=2))
+        assert (tmp_path / "results.sqlite-wal").exists()
+        result = invoke(cli_runner, tmp_path)
+        assert result.exit_code == 0, result.output
+        assert "OF/a/c/0" in result.output and "timeout" in result.output
+    finally:
+        store.close()
