@@ -1,18 +1,23 @@
 """Read a scenario file, apply ``--set`` overrides, validate, and check every component.
 
 Errors name the file, the line and the dotted key (``mo.yaml:14: arms.safeembodai.failure_threshold:
-Input should be greater than or equal to 0``); a key set with ``--set`` is named as such. The file and
+Input should be greater than or equal to 0``); a key set with ``--set`` is named as such. Every problem
+is reported at once, in file order: schema errors together with the options of every component that
+could be read, and a misspelled key gets the closest known one ("did you mean 'trials'?"). The file and
 every ``--set`` value are read within the bounds of :mod:`.limits`. A ``profile`` is applied by the
 model (:mod:`.profiles`); each key the scenario sets otherwise is logged here as a warning.
 """
 
 from __future__ import annotations
 
+import difflib
+import types
+import typing
 from pathlib import Path
 from typing import Any, Iterable
 
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from ..errors import ComponentError, SafeEmbodAIError, ScenarioError
 from ..logs import get_logger
@@ -140,23 +145,37 @@ def parse_scenario(
         line = _line_of(root, loc)
         return f"{source}:{line}" if line else source
 
+    problems: list[tuple[tuple[Any, ...], str]] = []
+    scenario = None
     if data.get("profile") is not None:
         try:  # a file names its profile; the {name, overridden} record is what scenario.json holds
             if not isinstance(data["profile"], str):
                 raise ValueError(f"give a profile's name, not a {type(data['profile']).__name__}")
             profile_name(data["profile"])
         except ValueError as error:
-            raise ScenarioError(f"invalid scenario:\n  {locate(('profile',))}: profile: {error}") from None
+            problems.append((("profile",), f"{locate(('profile',))}: profile: {error}"))
+            data = {key: value for key, value in data.items() if key != "profile"}  # the rest is checked as written
     try:
-        scenario = Scenario.model_validate(data)
+        validated = Scenario.model_validate(data)
+        scenario = None if problems else validated
     except ValidationError as error:
-        lines = []
         for item in error.errors():
             loc = tuple(p for p in item["loc"] if not (isinstance(p, str) and p in ("function-before", "function-after")))
-            lines.append(f"{locate(loc)}: {_dotted(loc) or '(top level)'}: {item['msg']}")
-        raise ScenarioError("invalid scenario:\n  " + "\n  ".join(lines)) from None
+            message = item["msg"] + (_did_you_mean(Scenario, loc) if item["type"] == "extra_forbidden" else "")
+            problems.append((loc, f"{locate(loc)}: {_dotted(loc) or '(top level)'}: {message}"))
     if registry is not None:
-        check_components(scenario, registry, locate)
+        if scenario is not None:
+            check_components(scenario, registry, locate)
+        else:  # the components that could be read are checked too: every problem at once
+            wrong = [loc for loc, _ in problems]
+            refs = [(kind, loc, ref) for kind, loc, ref in _raw_refs(data)
+                    if not any(loc[:len(bad)] == bad or bad[:len(loc)] == loc for bad in wrong)]
+            problems.extend(_component_problems(refs, registry, locate))
+    if problems:  # in file order, then the --set keys (a stable sort keeps the rest as found)
+        problems.sort(key=lambda problem: (1, 0) if locate(problem[0]).startswith("--set")
+                      else (0, _line_of(root, problem[0]) or 0))
+        raise ScenarioError("invalid scenario:\n  " + "\n  ".join(message for _, message in problems))
+    assert scenario is not None
     if scenario.profile is not None:
         for key, values in scenario.profile.overridden.items():
             log.warning("scenario.profile_overridden", scenario=source, profile=scenario.profile.name, key=key,
@@ -181,20 +200,81 @@ def _refs(scenario: Scenario) -> list[tuple[str, tuple[Any, ...], ComponentRef]]
     return refs
 
 
-def check_components(scenario: Scenario, registry: ComponentRegistry, locate: Any = None) -> None:
-    """Every referenced component exists and its options validate; all problems reported at once."""
-    locate = locate or (lambda loc: "<scenario>")
+def _raw_refs(data: dict[str, Any]) -> list[tuple[str, tuple[Any, ...], ComponentRef]]:
+    """The component references of a scenario that did not validate, as far as they can be read."""
+    found: list[tuple[str, tuple[Any, ...], Any]] = []
+    environments = data.get("environments")
+    for index, raw in enumerate(environments if isinstance(environments, list) else []):
+        found.append(("environment", ("environments", index), raw))
+    for kind, key in (("llm_backend", "backend"), ("perception", "perception"), ("prompt_builder", "prompt_builder"),
+                      ("state_store", "state")):
+        if data.get(key) is not None:
+            found.append((kind, (key,), data[key]))
+    for section, key, kind in (("arms", "validators", "validator"), ("conditions", "attackers", "attacker")):
+        groups = data.get(section)
+        for name, group in (groups.items() if isinstance(groups, dict) else ()):
+            refs = group.get(key) if isinstance(group, dict) else None
+            for index, raw in enumerate(refs if isinstance(refs, list) else []):
+                found.append((kind, (section, name, key, index), raw))
+    readable = []
+    for kind, loc, raw in found:
+        try:
+            readable.append((kind, loc, ComponentRef.model_validate(raw)))
+        except ValidationError:
+            continue
+    return readable
+
+
+def _component_problems(refs: Iterable[tuple[str, tuple[Any, ...], ComponentRef]], registry: ComponentRegistry,
+                        locate: Any) -> list[tuple[tuple[Any, ...], str]]:
+    """(where, message) for every reference to an unknown component or with options that do not validate."""
     problems = []
-    for kind, loc, ref in _refs(scenario):
+    for kind, loc, ref in refs:
         try:
             info = registry.get(kind, ref.use)
             registry.validate_options(kind, ref.use, ref.options)
         except ComponentOptionsError as error:
             for sub, msg in error.errors:
                 full = loc + ("options",) + sub
-                problems.append(f"{locate(full)}: {_dotted(full)}: {msg} ({kind} {ref.use!r} from plugin {info.plugin!r})")
+                if msg == "Extra inputs are not permitted":
+                    msg += _did_you_mean(info.options, sub)
+                problems.append((full, f"{locate(full)}: {_dotted(full)}: {msg} "
+                                       f"({kind} {ref.use!r} from plugin {info.plugin!r})"))
         except ComponentError as error:
-            problems.append(f"{locate(loc + ('use',))}: {_dotted(loc)}: {error}")
+            problems.append((loc + ("use",), f"{locate(loc + ('use',))}: {_dotted(loc)}: {error}"))
+    return problems
+
+
+def _did_you_mean(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
+    """"; did you mean 'trials'?" for a key at ``loc`` that ``model`` does not know (or "")."""
+    known = _keys_at(model, loc[:-1])
+    close = difflib.get_close_matches(str(loc[-1]), known, n=1) if loc else []
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def _keys_at(annotation: Any, loc: tuple[Any, ...]) -> list[str]:
+    """The keys a mapping at ``loc`` inside ``annotation`` (a model) may hold; [] where it cannot tell."""
+    for part in (*loc, None):
+        while typing.get_origin(annotation) in (typing.Union, types.UnionType):
+            members = [a for a in typing.get_args(annotation) if a is not type(None)]
+            annotation = next((a for a in members if typing.get_origin(a) in (dict, list)
+                               or (isinstance(a, type) and issubclass(a, BaseModel))), None)
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            if part is None:
+                return list(annotation.model_fields)
+            field = annotation.model_fields.get(str(part))
+            annotation = field.annotation if field is not None else None
+        elif typing.get_origin(annotation) in (dict, list) and part is not None:
+            annotation = typing.get_args(annotation)[-1] if typing.get_args(annotation) else None
+        else:
+            return []
+    return []
+
+
+def check_components(scenario: Scenario, registry: ComponentRegistry, locate: Any = None) -> None:
+    """Every referenced component exists and its options validate; all problems reported at once."""
+    locate = locate or (lambda loc: "<scenario>")
+    problems = [message for _, message in _component_problems(_refs(scenario), registry, locate)]
     if not problems:
         problems.extend(_check_prefix_variants(scenario, registry, locate))
     if problems:
