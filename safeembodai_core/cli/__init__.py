@@ -2,10 +2,14 @@
 
 Errors a user can cause print one clear message and exit non-zero; ``--debug`` adds the
 traceback. Nothing heavy (litellm, pybullet, cv2) is imported until a command needs it.
+
+``SAFEEMBODAI_TRACE_PLUGINS=1`` shows every hook call whatever ``--log-level`` is: asking for the
+trace is asking to see it.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import traceback
 
@@ -54,8 +58,30 @@ def cli(ctx: click.Context, debug: bool, log_level: str, log_json: bool) -> None
     """SafeEmbodAI: keep LLM-controlled mobile robots safe, and measure how much each defence buys."""
     from ..logs import configure_logging
 
-    configure_logging("debug" if debug else log_level, log_json)
+    level = "debug" if debug else log_level
+    configure_logging(level, log_json)
+    if os.environ.get("SAFEEMBODAI_TRACE_PLUGINS") and level != "debug":
+        _show_plugin_traces(level)
     ctx.obj = {"debug": debug}
+
+
+def _show_plugin_traces(level: str) -> None:
+    """Let the plugin manager's ``hook.call`` debug events through; other events keep ``level``."""
+    import logging
+
+    import structlog
+
+    threshold = getattr(logging, level.upper())
+    names = {"debug": logging.DEBUG, "info": logging.INFO, "warning": logging.WARNING, "warn": logging.WARNING,
+             "error": logging.ERROR, "exception": logging.ERROR, "critical": logging.CRITICAL}
+
+    def keep(logger, method: str, event: dict) -> dict:
+        if event.get("event") != "hook.call" and names.get(method, logging.CRITICAL) < threshold:
+            raise structlog.DropEvent
+        return event
+
+    structlog.configure(processors=[keep, *structlog.get_config()["processors"]],
+                        wrapper_class=structlog.make_filtering_bound_logger(logging.DEBUG))
 
 
 def _register_builtin_commands() -> None:

@@ -2,6 +2,10 @@
 
 Ctrl-C (SIGINT) and SIGTERM stop the run cleanly: workers are killed, finished trials stay
 recorded, the resume command is printed and the exit code is 130 or 143 (128 + the signal).
+
+``--resume RUN`` alone resumes the scenario the run folder recorded (``scenario.json``); given
+with SCENARIO (and the same overrides) it checks that they match. ``--set``, ``--seed`` and
+``--backend`` with ``--resume`` alone are refused: they would change a recorded scenario.
 """
 
 from __future__ import annotations
@@ -10,11 +14,21 @@ import signal
 
 import click
 
-from .common import load, scenario_options
+from .common import load, load_recorded, scenario_options
+
+
+def _check_ray() -> None:
+    """Fail before a run folder is made, not after: the ray executor needs the ray extra."""
+    from ..errors import SafeEmbodAIError
+
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise SafeEmbodAIError('the ray executor needs the ray extra: pip install -e ".[ray]"') from None
 
 
 @click.command("ablate")
-@scenario_options
+@scenario_options(required=False)
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Trials in parallel.")
 @click.option("--executor", type=click.Choice(["serial", "process", "ray"]), default=None,
               help="Where trials run (default: serial for 1 worker, process otherwise).")
@@ -22,10 +36,14 @@ from .common import load, scenario_options
 @click.option("--out", "out_root", type=click.Path(file_okay=False), default="runs", show_default=True,
               help="Folder that receives the run folder <scenario>-<time>.")
 @click.option("--resume", "resume_dir", type=click.Path(file_okay=False, exists=True), default=None,
-              help="Finish the missing trials of this run folder (same scenario and overrides).")
+              help="Finish the missing trials of this run folder, with the scenario it recorded "
+                   "(SCENARIO, if given, must be the same, overrides included).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and figures at the end.")
 def ablate(scenario_path, backend, seed, overrides, workers, executor, address, out_root, resume_dir, no_report) -> None:
-    """Run the ablation of SCENARIO: environments x arms x conditions x trials."""
+    """Run the ablation of SCENARIO: environments x arms x conditions x trials.
+
+    With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
+    """
     from rich.console import Console
     from rich.markup import escape
 
@@ -34,50 +52,71 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     from ..errors import SafeEmbodAIError
     from .summary import summary_table
 
-    scenario, plugins = load(scenario_path, backend, seed, overrides)
+    if scenario_path is not None:
+        scenario, plugins = load(scenario_path, backend, seed, overrides)
+    elif resume_dir is None:
+        raise click.UsageError("Missing argument 'SCENARIO' (or --resume RUN to finish a run).")
+    elif backend is not None or seed is not None or overrides:
+        raise click.UsageError("--set, --seed and --backend would change the scenario the run recorded; resume with "
+                               "--resume RUN alone, or give them with the SCENARIO the run started with.")
+    else:
+        scenario, plugins = load_recorded(resume_dir)
+    if executor == "ray":
+        _check_ray()
+    from ..runner import preflight
+
+    preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
     folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
     console = Console()
     with StopSignals() as stop:
         try:
             results = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor, address)
-            console.print(summary_table(scenario, results))
+            console.print(summary_table(scenario, results, plugins=plugins))
             if not no_report:
                 from ..report import write_report
 
-                console.print(f"report: {write_report(folder.path, scenario, results)}")
+                console.print(f"report: {write_report(folder.path, scenario, results, plugins=plugins)}")
         except (KeyboardInterrupt, SafeEmbodAIError) as error:
             # a signal sent to the whole process group also kills workers: the broken pool is the signal's doing
             if isinstance(error, SafeEmbodAIError) and stop.signum is None:
                 raise
             console.print(f"[yellow]interrupted[/yellow] ({signal.Signals(stop.exit_code - 128).name}): "
-                          f"finished trials are recorded; resume with --resume {escape(str(folder.path))}")
+                          f"finished trials are recorded; resume with --resume {escape(str(folder.path))}",
+                          soft_wrap=True)
             raise SystemExit(stop.exit_code) from None
-    console.print(f"run folder: {escape(str(folder.path))}")
+    console.print(f"run folder: {escape(str(folder.path))}", soft_wrap=True)
+    from ..ablation.error_kinds import all_errored
+
+    failed = all_errored(results)
+    if failed:
+        raise SafeEmbodAIError(f"{failed} -- once fixed, resume with --resume {folder.path}")
 
 
 def _run(console, scenario, plugins, folder, resume, workers, executor, address):
     from rich.markup import escape
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     from ..ablation import Ablation
+    from ..text_safety import terminal_text
+    from .progress import AblationProgress
+    from .run_cmd import plural
 
     ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address)
     try:
         pending = ablation.pending()
         cells = {(s.environment, s.arm, s.condition) for s in pending}
-        console.print(f"run folder {folder.path}: {len(pending)} trials to run in {len(cells)} cells"
-                      f" ({ablation.executor_name}, {workers} worker{'s' if workers > 1 else ''})")
+        console.print(f"run folder: {escape(str(folder.path))}", soft_wrap=True)  # whole, to copy
+        console.print(f"{plural(len(pending), 'trial')} to run in {plural(len(cells), 'cell')}"
+                      f" ({ablation.executor_name}, {plural(workers, 'worker')})")
         left = {cell: sum(1 for s in pending if (s.environment, s.arm, s.condition) == cell) for cell in cells}
-        with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                      TimeRemainingColumn(), console=console) as progress:
+        with AblationProgress(console) as progress:
             trials = progress.add_task("trials", total=len(pending))
             finished_cells = progress.add_task("cells", total=len(cells))
 
             def advance(result) -> None:
                 cell = (result.spec.environment, result.spec.arm, result.spec.condition)
                 left[cell] -= 1
-                progress.update(trials, advance=1,
-                                description=f"trials (last: {escape(result.spec.trial_id)} {result.outcome.value})")
+                progress.last = f"last: {terminal_text(result.spec.trial_id)} {result.outcome.value}"
+                progress.advance(trials)
                 if left[cell] == 0:
                     progress.advance(finished_cells)
 

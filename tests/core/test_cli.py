@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
+
+import pytest
 
 from safeembodai_core.cli import cli
 
@@ -142,12 +145,17 @@ def test_run_summary_says_what_ended_an_interrupted_trial(cli_runner, repo, tmp_
 
     run = ScenarioRunner.run
     monkeypatch.setattr(ScenarioRunner, "run", lambda self, spec: run(self, spec).model_copy(update={"detail": ""}))
-    result = cli_runner.invoke(cli, ["run", str(repo / "scenarios/quickstart.yaml"), "--arm", "baseline",
-                                     "--condition", "attack", "--trial", "1", "--out", str(tmp_path / "t")],
-                               env={"COLUMNS": "200"})
-    assert result.exit_code == 0, result.output
-    summary = next(line for line in result.output.splitlines() if line.startswith("flatland/baseline/attack/1:"))
-    assert "interrupted after 2 steps (self collision at step 2: straight forward" in summary, summary
+    for index in range(20):  # the baseline arm under attack soon drives into something
+        result = cli_runner.invoke(cli, ["run", str(repo / "scenarios/quickstart.yaml"), "--arm", "baseline",
+                                         "--condition", "attack", "--trial", str(index), "--out", str(tmp_path / "t")],
+                                   env={"COLUMNS": "200"})
+        assert result.exit_code == 0, result.output
+        summary = next(line for line in result.output.splitlines() if line.startswith("flatland/baseline/attack/"))
+        if " interrupted " in summary:
+            break
+    else:
+        pytest.fail("no interrupted trial among the first 20")
+    assert re.search(r"interrupted after (1 step|\d+ steps) \(self collision at step \d+: (straight|turn) ", summary), summary
     assert "no detail" not in result.output
 
 
@@ -164,3 +172,20 @@ def test_trial_ending_and_plural():
                         truth=GroundTruth(extra={"collision": "struck", "collision_detail": "a Labbot ran into it"}))
     ending = trial_ending(TrialResult(spec=spec, outcome=Outcome.INTERRUPTED, steps=4), [waited])
     assert ending == "struck collision before step 4: a Labbot ran into it"
+
+
+def test_trace_plugins_shows_hook_calls_at_the_default_log_level():
+    import os
+
+    env = {**os.environ, "SAFEEMBODAI_TRACE_PLUGINS": "1"}
+    traced = subprocess.run([sys.executable, "-m", "safeembodai_core", "plugins", "--json"], capture_output=True,
+                            text=True, timeout=120, env=env)
+    assert traced.returncode == 0, traced.stderr
+    lines = traced.stderr.splitlines()
+    assert any("hook.call" in line and "hook=register_validators" in line and "plugin=validators" in line
+               for line in lines), traced.stderr
+    assert all("hook.call" in line for line in lines), traced.stderr  # other debug events stay hidden
+    env.pop("SAFEEMBODAI_TRACE_PLUGINS")
+    quiet = subprocess.run([sys.executable, "-m", "safeembodai_core", "plugins", "--json"], capture_output=True,
+                           text=True, timeout=120, env=env)
+    assert "hook.call" not in quiet.stderr
