@@ -24,6 +24,19 @@ IGNORE = shutil.ignore_patterns(".git", "runs", "build", "dist", "__pycache__", 
                                 ".hypothesis", "*.sqlite*")
 
 
+# The installed geofence, found by its entry point, guarding plans from a pose (docs/plugins.md).
+GEOFENCE_CHECK = """
+from safeembodai_core import Guard
+from safeembodai_core.testing import straight, turn
+
+guard = Guard(rules=[{"use": "geofence", "options": {"x_min_mm": 0, "x_max_mm": 3000, "y_min_mm": 0, "y_max_mm": 2000}}])
+print("inside:", guard.check([turn(45), straight(390)], pose=(1000, 1000, 0)).valid)
+leaving = guard.check([turn(45), straight(390)], pose=(2700, 1700, 0))
+print("leaving:", leaving.valid)
+print(leaving.reasons[0])
+"""
+
+
 def _run(*args, cwd=None, env=None, check=True):
     completed = subprocess.run([str(a) for a in args], capture_output=True, text=True, cwd=cwd, env=env, timeout=600)
     if check and completed.returncode != 0:
@@ -90,7 +103,7 @@ def test_example_plugin_is_found_through_its_entry_point(installed, repo):
     example = next(row for row in listing if row["name"] == "example")
     assert example["source"] == "entry point"
     assert example["distribution"].startswith("safeembodai-example-plugin")
-    assert {"validator:slow_zone", "attacker:polite_injection"} <= set(example["components"])
+    assert {"validator:slow_zone", "validator:geofence", "attacker:polite_injection"} <= set(example["components"])
     assert "register_commands" in example["hooks"]
     assert _run(python, "-m", "safeembodai_core", "example-zones", cwd=work).stdout.startswith('{"zone_mm"')
     scenario = (repo / "scenarios" / "quickstart.yaml").read_text().replace(
@@ -101,6 +114,9 @@ def test_example_plugin_is_found_through_its_entry_point(installed, repo):
     steps = [json.loads(line) for line in (work / "zones" / "steps.jsonl").read_text().splitlines()]
     rules = {v["rule"] for step in steps for attempt in step["attempts"] for v in attempt["verdicts"]}
     assert rules == {"slow_zone"}
+    fenced = _run(python, "-c", GEOFENCE_CHECK, cwd=work).stdout.splitlines()
+    assert fenced[:2] == ["inside: True", "leaving: False"]
+    assert fenced[2].startswith("geofence: straight forward 390 mm leaves the robot's area: at most 183 mm")
     blocked = _run(python, "-m", "safeembodai_core", "plugins", "--json", cwd=work,
                    env={**os.environ, "SAFEEMBODAI_DISABLE_PLUGINS": "example"}).stdout
     assert "example" not in {row["name"] for row in json.loads(blocked)}

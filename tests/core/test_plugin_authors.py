@@ -197,11 +197,11 @@ def test_a_third_party_attacker_on_the_schedule_is_paired_across_arms():
         "goal_hijack", lambda o, c: GoalHijack(o), options=HijackOptions))
     attacked = {}
     for arm in ({}, {"safety_validation": True, "security_prefix": True, "state_management": True}):
-        _, steps = run_tiny_trial([answer(turn(30))], plugins=[plugin], max_steps=8, arm=arm,
+        _, steps = run_tiny_trial([answer(turn(30))], plugins=[plugin], max_steps=12, arm=arm,
                                   attackers=[{"use": "goal_hijack", "label": "hijack", "options": {"rate": 0.5}}])
         attacked[bool(arm)] = [s.step for s in steps if s.attacks]
         assert {a.attacker for s in steps for a in s.attacks} <= {"hijack"}  # the key, not what the attacker wrote
-    assert attacked[False] == attacked[True] and 0 < len(attacked[True]) < 8
+    assert attacked[False] == attacked[True] and 0 < len(attacked[True]) < 12
 
 
 def test_verdicts_and_attack_records_carry_the_scenario_key():
