@@ -82,6 +82,7 @@ def test_the_wheel_ships_templates_and_data(installed):
             "safeembodai_core/data/paper_results.json", "safeembodai_core/py.typed"} <= names
     metadata = next(n for n in names if n.endswith(".dist-info/METADATA"))
     assert "License-Expression: MIT" in zipfile.ZipFile(installed[3]).read(metadata).decode()
+    assert any(name.endswith("licenses/LICENSE") for name in zipfile.ZipFile(installed[3]).namelist())
 
 
 def test_wheel_runs_a_scenario_outside_the_source_tree(installed, repo):
