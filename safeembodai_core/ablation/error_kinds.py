@@ -1,16 +1,17 @@
-"""What ended an ``error`` trial: a backend outage, a state store that could not write, or a crash.
+"""What ended an ``error`` trial: a backend outage, a state store that could not write, a failure
+another component reported, a crash, or components that could not be built.
 
-The trial loop ends a trial ``error`` both when a :class:`~safeembodai_core.errors.SafeEmbodAIError`
-is raised (a backend that gave up, a failing plugin or store: the message itself is the detail)
-and when a component raises anything else (a bug: the detail is ``"<ExceptionType>: <message>"``
-and the log says ``trial.crashed``). :class:`~safeembodai_core.models.TrialResult` has no field
-for the difference, so it is read off the detail: a crash's detail starts with an exception
-class name. SafeEmbodAI's own messages start with what failed ("llm backend ...", "state store
-...", "plugin ...", an environment's kind), never with such a name. A store that could not
-record the trial says "state store could not ..." (``loop/trial.py``).
+The trial loop names the kind in :attr:`~safeembodai_core.models.TrialResult.error_kind`
+(``loop/trial.py``): ``backend`` for a :class:`~safeembodai_core.errors.BackendError`, ``store``
+for a :class:`~safeembodai_core.errors.StateStoreError`, ``reported`` for any other
+:class:`~safeembodai_core.errors.SafeEmbodAIError`, ``crash`` for anything else (a bug; the log says
+``trial.crashed``), and ``error_result`` says ``build``. These functions read that field.
 
-A field of ``TrialResult`` naming the kind would be sturdier than reading text; until it
-exists, these functions are the one place that reads it.
+Results stored before the field existed have ``error_kind`` None; for them alone the kind is read
+off the detail, as earlier versions did: a crash's detail starts with an exception class name
+(``"ZeroDivisionError: ..."``), SafeEmbodAI's own messages start with what failed ("llm backend
+...", "scripted backend: ...", "state store could not ...", "components could not be built: ...",
+an environment's kind).
 """
 
 from __future__ import annotations
@@ -22,10 +23,31 @@ from ..models import Outcome, TrialResult
 
 _EXCEPTION_NAME = re.compile(r"^(?=[A-Za-z_])[\w.]*(Error|Exception|Exit|Interrupt|Warning|Failure|error): ")
 
+#: Every kind, in the order reports list them.
+KINDS = ("backend", "store", "reported", "build", "crash")
+
+
+def error_kind(result: TrialResult) -> str | None:
+    """The kind of an ``error`` trial (None for any other outcome)."""
+    if result.outcome != Outcome.ERROR:
+        return None
+    if result.error_kind is not None:
+        return result.error_kind
+    detail = result.detail
+    if _EXCEPTION_NAME.match(detail):
+        return "crash"
+    if detail.startswith("state store could not"):
+        return "store"
+    if detail.startswith("components could not be built"):
+        return "build"
+    if "backend" in detail.partition(":")[0]:  # "llm backend 'gpt-4o' ... gave up", "scripted backend: ..."
+        return "backend"
+    return "reported"
+
 
 def crashed(result: TrialResult) -> bool:
     """True for a trial ended by an unexpected exception in a component (not an outage)."""
-    return result.outcome == Outcome.ERROR and bool(_EXCEPTION_NAME.match(result.detail))
+    return error_kind(result) == "crash"
 
 
 def count_crashed(results: Iterable[TrialResult]) -> int:
@@ -34,4 +56,17 @@ def count_crashed(results: Iterable[TrialResult]) -> int:
 
 def store_failed(result: TrialResult) -> bool:
     """True for a trial ended because the state store could not record it (full disk, locked file)."""
-    return result.outcome == Outcome.ERROR and result.detail.startswith("state store could not")
+    return error_kind(result) == "store"
+
+
+def all_errored(results: list[TrialResult]) -> str | None:
+    """One line saying why a run is a failure when every one of its trials ended ``error``, else None."""
+    if not results or any(r.outcome != Outcome.ERROR for r in results):
+        return None
+    kinds: dict[str, int] = {}
+    for result in results:
+        kind = error_kind(result) or "reported"
+        kinds[kind] = kinds.get(kind, 0) + 1
+    counted = ", ".join(f"{kinds[k]} {k}" for k in KINDS if k in kinds)
+    return (f"every one of the {len(results)} trials ended in error ({counted}); no metric could be computed. "
+            f"First: {results[0].detail or 'no detail'}")

@@ -218,8 +218,19 @@ class TrialSpec(_Record):
     seed: int
 
 
+#: What ended an ``error`` trial: ``backend`` -- the LLM backend gave up (an outage, a bad key);
+#: ``store`` -- the state store could not write; ``reported`` -- another component reported a
+#: failure it knows (a plugin, an environment); ``crash`` -- an unexpected exception (a bug);
+#: ``build`` -- the trial's components could not be built.
+ErrorKind = Literal["backend", "store", "reported", "crash", "build"]
+
+
 class TrialResult(_Record):
-    """The summary of one trial, what metrics are computed from."""
+    """The summary of one trial, what metrics are computed from.
+
+    ``error_kind`` is set on ``error`` trials only; results stored before the field existed load
+    with None (``safeembodai_core.ablation.error_kinds`` then reads the kind off ``detail``).
+    """
 
     spec: TrialSpec
     outcome: Outcome
@@ -239,6 +250,7 @@ class TrialResult(_Record):
     first_seen_step: int | None = None  # first step whose observation had the target in view
     lost_after_seen_steps: int = 0  # steps after first_seen_step with the target out of view
     detail: str = ""
+    error_kind: ErrorKind | None = None
     trajectory: list[Pose] = Field(default_factory=list)
     wall_time_s: float = 0.0
 

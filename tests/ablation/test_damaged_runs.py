@@ -308,7 +308,7 @@ def test_summary_and_report_count_crashes_apart_from_backend_errors(tmp_path):
     assert header.split()[-2:] == ["err", "crash"] and row.split()[-2:] == ["2", "1"]
     assert max(len(line) for line in text.splitlines()) <= 80
     write_report(tmp_path, scenario, results)
-    assert "| 2 | 1 |" in (tmp_path / "report.md").read_text()
+    assert "| 2 (2 backend) | 1 |" in (tmp_path / "report.md").read_text()  # error (by kind), crashed
     row = json.loads((tmp_path / "metrics.json").read_text())["cells"][0]
     assert (row["errors"], row["crashed"]) == (2, 1)
 
