@@ -192,6 +192,12 @@ class LLMBackend(ABC):
     def complete(self, prompt: Prompt, rng: np.random.Generator) -> "BackendReply":
         """Send ``prompt``; raise :class:`~safeembodai_core.errors.BackendError` when no answer can be had."""
 
+    def preflight(self) -> None:
+        """Optional: raise :class:`~safeembodai_core.errors.BackendError` (one line) when this backend
+        cannot work at all -- a server that does not answer, say. ``safeembodai run`` and ``ablate``
+        call it once before the first trial (before any run folder exists); it must be cheap and
+        never spend tokens. The default checks nothing."""
+
     def close(self) -> None:
         """Release connections."""
 

@@ -28,9 +28,37 @@ from .logs import get_logger
 log = get_logger(__name__)
 
 
-def trial_seed(scenario: Scenario, index: int) -> int:
-    """The seed of trial ``index``: from the base seed and the index only, so every cell pairs up."""
-    return seeds.derive_seed(scenario.seed, "trial", index)
+def trial_seed(scenario: Scenario, environment: str, index: int) -> int:
+    """The seed of trial ``index`` in the environment labelled ``environment``.
+
+    From the base seed, the environment's label and the index only: every arm and condition of
+    one environment meets the same world at index k (paired comparisons), while each environment
+    draws its own worlds (its own robot and can placements, its own pilot dice).
+    """
+    return seeds.derive_seed(scenario.seed, "trial", environment, index)
+
+
+def preflight(scenario: Scenario, plugins: Plugins) -> None:
+    """Fail before the first trial, with one line, when the scenario's backend cannot work.
+
+    Builds the backend once (a missing API key fails its factory) and calls its optional
+    ``preflight()`` (the built-in litellm backends check that the server accepts a connection).
+    Nothing is written anywhere: ``run`` and ``ablate`` call this before making any folder.
+    """
+    try:
+        backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
+        try:
+            check = getattr(backend, "preflight", None)
+            if callable(check):
+                check()
+        finally:
+            backend.close()
+    except SafeEmbodAIError as error:
+        raise PreflightError(f"{error} (checked before the first trial: nothing was run)") from None
+
+
+class PreflightError(SafeEmbodAIError):
+    """The scenario's backend cannot work (no key, no server): raised before any trial runs."""
 
 
 def trajectory_file(run_dir: str | Path, trial_id: str) -> Path:
@@ -42,7 +70,7 @@ def trial_spec(scenario: Scenario, environment: str, arm: str, condition: str, i
     return TrialSpec(
         trial_id=f"{environment}/{arm}/{condition}/{index}",
         scenario=scenario.name, environment=environment, arm=arm, condition=condition,
-        index=index, seed=trial_seed(scenario, index),
+        index=index, seed=trial_seed(scenario, environment, index),
     )
 
 

@@ -161,6 +161,12 @@ class LiteLLMBackend(LLMBackend):
             self._sleep(delay)
         raise AssertionError("unreachable")  # pragma: no cover
 
+    def preflight(self) -> None:
+        """Before the first trial: the server accepts a connection (:mod:`.litellm_preflight`)."""
+        from .litellm_preflight import check_reachable
+
+        check_reachable(self.name, self.options, self._litellm)
+
     def _reply(self, response: Any, latency: float) -> BackendReply:
         choice = first_choice(response)
         text = answer_text(choice, self._secrets)

@@ -87,7 +87,7 @@ def test_set_and_seed_override_the_scenario(cli_runner, repo, tmp_path):
     assert saved["steps"] == 1
     from safeembodai_core.seeds import derive_seed
 
-    assert saved["spec"]["seed"] == derive_seed(123, "trial", 0)
+    assert saved["spec"]["seed"] == derive_seed(123, "trial", saved["spec"]["environment"], 0)
 
 
 def test_plugins_can_add_commands():

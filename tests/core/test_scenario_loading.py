@@ -38,9 +38,10 @@ def test_good_scenario_loads_and_pairs_seeds(tmp_path, plugins):
     assert len(specs) == 1 * 2 * 2 * 3
     by_index = {}
     for spec in specs:
-        by_index.setdefault(spec.index, set()).add(spec.seed)
-    assert all(len(seeds) == 1 for seeds in by_index.values())  # every cell faces the same worlds
-    assert by_index[0] == {trial_seed(scenario, 0)} and trial_seed(scenario, 0) != trial_seed(scenario, 1)
+        by_index.setdefault((spec.environment, spec.index), set()).add(spec.seed)
+    assert all(len(seeds) == 1 for seeds in by_index.values())  # every arm and condition faces the same worlds
+    env = scenario.environments[0].key
+    assert by_index[(env, 0)] == {trial_seed(scenario, env, 0)} and trial_seed(scenario, env, 0) != trial_seed(scenario, env, 1)
 
 
 def test_type_errors_name_file_line_and_key():
