@@ -23,6 +23,7 @@ def report(run_dir: str) -> None:
     from ..errors import SafeEmbodAIError
     from ..plugins import load_plugins
     from ..report import write_report
+    from ..report.run_info import run_info
     from ..runner import ScenarioRunner
     from .summary import summary_table
 
@@ -34,7 +35,8 @@ def report(run_dir: str) -> None:
     except RunInProgress as busy:
         raise SafeEmbodAIError(f"run in progress: {busy}; 'safeembodai ablate' writes the report when it ends") from None
     try:
-        runner = ScenarioRunner(scenario, load_plugins(), run_dir=folder.path, save_trajectories=True)
+        plugins = load_plugins()
+        runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
         try:
             try:
                 results = runner.state.results()
@@ -44,10 +46,12 @@ def report(run_dir: str) -> None:
                 raise SafeEmbodAIError(f"{run_dir} has no finished trial yet")
             results = runner.in_trial_order(results)
             runner.draw_missing_trajectories(results)
+            info = run_info(scenario, folder.path, plugins)
+            report = write_report(folder.path, scenario, results, store=runner.state, plugins=plugins)
         finally:
             runner.close()
         console = Console()
-        console.print(summary_table(scenario, results))
-        console.print(f"report: {escape(str(write_report(folder.path, scenario, results)))}")
+        console.print(summary_table(scenario, results, info=info))
+        console.print(f"report: {escape(str(report))}")
     finally:
         lock.release()

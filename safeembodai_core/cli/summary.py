@@ -1,34 +1,53 @@
-"""The terminal summary of an ablation: the paper's metrics per cell with 95% intervals."""
+"""The terminal summary of an ablation: what ran (backend, model, seed, scenario fingerprint, N per
+cell, a simulated pilot named as such) and the paper's metrics per cell, scored with the
+scenario's ``metrics`` settings."""
 
 from __future__ import annotations
+
+from typing import Any
 
 from rich.markup import escape
 from rich.table import Table
 
-from ..metrics import cell_metrics, group_by_cell
 from ..models import TrialResult
-from ..ablation.error_kinds import count_crashed
+from ..report.cells import scenario_cells
+from ..report.run_info import RunInfo, run_info
 from ..scenario import Scenario
 
 
-def summary_table(scenario: Scenario, results: list[TrialResult]) -> Table:
-    table = Table(title=f"{scenario.name}: metrics per cell", box=None, padding=(0, 1, 0, 0), pad_edge=False,
+def title(scenario: Scenario, info: RunInfo) -> str:
+    """The lines above the table (rich markup, escaped)."""
+    lines = [f"{escape(scenario.name)}: metrics per cell",
+             f"backend {escape(info.backend)}, model {escape(info.model)}",
+             f"seed {info.seed}, scenario {info.fingerprint[:12]}, N={info.trials_per_cell} per cell"]
+    if info.simulated:
+        lines.append(f"[bold red]{escape(info.simulated.upper())}[/bold red]")
+    return "\n".join(lines)
+
+
+def summary_table(scenario: Scenario, results: list[TrialResult], *, info: RunInfo | None = None,
+                  plugins: Any = None) -> Table:
+    info = info or run_info(scenario, plugins=plugins)
+    table = Table(title=title(scenario, info), box=None, padding=(0, 1, 0, 0), pad_edge=False,
                   header_style="bold underline")
-    crashes = count_crashed(results) > 0  # the column only when needed: the table fits 80 columns
+    cells = scenario_cells(scenario, results)
+    crashes = any(cell.crashed for cell in cells)  # the column only when needed: the table fits 80 columns
     columns = ("env", "arm", "condition", "n", "MOER", "done", "ADR", "TLR", "steps*", "tokens*", "ref", "err")
     for column in columns + (("crash",) if crashes else ()):
         table.add_column(column, no_wrap=True, justify="left" if column in ("env", "arm", "condition") else "right")
-    for (env, arm, condition), cell in group_by_cell(results).items():
-        m = cell_metrics(cell, scenario.max_steps)
-        crashed = count_crashed(cell)
-        table.add_row(escape(env), escape(arm), escape(condition), str(m.trials), _value(m.moer, 2), _value(m.completion, 2), _value(m.adr, 2),
-                      _value(m.tlr, 2), _value(m.steps, 1), _value(m.tokens, 0), _value(m.interventions, 1),
-                      str(m.errors - crashed), *((str(crashed),) if crashes else ()))
-    table.caption = ("done = completed share; * over completed trials; ref = answers refused by a validator per trial;\n"
-                     "err = backend or store failures" + ("; crash = trials a component's bug ended (see the log)" if crashes else "")
-                     + "; 95% intervals in report.md")
+    for cell in cells:
+        m = cell.metrics
+        table.add_row(escape(m.environment), escape(m.arm), escape(m.condition), str(m.trials), _value(m.moer, 2),
+                      _value(m.completion, 2), _value(m.adr, 2), _value(m.tlr_all, 2), _value(m.steps, 1),
+                      _value(m.tokens, 0), _value(m.interventions, 1), str(cell.errors),
+                      *((str(cell.crashed),) if crashes else ()))
+    table.caption = "\n".join([
+        "done = completed share; TLR = lost steps / all steps (the paper's)",
+        "* over completed trials; ref = validator refusals per trial",
+        "err = backend, store or other failures" + ("; crash = a component's bug" if crashes else ""),
+        "n/a = nothing to estimate (ADR without attacks); intervals in report.md"])
     return table
 
 
 def _value(estimate, digits: int) -> str:
-    return "-" if estimate.value is None else f"{estimate.value:.{digits}f}"
+    return "n/a" if estimate.value is None else f"{estimate.value:.{digits}f}"

@@ -1,4 +1,9 @@
-"""95% confidence intervals: Wilson for proportions, a seeded percentile bootstrap for means."""
+"""95% confidence intervals: Wilson for proportions, a seeded percentile bootstrap for means.
+
+A mean of fewer than :data:`MIN_N_FOR_INTERVAL` values gets no interval: the bootstrap of one
+value is a zero-width interval and of two values hardly more, either of which would read as
+certainty. Such an estimate prints as ``0.53 (n=2)``.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,7 @@ import numpy as np
 
 Z95 = 1.959963984540054
 BOOTSTRAP_RESAMPLES = 2000
+MIN_N_FOR_INTERVAL = 3
 
 
 @dataclass(frozen=True)
@@ -22,10 +28,11 @@ class Estimate:
     n: int = 0
 
     def fmt(self, digits: int = 2) -> str:
+        """``0.53 [0.41, 0.66]``; ``0.53 (n=2)`` without an interval; ``n/a`` without a value."""
         if self.value is None:
             return "n/a"
         if self.low is None or self.high is None:
-            return f"{self.value:.{digits}f}"
+            return f"{self.value:.{digits}f}" + (f" (n={self.n})" if self.n else "")
         return f"{self.value:.{digits}f} [{self.low:.{digits}f}, {self.high:.{digits}f}]"
 
 
@@ -41,13 +48,14 @@ def wilson(successes: int, trials: int) -> Estimate:
 
 
 def bootstrap_mean(values: Sequence[float], seed: int = 0) -> Estimate:
-    """Mean with a percentile-bootstrap 95% interval (seeded: the same data give the same interval)."""
+    """Mean with a percentile-bootstrap 95% interval (seeded: the same data give the same interval);
+    no interval for fewer than :data:`MIN_N_FOR_INTERVAL` values."""
     data = np.asarray([v for v in values if v is not None], dtype=float)
     if data.size == 0:
         return Estimate(None, n=0)
     mean = float(data.mean())
-    if data.size == 1:
-        return Estimate(mean, mean, mean, 1)
+    if data.size < MIN_N_FOR_INTERVAL:
+        return Estimate(mean, n=int(data.size))
     rng = np.random.default_rng(seed)
     samples = rng.choice(data, size=(BOOTSTRAP_RESAMPLES, data.size), replace=True).mean(axis=1)
     low, high = np.percentile(samples, [2.5, 97.5])

@@ -1,24 +1,34 @@
 """Figures in the style of the paper's Figures 5-8: grouped bars per environment, one bar per arm,
-one panel per condition, 95% intervals as error bars and the paper's values as white diamonds."""
+one panel per condition, 95% intervals as error bars and the paper's values as white diamonds.
+
+A diamond is drawn only where the metric has the paper's definition (``tlr.png`` plots our
+``tlr_all``, the paper's TLR; ``tlr_after_seen.png`` is ours alone). A bar whose mean has fewer
+than three trials behind it has no error bar and is labelled ``n=1`` or ``n=2``. ``note`` (the
+banner of a simulated pilot) is printed on every figure.
+"""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from ..metrics import CellMetrics
+from ..metrics.intervals import MIN_N_FOR_INTERVAL
 from .paper import paper_value
 
+#: file name -> (attribute of CellMetrics, axis label, y limits, the paper's metric or None)
 FIGURES = {
-    "moer": ("MOER", (0, 1.05)),
-    "adr": ("ADR", (0, 1.0)),
-    "tlr": ("TLR", (0, 1.0)),
-    "steps": ("Steps (completed)", None),
-    "tokens": ("Tokens (completed)", None),
-    "distance_mm": ("Distance mm (completed)", None),
+    "moer": ("moer", "MOER", (0, 1.05), "moer"),
+    "adr": ("adr", "ADR", (0, 1.0), "adr"),
+    "tlr": ("tlr_all", "TLR (lost steps / all steps)", (0, 1.0), "tlr"),
+    "tlr_after_seen": ("tlr_after_seen", "TLR after first sighting (ours)", (0, 1.0), None),
+    "steps": ("steps", "Steps (completed)", None, "steps"),
+    "tokens": ("tokens", "Tokens (completed)", None, "tokens"),
+    "distance_mm": ("distance_mm", "Distance mm (completed)", None, "distance_mm"),
 }
 
 
-def draw_figures(cells: list[CellMetrics], folder: Path) -> list[Path]:
+def draw_figures(cells: list[CellMetrics], folder: Path, note: str | None = None) -> list[Path]:
     """Write one PNG per metric into ``folder``; return their paths."""
     import matplotlib
 
@@ -32,11 +42,11 @@ def draw_figures(cells: list[CellMetrics], folder: Path) -> list[Path]:
     lookup = {(m.environment, m.arm, m.condition): m for m in cells}
     width = 0.8 / max(1, len(arms))
     paths = []
-    for metric, (label, limits) in FIGURES.items():
-        fig, axes = plt.subplots(1, len(conditions), figsize=(3.2 * len(conditions) + 1, 3.2), squeeze=False, sharey=True)
+    for name, (metric, label, limits, theirs_metric) in FIGURES.items():
+        fig, axes = plt.subplots(1, len(conditions), figsize=(3.2 * len(conditions) + 1, 3.4), squeeze=False, sharey=True)
         for axis, condition in zip(axes[0], conditions):
             for a, arm in enumerate(arms):
-                xs, values, lows, highs, paper_x, paper_y = [], [], [], [], [], []
+                xs, values, lows, highs, paper_x, paper_y, few = [], [], [], [], [], [], []
                 for e, environment in enumerate(environments):
                     m = lookup.get((environment, arm, condition))
                     estimate = getattr(m, metric) if m else None
@@ -44,13 +54,19 @@ def draw_figures(cells: list[CellMetrics], folder: Path) -> list[Path]:
                     if estimate is not None and estimate.value is not None:
                         xs.append(x)
                         values.append(estimate.value)
-                        lows.append(estimate.value - (estimate.low if estimate.low is not None else estimate.value))
-                        highs.append((estimate.high if estimate.high is not None else estimate.value) - estimate.value)
-                    theirs = paper_value(metric, environment, arm, condition)
+                        bounded = estimate.low is not None and estimate.high is not None
+                        lows.append(estimate.value - estimate.low if bounded else math.nan)  # nan: no error bar
+                        highs.append(estimate.high - estimate.value if bounded else math.nan)
+                        if estimate.n < MIN_N_FOR_INTERVAL:
+                            few.append((x, estimate.value, estimate.n))
+                    theirs = paper_value(theirs_metric, environment, arm, condition) if theirs_metric else None
                     if theirs is not None:
                         paper_x.append(x)
                         paper_y.append(theirs)
                 axis.bar(xs, values, width=width * 0.95, yerr=[lows, highs], capsize=2, label=arm, color=f"C{a}")
+                for x, value, n in few:
+                    axis.annotate(f"n={n}", (x, value), ha="center", va="bottom", fontsize="x-small",
+                                  xytext=(0, 2), textcoords="offset points")
                 if paper_x:
                     axis.scatter(paper_x, paper_y, marker="D", s=28, facecolors="white", edgecolors="black",
                                  linewidths=1.2, zorder=4, label="paper (GPT-4o)")
@@ -61,12 +77,16 @@ def draw_figures(cells: list[CellMetrics], folder: Path) -> list[Path]:
         axes[0][0].set_ylabel(label)
         handles: dict[str, object] = {}
         for axis in axes[0]:
-            for handle, name in zip(*axis.get_legend_handles_labels()):
-                handles.setdefault(name, handle)
+            for handle, legend_name in zip(*axis.get_legend_handles_labels()):
+                handles.setdefault(legend_name, handle)
         fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=len(handles), fontsize="small",
                    frameon=False)
-        fig.tight_layout(rect=(0, 0.08, 1, 1))
-        path = folder / f"{metric}.png"
+        top = 1.0
+        if note:
+            fig.suptitle(note, fontsize="small", color="darkred", fontstyle="italic")
+            top = 0.93
+        fig.tight_layout(rect=(0, 0.08, 1, top))
+        path = folder / f"{name}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)

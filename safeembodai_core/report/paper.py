@@ -1,4 +1,9 @@
-"""The paper's published figures (shipped as data) and the comparison with a run's cells."""
+"""The paper's published figures (shipped as data) and the comparison with a run's cells.
+
+Each of our metrics is compared with the paper's under the paper's definition: TLR is the paper's
+and the authors' release's lost steps over all steps (our ``tlr_all``), never our
+``tlr_after_seen``, which the paper does not report (``docs/metrics.md``).
+"""
 
 from __future__ import annotations
 
@@ -9,7 +14,9 @@ from typing import Any
 
 from ..metrics import CellMetrics
 
-COMPARED = ("moer", "adr", "tlr", "steps", "tokens", "distance_mm")
+#: Our metric -> the paper's metric (the key in ``data/paper_results.json``) it is compared with.
+COMPARED = {"moer": "moer", "adr": "adr", "tlr_all": "tlr", "steps": "steps", "tokens": "tokens",
+            "distance_mm": "distance_mm"}
 
 
 @lru_cache(maxsize=1)
@@ -20,21 +27,25 @@ def paper_results() -> dict[str, Any]:
 
 
 def paper_value(metric: str, environment: str, arm: str, condition: str) -> float | None:
-    """The paper's value for a cell, or None when the paper has none (or the cell is not the paper's)."""
+    """The paper's value of its ``metric`` for a cell, or None when the paper has none (or the cell is not the paper's)."""
     table = paper_results()["metrics"].get(metric, {})
     return table.get(arm, {}).get(condition, {}).get(environment)
 
 
 def comparison_rows(cells: list[CellMetrics]) -> list[dict[str, Any]]:
-    """One row per (cell, metric) the paper reports: ours with its interval, the paper's, inside or not."""
+    """One row per (cell, metric) the paper reports: ours with its interval, the paper's, inside or not.
+
+    ``metric`` is the paper's name, ``ours_metric`` the attribute of :class:`CellMetrics` compared.
+    """
     rows = []
     for m in cells:
-        for metric in COMPARED:
+        for ours_metric, metric in COMPARED.items():
             theirs = paper_value(metric, m.environment, m.arm, m.condition)
-            ours = getattr(m, metric)
+            ours = getattr(m, ours_metric)
             if theirs is None or ours.value is None:
                 continue
-            inside = ours.low is not None and ours.low <= theirs <= ours.high
+            inside = None if ours.low is None else ours.low <= theirs <= ours.high
             rows.append({"environment": m.environment, "arm": m.arm, "condition": m.condition, "metric": metric,
-                         "ours": ours.value, "low": ours.low, "high": ours.high, "paper": theirs, "inside": inside})
+                         "ours_metric": ours_metric, "ours": ours.value, "low": ours.low, "high": ours.high,
+                         "n": ours.n, "paper": theirs, "inside": inside})
     return rows

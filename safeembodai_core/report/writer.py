@@ -1,85 +1,122 @@
-"""Write ``metrics.json``, ``metrics.csv`` and ``report.md`` for a run folder."""
+"""Write ``metrics.json``, ``metrics.csv``, ``figures/`` and ``report.md`` for a run folder.
+
+Cells are scored with the scenario's own ``metrics`` settings (``report/cells.py``); the header
+names backend, model, seed, fingerprint and trials per cell, and flags a simulated pilot on the
+report and on every figure (``report/run_info.py``); refusals per rule and attacks per kind are
+read from the stored steps (``report/step_facts.py``).
+"""
 
 from __future__ import annotations
 
 import csv
 import json
 from pathlib import Path
+from typing import Any
 
-from ..metrics import CellMetrics, cell_metrics, group_by_cell
+from ..components import StateStore
 from ..models import TrialResult
 from ..runner import trajectory_file
 from ..scenario import Scenario
-from ..ablation.error_kinds import count_crashed
+from . import markdown, step_facts
+from .cells import Cell, scenario_cells
 from .figures import draw_figures
 from .paper import comparison_rows
+from .run_info import run_info
 
-ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", "tlr", "tlr_all", "steps",
+ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", "tlr_all", "tlr_after_seen", "steps",
              "tokens", "distance_mm", "collisions", "interventions", "retries")
 
 
-def _cells(results: list[TrialResult], budget: int) -> list[tuple[CellMetrics, int]]:
-    """Each cell's metrics with how many of its ``error`` trials crashed."""
-    return [(cell_metrics(cell, budget), count_crashed(cell)) for cell in group_by_cell(results).values()]
-
-
-def _row(m: CellMetrics, crashed: int) -> dict[str, object]:
+def _row(cell: Cell, facts: dict[str, step_facts.TrialFacts] | None) -> dict[str, object]:
+    m, scored = cell.metrics, cell.scored
+    steps = sum(r.steps for r in scored)
     row: dict[str, object] = {"environment": m.environment, "arm": m.arm, "condition": m.condition,
-                              "trials": m.trials, "errors": m.errors - crashed, "crashed": crashed,
+                              "trials": m.trials, "errors": cell.errors, "crashed": cell.crashed,
                               "s_max": m.s_max, "s_max_from": m.s_max_from}
     row.update({f"outcome_{k}": v for k, v in m.outcomes.items()})
+    row.update({f"errors_{k}": v for k, v in sorted(cell.error_kinds.items())})
     for name in ESTIMATES:
         estimate = getattr(m, name)
         row[name], row[f"{name}_low"], row[f"{name}_high"], row[f"{name}_n"] = (
             estimate.value, estimate.low, estimate.high, estimate.n)
+    row["collisions_self"] = sum(r.collisions_self for r in scored)
+    row["collisions_struck"] = sum(r.collisions_struck for r in scored)
+    row["steps_total"], row["attacked_steps"] = steps, sum(r.attacked_steps for r in scored)
+    row["attack_rate"] = row["attacked_steps"] / steps if steps else None
+    if facts is not None:
+        for result in scored:
+            trial = facts.get(result.spec.trial_id, step_facts.TrialFacts())
+            for rule, count in trial.refusals.items():
+                row[f"refusals_{rule}"] = row.get(f"refusals_{rule}", 0) + count
+            for kind, count in trial.attacked_by_kind.items():
+                row[f"attacked_steps_{kind}"] = row.get(f"attacked_steps_{kind}", 0) + count
     return row
 
 
-def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResult]) -> Path:
-    """Write the metrics files and report.md into ``folder``; return the report's path."""
+def _facts(folder: Path, scenario: Scenario, results: list[TrialResult],
+           store: StateStore | None) -> dict[str, step_facts.TrialFacts] | None:
+    ids = [r.spec.trial_id for r in results]
+    database = step_facts.sqlite_file(folder, scenario.state.use, scenario.state.options)
+    facts = step_facts.from_sqlite(database, ids) if database is not None else None
+    if facts is None and store is not None:
+        facts = step_facts.from_store(store, ids)
+    return facts
+
+
+def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResult], *,
+                 store: StateStore | None = None, plugins: Any = None) -> Path:
+    """Write the metrics files, figures and report.md into ``folder``; return the report's path.
+
+    ``store`` (open) is read for refusals and attack kinds when the run's store is not the
+    ``sqlite`` file in the folder; ``plugins`` fills in the backend's default options (loaded
+    when not given).
+    """
     folder = Path(folder)
-    counted = _cells(results, scenario.max_steps)
-    cells = [m for m, _ in counted]
-    rows = [_row(m, crashed) for m, crashed in counted]
-    (folder / "metrics.json").write_text(json.dumps({"scenario": scenario.name, "cells": rows,
-                                                     "trials": [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]},
-                                                    indent=2), encoding="utf-8")
+    info = run_info(scenario, folder, plugins)
+    cells = scenario_cells(scenario, results)
+    facts = _facts(folder, scenario, results, store)
+    rows = [_row(cell, facts) for cell in cells]
+    (folder / "metrics.json").write_text(json.dumps({
+        "scenario": scenario.name, "run": info.as_dict(), "cells": rows,
+        "trials": [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]}, indent=2), encoding="utf-8")
+    fields = list(dict.fromkeys(key for row in rows for key in row)) or ["environment"]
     with (folder / "metrics.csv").open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]) if rows else ["environment"])
+        writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
         writer.writerows(rows)
-    lines = [f"# {scenario.name}", "", scenario.description or "", "",
-             f"{len(results)} trials, {scenario.trials} per cell, step budget {scenario.max_steps}.", "",
-             "| env | arm | condition | n | MOER | completed | ADR | TLR | steps* | tokens* | distance mm* | errors | crashed |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for m, crashed in counted:
-        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {m.trials} | {m.moer.fmt()} | {m.completion.fmt()} "
-                     f"| {m.adr.fmt()} | {m.tlr.fmt()} | {m.steps.fmt(1)} | {m.tokens.fmt(0)} | {m.distance_mm.fmt(0)} "
-                     f"| {m.errors - crashed} | {crashed} |")
-    lines += ["", "\\* over completed trials. Intervals are 95% (bootstrap for means, Wilson for proportions); "
-              "see docs/metrics.md for every formula. errors: trials ended by a backend outage or a reported "
-              "failure; crashed: trials ended by an unexpected exception in a component (a bug). Neither counts "
-              "in n or the metrics; both run again on resume.", ""]
-    figures = draw_figures(cells, folder / "figures") if cells else []
+    metrics = [cell.metrics for cell in cells]
+    lines = markdown.header(scenario, info, len(results))
+    lines += markdown.metrics_table(cells) + markdown.outcomes_table(cells)
+    lines += markdown.defences_table(cells, facts, scenario.state.use)
+    lines += [markdown.GLOSSARY, ""]
+    figures = draw_figures(metrics, folder / "figures", note=info.simulated) if metrics else []
     if figures:
         lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
-    comparison = comparison_rows(cells)
-    lines += ["## Against the paper", ""]
-    if comparison:
-        lines += ["Our value with its 95% interval next to the value read off the paper's figures (GPT-4o, EyeSim). "
-                  "Backends other than GPT-4o simulate or substitute the LLM: agreement is not expected, only comparable scales.", "",
-                  "| env | arm | condition | metric | ours | paper | paper inside our interval |", "|---|---|---|---|---|---|---|"]
-        for row in comparison:
-            interval = f" [{row['low']:.2f}, {row['high']:.2f}]" if row["low"] is not None else ""
-            lines.append(f"| {row['environment']} | {row['arm']} | {row['condition']} | {row['metric']} "
-                         f"| {row['ours']:.2f}{interval} | {row['paper']:g} | {'yes' if row['inside'] else 'no'} |")
-    else:
-        lines.append("No cell of this run matches a cell of the paper (environments OF/SO/DO/MO, arms baseline/safeembodai, "
-                     "conditions no_attack/attack).")
+    lines += _against_the_paper(metrics, info.simulated)
     lines += _trajectories(folder, results)
     report = folder / "report.md"
     report.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return report
+
+
+def _against_the_paper(metrics: list, simulated: str | None) -> list[str]:
+    comparison = comparison_rows(metrics)
+    lines = ["## Against the paper", ""]
+    if not comparison:
+        return lines + ["No cell of this run matches a cell of the paper (environments OF/SO/DO/MO, arms "
+                        "baseline/safeembodai, conditions no_attack/attack)."]
+    lines += ["Our value with its 95% interval next to the value read off the paper's figures (GPT-4o, EyeSim), "
+              "each under the paper's definition: `tlr` is our `tlr_all` (lost steps ÷ all steps). Backends other "
+              "than GPT-4o simulate or substitute the LLM: agreement is not expected, only comparable scales."
+              + (" This run's pilot is simulated: agreement shows how its configured inputs were calibrated, "
+                 "not how an LLM behaves." if simulated else ""), "",
+              "| env | arm | condition | metric | ours | paper | paper inside our interval |", "|---|---|---|---|---|---|---|"]
+    for row in comparison:
+        interval = f" [{row['low']:.2f}, {row['high']:.2f}]" if row["low"] is not None else f" (n={row['n']})"
+        inside = {True: "yes", False: "no", None: "n/a"}[row["inside"]]
+        lines.append(f"| {row['environment']} | {row['arm']} | {row['condition']} | {row['metric']} "
+                     f"| {row['ours']:.2f}{interval} | {row['paper']:g} | {inside} |")
+    return lines
 
 
 def _trajectories(folder: Path, results: list[TrialResult]) -> list[str]:

@@ -56,7 +56,7 @@ def test_tlr_counts_steps_after_the_target_was_first_seen():
         trial("timeout", 6, 1, first_seen_step=None, target_visible_steps=0),
     ]
     m = cell_metrics(results, budget=20)
-    assert m.tlr.value == pytest.approx(2 / 6) and m.tlr.n == 1  # steps 3..8 after first sighting
+    assert m.tlr_after_seen.value == pytest.approx(2 / 6) and m.tlr_after_seen.n == 1  # steps 3..8 after first sighting
     assert m.tlr_all.value == pytest.approx(((1 - 4 / 8) + 1.0) / 2)
 
 
