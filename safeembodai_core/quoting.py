@@ -19,6 +19,8 @@ import json
 import re
 from typing import Any
 
+from .logs import redact
+
 CLIPPED = "[...]"
 _STILL_UNSAFE = re.compile(
     "[\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]"
@@ -32,10 +34,11 @@ def _escape(match: re.Match[str]) -> str:
 def quote_untrusted(value: Any, max_chars: int | None = None) -> str:
     """``value`` (made a string) as a JSON string literal that cannot break out of its quotes.
 
+    Configured secrets and bearer-shaped keys are masked first (:func:`~safeembodai_core.logs.redact`).
     With ``max_chars`` only the first ``max_chars`` characters are quoted and ``[...]`` follows
     the closing quote, so what is inside the quotes is always exactly what was written.
     """
-    text = str(value)
+    text = redact(str(value))  # before clipping: a cut must never leave part of a secret readable
     clipped = max_chars is not None and len(text) > max_chars
     if clipped:
         text = text[: max(0, max_chars)]

@@ -11,8 +11,10 @@ characters:
   (litellm's ``native_finish_reason``) is reported instead unless it is one of the few that mean
   a normal end, so a server cannot slip an unknown reason past the
   core as a normal stop. A server that sends no reason at all is a ``"stop"`` (litellm's default).
-* token counts -- whole numbers clamped to [0, 2**31 - 1]; anything else (a string, NaN, a
-  list, an absurd float) counts 0.
+* token counts -- whole numbers clamped to [0, 2**31 - 1]; anything else that reaches this
+  module (a string, a list, ``True``) counts 0. A count litellm itself cannot read (a fraction,
+  NaN, 1e300) never gets here: litellm rejects the whole reply, which the backend reports as a
+  malformed reply (``litellm_errors``) -- such a server is broken, and its answer is not used.
 """
 
 from __future__ import annotations

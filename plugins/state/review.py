@@ -151,7 +151,7 @@ def step_panel(record: StepRecord) -> Panel:
 def show_run(run: str, trial: str | None, *, environment: str | None = None, arm: str | None = None,
              condition: str | None = None, console: Console | None = None) -> None:
     """Print the trials of ``run``, or the steps of one trial of it."""
-    console = console or Console()
+    console = console or Console(emoji=False)
     store = open_run(run)
     try:
         trials = store.trials()

@@ -67,7 +67,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
 
     preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
     folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
-    console = Console()
+    console = Console(emoji=False)
     with StopSignals() as stop:
         try:
             results = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor, address)

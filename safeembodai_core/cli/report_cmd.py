@@ -50,7 +50,7 @@ def report(run_dir: str) -> None:
             report = write_report(folder.path, scenario, results, store=runner.state, plugins=plugins)
         finally:
             runner.close()
-        console = Console()
+        console = Console(emoji=False)
         console.print(summary_table(scenario, results, info=info))
         console.print(f"report: {escape(str(report))}")
     finally:

@@ -78,7 +78,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     folder = Path(out_dir or Path("runs") / f"{scenario.name}-run-{time.strftime('%Y%m%d-%H%M%S')}")
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)
     spec = trial_spec(scenario, env_label, arm, condition, index)
-    console = Console(stderr=False)
+    console = Console(stderr=False, emoji=False)  # LLM text: ":warning:" stays literal
     try:
         with console.status(f"running {terminal_markup(spec.trial_id)} (seed {spec.seed})"):
             result = runner.run(spec)

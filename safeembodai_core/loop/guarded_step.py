@@ -24,7 +24,7 @@ from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, pa
 from ..models.response import finish_reason_text
 from ..validation import ValidationContext, validate_plan
 
-from ..logs import get_logger
+from ..logs import get_logger, redact
 
 log = get_logger(__name__)
 
@@ -68,7 +68,8 @@ def decide(
         latency = reply.latency_s or (time.perf_counter() - started)
         text = getattr(reply, "text", None)
         finish_reason = finish_reason_text(getattr(reply, "finish_reason", None))
-        attempt = Attempt(index=index, raw_text=text[:MAX_STORED_TEXT] if isinstance(text, str) else "",
+        # redacted before the cut, so the cut can never leave part of a secret readable
+        attempt = Attempt(index=index, raw_text=redact(text)[:MAX_STORED_TEXT] if isinstance(text, str) else "",
                           usage=reply.usage, latency_s=latency, finish_reason=finish_reason)
         try:
             # The one strict reading (shared with Guard.check_answer); it raises nothing else, so

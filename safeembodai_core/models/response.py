@@ -44,7 +44,7 @@ from typing import Any, get_args
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..logs import get_logger
-from ..quoting import quote_untrusted
+from ..quoting import CLIPPED, quote_untrusted
 from .control import DEFAULT_LIMITS, MAX_TEXT, ControlLimits, ControlSignal, Straight, Turn
 from .strict_json import QUOTE_CHARS, ResponseParseError, read_one_object
 
@@ -140,7 +140,9 @@ def finish_reason_text(reason: Any) -> str | None:
     """A backend's finish reason as short text (an enum's value, say); None when not reported."""
     if reason is None:
         return None
-    return str(getattr(reason, "value", reason))[:MAX_FINISH_REASON_CHARS]
+    text = str(getattr(reason, "value", reason))
+    # clipped visibly: padding cannot push an abnormal reason past the cut and leave "stop" in front
+    return text if len(text) <= MAX_FINISH_REASON_CHARS else text[:MAX_FINISH_REASON_CHARS] + CLIPPED
 
 
 def _check_finish_reason(reason: str | None) -> None:
