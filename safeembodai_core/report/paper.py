@@ -17,6 +17,7 @@ from ..metrics import CellMetrics
 #: Our metric -> the paper's metric (the key in ``data/paper_results.json``) it is compared with.
 COMPARED = {"moer": "moer", "adr": "adr", "tlr_all": "tlr", "steps": "steps", "tokens": "tokens",
             "distance_mm": "distance_mm"}
+_ROUNDING = 1e-9  # 1 - 6/20 is 0.7000000000000001: a value on the bound is inside
 
 
 @lru_cache(maxsize=1)
@@ -44,7 +45,7 @@ def comparison_rows(cells: list[CellMetrics]) -> list[dict[str, Any]]:
             ours = getattr(m, ours_metric)
             if theirs is None or ours.value is None:
                 continue
-            inside = None if ours.low is None else ours.low <= theirs <= ours.high
+            inside = None if ours.low is None else ours.low - _ROUNDING <= theirs <= ours.high + _ROUNDING
             rows.append({"environment": m.environment, "arm": m.arm, "condition": m.condition, "metric": metric,
                          "ours_metric": ours_metric, "ours": ours.value, "low": ours.low, "high": ours.high,
                          "n": ours.n, "paper": theirs, "inside": inside})
