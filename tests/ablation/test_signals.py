@@ -174,7 +174,9 @@ def test_a_blocked_worker_exits_when_its_coordinator_is_killed(tmp_path, how):
         for pid in alive_in_group(coordinator.pid):
             os.kill(pid, signal.SIGKILL)
         coordinator.stdout.close()
-    lock = RunLock(tmp_path, wait_s=0.0)
+    # A killed process whose other threads are still exiting already reads "Z" in /proc but keeps
+    # its files (and lock) until its last thread is gone: give it the deadline, as a resume does.
+    lock = RunLock(tmp_path, wait_s=DEADLINE_S)
     lock.acquire()  # nothing holds the workers lock any more
     lock.release()
 
