@@ -125,15 +125,19 @@ class _Totals:
             self.first_seen = record.step
         elif not record.truth.target_in_view and self.first_seen is not None:
             self.lost += 1
-        # a collision outside any command (a Labbot ran into the robot while it waited): in the truth
-        extra = record.truth.extra
-        if extra.get("collision") in ("self", "struck"):
-            self._collided(record.step, extra["collision"], str(extra.get("collision_detail", "")))
+        self.observed(record.step, record.truth)
         for item in record.executed:
             if isinstance(item.signal, Straight):
                 self.distance += abs(item.result.distance_mm)
             if item.result.collided:
                 self._collided(record.step, item.result.collision, item.result.detail)
+
+    def observed(self, step: int, truth: Any) -> None:
+        """Count a collision outside any command (a Labbot ran into the robot while it waited),
+        which the environment reports once, in the next observation's truth."""
+        extra = truth.extra
+        if extra.get("collision") in ("self", "struck"):
+            self._collided(step, extra["collision"], str(extra.get("collision_detail", "")))
 
     def _collided(self, step: int, collision: str | None, detail: str) -> None:
         self.collisions += 1
@@ -181,6 +185,11 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         for step in range(1, settings.max_steps + 1):
             if step > 1:
                 observation = parts.environment.observe()
+                ended = parts.environment.outcome()
+                if ended is not None:  # the world ended while the robot waited: no LLM call for nothing
+                    totals.observed(step - 1, observation.truth)
+                    outcome = ended
+                    break
             notify("before_step", spec=spec, step=step, observation=observation)
             record = storable(_decide(spec, step, observation, parts, settings))
             if record.planned:

@@ -85,13 +85,18 @@ def test_a_labbot_striking_the_robot_in_its_think_time_counts_as_struck(plugins,
 
 
 def test_a_labbot_striking_the_robot_while_no_command_came_is_counted(plugins, charged):
-    """Step 1's answer is refused, so nothing runs; its think time passes before step 2's reading."""
+    """Step 1's answer is refused, so nothing runs; its think time passes before step 2's reading.
+
+    The world has ended by then, so the trial ends without asking the LLM for step 2 (an answer
+    nobody could execute); the collision is counted against step 1, whose think time it ended."""
     hold = Defences(safety_validation=True, on_exhausted="hold", failure_threshold=0)
-    result, steps = run_guarded_trial(charged, Replay("no JSON here"), defences=hold, seed=3, plugins=plugins)
-    assert result.outcome is Outcome.INTERRUPTED and result.steps == 2
+    backend = Replay("no JSON here")
+    result, steps = run_guarded_trial(charged, backend, defences=hold, seed=3, plugins=plugins)
+    assert result.outcome is Outcome.INTERRUPTED and result.steps == 1 and len(steps) == 1
     assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 0, 1)
-    assert steps[1].truth.extra["collision"] == "struck" and steps[0].truth.extra.get("collision") is None
-    assert result.detail.startswith("struck collision at step 2: struck by Labbot 1")
+    assert steps[0].truth.extra.get("collision") is None
+    assert result.detail.startswith("struck collision at step 1: struck by Labbot 1")
+    assert backend.calls == 1  # step 1's one attempt only: no LLM call after the world ended
 
 
 def test_the_robot_driving_into_a_wall_counts_as_self(plugins):

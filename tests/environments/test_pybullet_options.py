@@ -88,3 +88,11 @@ def test_the_plugin_module_does_not_import_pybullet():
             "print(sorted(k for k in ('pybullet', 'pybullet_data', 'cv2', 'matplotlib') if k in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_a_start_distance_below_what_the_bodies_need_is_refused_not_raised(registry):
+    """Issue 10.6: a user's value is honoured or refused with the reason, never changed silently."""
+    with pytest.raises(ComponentOptionsError, match="min_start_distance_mm=100 is less than"):
+        registry.validate_options("environment", "OF", {"min_start_distance_mm": 100})
+    honoured = registry.validate_options("environment", "OF", {"min_start_distance_mm": 600})
+    assert honoured.start_distance == 600.0

@@ -73,6 +73,12 @@ class RoomOptions(BaseModel):
         if self.reach_mm <= self.robot_radius_mm + CAN_RADIUS_MM:
             raise ValueError(f"reach_mm={self.reach_mm:g} must exceed robot_radius_mm + can radius "
                              f"({self.robot_radius_mm + CAN_RADIUS_MM:g}): the robot could never get that close")
+        apart = self.robot_radius_mm + CAN_RADIUS_MM + self.passage
+        if self.min_start_distance_mm is not None and self.min_start_distance_mm < apart:
+            # refused rather than raised behind the user's back (bodies need the passage between them)
+            raise ValueError(f"min_start_distance_mm={self.min_start_distance_mm:g} is less than the robot and the can "
+                             f"need with a passage between them (robot_radius_mm + can radius + passage = {apart:g}); "
+                             f"set at least {apart:g}, or a smaller passage_mm")
         if self.start_distance > 0.75 * self.room_mm:
             raise ValueError(f"min_start_distance_mm={self.min_start_distance_mm:g} cannot be met in a room of "
                              f"room_mm={self.room_mm:g}; keep it at most {0.75 * self.room_mm:g}")
