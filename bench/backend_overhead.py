@@ -127,16 +127,22 @@ def mock_speed(trials: int) -> None:
               f"({steps} steps)")
 
 
+#: the paper's attack (its five prompts, docs/attacks.md) at the authors' release rate, 0.5
+PAPER_CONDITIONS = {"no_attack": {}, "attack": {"attackers": [{"use": "prompt_injection",
+                                                               "options": {"rate": 0.5, "kinds": "paper"}}]}}
+
+
 def calibrate(env: str, trials: int) -> None:
     from safeembodai_core.metrics import paper_metrics
 
     plugins = load_plugins(environ={})
-    runner = ScenarioRunner(_scenario(plugins, env, trials, "litellm"), plugins)
+    runner = ScenarioRunner(_scenario(plugins, env, trials, "litellm", PAPER_CONDITIONS), plugins)
     cells: dict[tuple[str, str], list] = {}
     for spec in runner.specs():
         cells.setdefault((spec.arm, spec.condition), []).append(runner.run(spec))
     runner.close()
-    print(f"mock pilot, default options, {env}, {trials} trials per cell, 20-step budget")
+    print(f"mock pilot, default options, {env}, {trials} trials per cell, 20-step budget, "
+          "attack: the paper's five prompts at rate 0.5")
     for (arm, condition), results in cells.items():
         m = paper_metrics.cell_metrics(results, budget=20)
         attacked = sum(r.attacked_steps for r in results)
