@@ -15,6 +15,7 @@ refuses a store that lost trials of the ledger instead of quietly running them a
 from __future__ import annotations
 
 import os
+import tempfile
 import time
 from pathlib import Path
 from typing import Callable
@@ -40,18 +41,65 @@ class AblationError(SafeEmbodAIError):
     """The ablation cannot start or continue (the message says how to resume)."""
 
 
+EXECUTORS = ("serial", "process", "ray")
+
+
+def _not_persistent(executor: str, scenario: Scenario) -> AblationError:
+    return AblationError(f"--workers/--executor {executor} needs a persistent state store "
+                         f"(e.g. sqlite); the scenario uses {scenario.state.use!r}")
+
+
+def _store_is_persistent(scenario: Scenario, plugins: Plugins) -> bool:
+    """Whether the scenario's store keeps records across processes, asked of a store built in a
+    scratch folder (so nothing appears in the run folder, which does not exist yet)."""
+    with tempfile.TemporaryDirectory(prefix="safeembodai-store-check-") as scratch:
+        runner = ScenarioRunner(scenario, plugins, run_dir=scratch)
+        try:
+            return bool(runner.state.persistent)
+        finally:
+            runner.close()
+
+
+def executor_name(workers: int = 1, executor: str | None = None, address: str | None = None) -> str:
+    """The executor the options choose; options it would ignore are refused in one line."""
+    if workers < 1:
+        raise AblationError("--workers must be at least 1")
+    name = executor or ("process" if workers > 1 else "serial")
+    if name not in EXECUTORS:
+        raise AblationError(f"unknown executor {name!r}; choose serial, process or ray")
+    if name == "serial" and workers > 1:
+        raise AblationError(f"--executor serial runs one trial at a time, not --workers {workers}: "
+                            "drop --workers, or use --executor process or ray")
+    if address is not None and name != "ray":
+        raise AblationError(f"--address is the address of a Ray cluster: use it with --executor ray "
+                            f"(the {name} executor would ignore it)")
+    return name
+
+
+def check_executor(scenario: Scenario, plugins: Plugins, *, workers: int = 1, executor: str | None = None,
+                   address: str | None = None) -> str:
+    """:func:`executor_name`, and that its workers can run the scenario: no inline plugins, a
+    persistent store. Called before the run folder is made, so a refused run leaves nothing behind."""
+    name = executor_name(workers, executor, address)
+    if name == "serial":
+        return name
+    inline = sorted(n for n, origin in plugins.origins.items() if origin.source == "inline")
+    if inline:
+        raise AblationError(f"inline plugins ({', '.join(inline)}) cannot reach worker processes; "
+                            "install them as packages or use the serial executor")
+    if not _store_is_persistent(scenario, plugins):
+        raise _not_persistent(name, scenario)
+    return name
+
+
 class Ablation:
     """One ablation run of ``scenario`` in ``folder``."""
 
     def __init__(self, scenario: Scenario, plugins: Plugins, folder: RunFolder, *, resume: bool = False,
                  workers: int = 1, executor: str | None = None, address: str | None = None) -> None:
-        if workers < 1:
-            raise AblationError("--workers must be at least 1")
         self.scenario, self.plugins, self.folder = scenario, plugins, folder
         self.workers, self.address = workers, address
-        self.executor_name = executor or ("process" if workers > 1 else "serial")
-        if self.executor_name not in ("serial", "process", "ray"):
-            raise AblationError(f"unknown executor {self.executor_name!r}; choose serial, process or ray")
+        self.executor_name = check_executor(scenario, plugins, workers=workers, executor=executor, address=address)
         if resume:
             folder.check_same(scenario)
         else:
@@ -151,13 +199,8 @@ class Ablation:
         scenario_json = self.scenario.model_dump(mode="json")
         if self.executor_name == "serial":
             return SerialExecutor(self.runner)
-        if not self.store.persistent:
-            raise AblationError(f"--workers/--executor {self.executor_name} needs a persistent state store "
-                                f"(e.g. sqlite); the scenario uses {self.scenario.state.use!r}")
-        inline = sorted(name for name, origin in self.plugins.origins.items() if origin.source == "inline")
-        if inline:
-            raise AblationError(f"inline plugins ({', '.join(inline)}) cannot reach worker processes; "
-                                "install them as packages or use the serial executor")
+        if not self.store.persistent:  # checked before the run folder was made; a store may still change its mind
+            raise _not_persistent(self.executor_name, self.scenario)
         if self.executor_name == "process":
             return ProcessExecutor(scenario_json, str(self.folder.path), self.workers)
         return RayExecutor(scenario_json, str(self.folder.path), self.workers, self.address)

@@ -48,10 +48,12 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     from rich.markup import escape
 
     from ..ablation import RunFolder
+    from ..ablation.engine import check_executor, executor_name
     from ..ablation.lifeline import StopSignals
     from ..errors import SafeEmbodAIError
     from .summary import summary_table
 
+    executor_name(workers, executor, address)  # options the executor would ignore: refused at once
     if scenario_path is not None:
         scenario, plugins = load(scenario_path, backend, seed, overrides)
     elif resume_dir is None:
@@ -66,6 +68,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     from ..runner import preflight
 
     preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
+    check_executor(scenario, plugins, workers=workers, executor=executor, address=address)  # e.g. store: memory
     folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
     console = Console(emoji=False)
     with StopSignals() as stop:

@@ -56,6 +56,18 @@ def test_resume_needs_a_store_that_keeps_results(repo, plugins, tmp_path):
     with pytest.raises(SafeEmbodAIError, match="needs a persistent state store"):
         Ablation(quickstart(repo, plugins, "trials=1", "state=memory"), plugins, RunFolder(tmp_path / "r2"),
                  workers=2).run()
+    assert not (tmp_path / "r2").exists()  # refused before the folder is made: nothing to resume
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"workers": 3, "executor": "serial"}, "--executor serial runs one trial at a time, not --workers 3"),
+    ({"address": "head:6379"}, "--address is the address of a Ray cluster"),
+    ({"address": "head:6379", "executor": "process", "workers": 2}, "the process executor would ignore it"),
+])
+def test_options_the_executor_would_ignore_are_refused(repo, plugins, tmp_path, options, message):
+    with pytest.raises(SafeEmbodAIError, match=message):
+        Ablation(quickstart(repo, plugins, "trials=1"), plugins, RunFolder(tmp_path / "run"), **options)
+    assert not (tmp_path / "run").exists()
 
 
 def test_not_a_run_folder_is_named(tmp_path, repo, plugins):

@@ -72,12 +72,9 @@ def test_inline_plugins_are_refused_for_worker_processes(repo, tmp_path):
     inline.before_trial = hookimpl(lambda spec: None)
     plugins = load_plugins([inline], environ={})
     scenario = quickstart(repo, plugins)
-    ablation = Ablation(scenario, plugins, RunFolder(tmp_path / "run"), workers=2)
-    try:
-        with pytest.raises(SafeEmbodAIError, match="inline plugins \\(inline_helper\\) cannot reach worker processes"):
-            ablation.run()
-    finally:
-        ablation.close()
+    with pytest.raises(SafeEmbodAIError, match="inline plugins \\(inline_helper\\) cannot reach worker processes"):
+        Ablation(scenario, plugins, RunFolder(tmp_path / "run"), workers=2)
+    assert not (tmp_path / "run").exists()  # refused before the run folder is made
 
 
 def test_two_unlabelled_uses_of_one_attacker_or_validator_are_refused():

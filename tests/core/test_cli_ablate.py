@@ -108,3 +108,27 @@ def test_the_progress_display_fits_80_columns(cli_runner, repo, tmp_path, monkey
         assert len(re.findall("[━╸╺]", row)) >= MIN_BAR_WIDTH, row
         assert re.search(rf" {count} \d+:\d\d:\d\d \d+:\d\d:\d\d$", row), row
     assert any(re.fullmatch(r"last: flatland/\w+/\w+/1 \w+", line) for line in lines), lines
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--executor", "serial", "--workers", "4"], "--executor serial runs one trial at a time, not --workers 4"),
+    (["--address", "1.2.3.4:6379"], "--address is the address of a Ray cluster: use it with --executor ray"),
+    (["--workers", "2", "--address", "1.2.3.4:6379"], "use it with --executor ray (the process executor"),
+    (["--executor", "serial", "--workers", "4", "--address", "1.2.3.4:6379"], "not --workers 4"),
+])
+def test_options_the_executor_would_ignore_are_refused_before_any_folder(cli_runner, repo, tmp_path, options,
+                                                                          message):
+    result = cli_runner.invoke(cli, ["ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=1",
+                                     "--out", str(tmp_path / "runs"), *options])
+    assert result.exit_code == 1, result.output
+    assert message in str(result.exception) and "\n" not in str(result.exception)
+    assert "to run in" not in result.output  # nothing ran
+    assert not (tmp_path / "runs").exists()
+
+
+def test_workers_with_a_store_that_keeps_nothing_make_no_run_folder(cli_runner, repo, tmp_path):
+    result = cli_runner.invoke(cli, ["ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=1",
+                                     "--set", "state.use=memory", "--workers", "2", "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 1, result.output
+    assert "needs a persistent state store (e.g. sqlite); the scenario uses 'memory'" in str(result.exception)
+    assert not (tmp_path / "runs").exists()
