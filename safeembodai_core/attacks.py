@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 if TYPE_CHECKING:
     from .components import AttackSurface
@@ -41,7 +41,8 @@ class AttackSchedule(BaseModel):
     rate: float = Field(0.5, ge=0.0, le=1.0, allow_inf_nan=False, description=(
         "probability that a step is attacked (default: the authors' release's injection rate; the paper gives none)"))
     start_step: int = Field(1, ge=1, description="first step that may be attacked")
-    steps: list[int] | None = Field(None, description="attack exactly these steps (overrides rate and start_step)")
+    steps: list[int] | None = Field(None, description=(
+        "attack exactly these steps (then rate and start_step must not be given)"))
 
     @field_validator("steps")
     @classmethod
@@ -49,6 +50,14 @@ class AttackSchedule(BaseModel):
         if steps is not None and any(s < 1 for s in steps):
             raise ValueError("steps are numbered from 1")
         return steps
+
+    @model_validator(mode="after")
+    def _one_schedule(self) -> "AttackSchedule":
+        given = sorted({"rate", "start_step"} & self.model_fields_set)
+        if self.steps is not None and given:
+            raise ValueError(f"give either steps or {' and '.join(given)}, not both: "
+                             "steps lists the attacked steps exactly, so the other would be ignored")
+        return self
 
     def scheduled(self, step: int, roll: float) -> bool:
         """Whether ``step`` is attacked given a uniform ``roll`` in [0, 1): listed in ``steps``,

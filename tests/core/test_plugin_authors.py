@@ -171,7 +171,7 @@ def test_the_schedule_draws_one_number_and_fires_where_the_built_in_attacks(plug
         reference.random()
         assert mine.rng.random() == reference.random()  # exactly one draw, attacked or not
     assert 0 < sum(fired) < len(fired)
-    assert [s for s in range(1, 9) if AttackSchedule(steps=[2, 5], rate=0).fires(surface(s))] == [2, 5]
+    assert [s for s in range(1, 9) if AttackSchedule(steps=[2, 5]).fires(surface(s))] == [2, 5]
     assert not any(AttackSchedule(rate=1.0, start_step=4).fires(surface(s)) for s in range(1, 4))
     with pytest.raises(ValueError, match="numbered from 1"):
         AttackSchedule(steps=[0])
@@ -212,3 +212,15 @@ def test_verdicts_and_attack_records_carry_the_scenario_key():
     )
     assert {v.rule for a in steps[0].attempts for v in a.verdicts} == {"limits", "lidar_clearance"}
     assert [a.attacker for a in steps[0].attacks] == ["inject"]
+
+
+def test_a_schedule_with_steps_and_a_rate_is_refused_not_half_ignored():
+    from pydantic import ValidationError
+
+    from safeembodai_core import AttackSchedule
+
+    with pytest.raises(ValidationError, match="either steps or rate"):
+        AttackSchedule(rate=0.3, steps=[2])
+    with pytest.raises(ValidationError, match="either steps or start_step"):
+        AttackSchedule(start_step=3, steps=[2])
+    assert AttackSchedule(steps=[2]).scheduled(2, 0.99) and not AttackSchedule(steps=[2]).scheduled(3, 0.0)

@@ -52,7 +52,7 @@ def test_the_step_table_keeps_emoji_codes_literal():
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "s.yaml"
         path.write_text(json.dumps(scenario))
-        result = CliRunner().invoke(cli, ["run", str(path)])
+        result = CliRunner().invoke(cli, ["run", str(path), "--out", str(Path(folder) / "run")])
     assert ":warning:" in plan
     assert "\u26a0" not in result.output
     assert ":warning:" in result.output
