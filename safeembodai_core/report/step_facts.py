@@ -33,13 +33,28 @@ class TrialFacts:
     attacked_by_kind: Counter = field(default_factory=Counter)  # kind -> steps attacked with it
 
 
+def _uri(path: Path, mode: str) -> str:
+    """The database's URI for ``mode``; read-only leaves nothing behind in the run folder.
+
+    A read-only connection to a WAL database creates ``-wal`` and ``-shm`` files and, unable to
+    checkpoint, never removes them. Without a ``-wal`` file no writer has the database open (a
+    writer's connection keeps one; the last writer to close removes it), so it is read
+    ``immutable``: no lock, no journal, nothing created (as ``safeembodai show`` reads it). With
+    one (a writer still open, or killed), ``mode=ro`` reads the log too, sharing the files there.
+    """
+    uri = f"{path.resolve().as_uri()}?mode={mode}"
+    if mode == "ro" and not Path(f"{path}-wal").exists():
+        uri += "&immutable=1"
+    return uri
+
+
 def from_sqlite(path: Path, trial_ids: Iterable[str]) -> dict[str, TrialFacts] | None:
     """Facts of ``trial_ids`` from a ``sqlite`` store's file; None if it cannot be read so."""
     wanted = set(trial_ids)
     for mode in ("ro", "rw"):  # read-only first; a WAL file without its -shm may need rw to open
         facts = {trial_id: TrialFacts() for trial_id in wanted}
         try:
-            db = sqlite3.connect(f"{path.resolve().as_uri()}?mode={mode}", uri=True, timeout=5.0)
+            db = sqlite3.connect(_uri(path, mode), uri=True, timeout=5.0)
             try:
                 for query, attribute in ((_REFUSALS, "refusals"), (_ATTACKS, "attacked_by_kind")):
                     for trial_id, name, count in db.execute(query):

@@ -132,3 +132,18 @@ def test_workers_with_a_store_that_keeps_nothing_make_no_run_folder(cli_runner, 
     assert result.exit_code == 1, result.output
     assert "needs a persistent state store (e.g. sqlite); the scenario uses 'memory'" in str(result.exception)
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_finished_run_folder_holds_only_its_database_file(cli_runner, repo, tmp_path):
+    """The report reads the closed database without leaving -wal/-shm behind; ``show`` still reads it."""
+    result = cli_runner.invoke(cli, ["ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=1",
+                                     "--out", str(tmp_path / "runs")])
+    assert result.exit_code == 0, result.output
+    (folder,) = (tmp_path / "runs").iterdir()
+    report = (folder / "report.md").read_text(encoding="utf-8")
+    assert "did not leave for the report to read" not in report  # the steps were read, from the file
+    assert sorted(p.name for p in folder.glob("results.sqlite*")) == ["results.sqlite"]
+    shown = cli_runner.invoke(cli, ["show", str(folder)])
+    assert shown.exit_code == 0, shown.output
+    assert "flatland/safeembodai/attack/0" in shown.output and "finished" in shown.output
+    assert sorted(p.name for p in folder.glob("results.sqlite*")) == ["results.sqlite"]
