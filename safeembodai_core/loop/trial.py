@@ -239,10 +239,11 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
     return result
 
 
-def _store(write: Any, what: str) -> None:
-    """Run one store write; any failure becomes a one-line :class:`StateStoreError` saying what was lost."""
+def _store(call: Any, what: str) -> Any:
+    """Run one store call (a write, or a read); return what it returns. Any failure becomes a one-line
+    :class:`StateStoreError` saying what was lost or could not be read."""
     try:
-        write()
+        return call()
     except StateStoreError as error:
         raise StateStoreError(one_line(f"state store could not {what}: {error}")) from error
     except Exception as error:  # a third-party store's bug is a store failure, not a crash of the ablation
@@ -253,7 +254,8 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
             settings: LoopSettings) -> StepRecord:
     """Step i up to execution: attackers, perception, Algorithm 1; the record with the accepted plan."""
     defences = settings.defences
-    reference = parts.state.reference_state(spec.trial_id, step) if defences.state_management else None
+    reference = (_store(lambda: parts.state.reference_state(spec.trial_id, step),
+                        f"read the reference state of step {step}") if defences.state_management else None)
     # attackers get their own copy: reassigning observation.truth or .pose cannot corrupt ground truth
     surface = AttackSurface(step, settings.instruction, copy.copy(observation), reference,
                             rng=seeds.rng(spec.seed, "attacker", "", step), limits=settings.limits)

@@ -74,6 +74,25 @@ def test_a_store_that_cannot_write_is_a_store_error_and_stops_an_ablation(plugin
     assert result.error_kind == "store" and store_failed(result)
 
 
+class UnreadableStore(UnwritableStore):
+    """Steps are written, but R_{i-1} cannot be read back (a third-party store's plain exception)."""
+
+    def record_step(self, record):
+        pass
+
+    def reference_state(self, trial_id, step):
+        raise RuntimeError("connection reset by peer")
+
+
+def test_a_store_that_cannot_read_the_reference_state_is_a_store_error(plugins):
+    result, _ = run_guarded_trial(CorridorWorld(), Fine(), max_steps=2, plugins=plugins, state=UnreadableStore(),
+                                  defences={"state_management": True})
+    assert result.outcome == Outcome.ERROR and result.error_kind == "store" and store_failed(result)
+    assert not crashed(result)
+    assert result.detail == ("state store could not read the reference state of step 1: "
+                             "RuntimeError: connection reset by peer")
+
+
 def test_build_failures_and_finished_trials():
     assert error_result(SPEC, "components could not be built: x").error_kind == "build"
     finished = TrialResult(spec=SPEC, outcome=Outcome.TIMEOUT, steps=3)
