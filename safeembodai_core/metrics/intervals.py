@@ -44,7 +44,11 @@ def wilson(successes: int, trials: int) -> Estimate:
     denominator = 1 + Z95**2 / trials
     centre = (p + Z95**2 / (2 * trials)) / denominator
     half = Z95 * math.sqrt(p * (1 - p) / trials + Z95**2 / (4 * trials**2)) / denominator
-    return Estimate(p, max(0.0, centre - half), min(1.0, centre + half), trials)
+    # exact where the algebra is (low = 0 at 0 successes, high = 1 at all), not 5.6e-17 or 0.9999999999999999;
+    # elsewhere within [0, 1] and around p whatever the round-off
+    low = 0.0 if successes <= 0 else min(p, max(0.0, centre - half))
+    high = 1.0 if successes >= trials else max(p, min(1.0, centre + half))
+    return Estimate(p, low, high, trials)
 
 
 def bootstrap_mean(values: Sequence[float], seed: int = 0) -> Estimate:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import csv
+
 import pytest
 
 from safeembodai_core.metrics import cell_metrics, moer_term, wilson
@@ -77,6 +79,28 @@ def test_wilson_interval_matches_the_textbook_value():
     assert e.value == 0.8
     assert e.low == pytest.approx(0.4902, abs=1e-4) and e.high == pytest.approx(0.9433, abs=1e-4)
     assert wilson(0, 10).low == 0.0 and wilson(0, 0).value is None
+
+
+def test_wilson_bounds_are_exact_at_none_and_all_and_never_leave_0_1():
+    for n in range(1, 301):
+        assert wilson(0, n).low == 0.0 and wilson(n, n).high == 1.0  # not 5.6e-17, not 0.9999999999999999
+        for k in range(n + 1):
+            e = wilson(k, n)
+            assert 0.0 <= e.low <= e.value <= e.high <= 1.0
+    assert repr(wilson(0, 3).low) == "0.0" and wilson(0, 3).high == pytest.approx(0.5615, abs=1e-4)
+
+
+def test_metrics_csv_writes_a_wilson_bound_at_zero_as_zero(tmp_path):
+    from safeembodai_core.report import write_report
+    from safeembodai_core.scenario import parse_scenario
+
+    scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\ntrials: 3\n", "t.yaml")
+    results = [TrialResult(spec=TrialSpec(trial_id=f"OF/baseline/no_attack/{i}", environment="OF", arm="baseline",
+                                          condition="no_attack", index=i, seed=i), outcome=Outcome.TIMEOUT, steps=20)
+               for i in range(3)]
+    write_report(tmp_path, scenario, results)
+    (row,) = csv.DictReader((tmp_path / "metrics.csv").open())
+    assert row["completion"] == "0.0" and row["completion_low"] == "0.0" and row["completion_n"] == "3"
 
 
 def test_bootstrap_is_deterministic():
