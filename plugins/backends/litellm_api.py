@@ -4,8 +4,14 @@
   parts, JSON output requested, key from ``OPENAI_API_KEY``.
 * ``litellm`` -- the same for any model id litellm knows (``anthropic/...``, ``azure/...``);
   name the key's environment variable with ``api_key_env``.
-* ``local`` -- any OpenAI-compatible server (llama.cpp, vLLM, Ollama) at ``api_base``; JSON
-  schema sent for constrained decoding; no key unless ``api_key_env`` names one.
+* ``local`` -- any OpenAI-compatible server (llama.cpp, vLLM, Ollama) at ``api_base``; a JSON
+  schema carrying the scenario's actuation limits is sent for constrained decoding, in the form
+  ``json_mode`` names (:func:`.messages.response_format`); no key unless ``api_key_env`` names one.
+
+Retries of a step can differ from its first attempt: each attempt sends its own seed
+(``send_seed``) and, with ``retry_temperature_step``, a temperature raised by that much per retry
+-- at temperature 0 a seed changes nothing, and a greedy retry repeats the refused answer word
+for word. What an attempt sent is recorded in its ``Attempt.sampling``.
 
 The API key is read from the environment when the backend is built and is never stored in
 options, logs, records or reports. litellm is imported by the implementation module only.
@@ -17,12 +23,13 @@ from __future__ import annotations
 import os
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from safeembodai_core.errors import ComponentError
 from safeembodai_core.hookspecs import hookimpl
 
-JsonMode = Literal["json_object", "json_schema", "json_object_schema", "off"]
+from .messages import LEGACY_JSON_MODES, JsonMode
+
 _RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries")
 NO_KEY = "no-key-required"
 
@@ -39,13 +46,27 @@ class _LiteLLMOptions(BaseModel):
     json_mode: JsonMode = Field("json_object", description="response_format sent")
     temperature: float | None = Field(None, ge=0.0, le=2.0, description="sampling temperature (None: provider's)")
     max_tokens: int = Field(1024, ge=16, le=32_768, description="most tokens in an answer")
-    send_seed: bool = Field(False, description="send a per-call seed derived from the trial seed")
+    send_seed: bool = Field(False, description="send a per-attempt seed derived from the trial seed, step and attempt")
+    retry_temperature_step: float = Field(0.0, ge=0.0, le=2.0,
+                                          description="added to temperature for each retry of a step (capped at 2)")
     timeout_s: float = Field(60.0, gt=0, le=3600, description="per-request timeout")
     max_retries: int = Field(3, ge=0, le=20, description="retries on 429/5xx/timeouts/connection errors")
     backoff_s: float = Field(1.0, ge=0, le=600, description="first retry delay, doubled each retry")
     backoff_max_s: float = Field(30.0, ge=0, le=3600, description="longest delay between retries")
     drop_params: bool = Field(True, description="let litellm drop parameters a provider does not support")
     completion_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra litellm.completion arguments")
+
+    @field_validator("json_mode", mode="before")
+    @classmethod
+    def _current_name(cls, value: Any) -> Any:
+        return LEGACY_JSON_MODES.get(value, value) if isinstance(value, str) else value
+
+    @model_validator(mode="after")
+    def _step_needs_a_temperature(self) -> "_LiteLLMOptions":
+        if self.retry_temperature_step > 0 and self.temperature is None:
+            raise ValueError("retry_temperature_step needs a temperature to step from; set temperature "
+                             "(0.0 for a greedy first attempt)")
+        return self
 
     @field_validator("api_key_env")
     @classmethod
@@ -70,12 +91,17 @@ class LiteLLMOptions(_LiteLLMOptions):
 
 
 class LocalModelOptions(_LiteLLMOptions):
-    """Options of ``local``: an OpenAI-compatible server, no key, JSON schema by default."""
+    """Options of ``local``: an OpenAI-compatible server, no key, the scenario's limits in the
+    decoding schema, a greedy first attempt and retries that differ from it."""
 
     model: str = Field("openai/local", min_length=1, description="litellm model id (openai/<name> for any server)")
     api_key_env: str | None = Field(None, description="environment variable holding a key, if the server wants one")
     api_base: str | None = Field("http://127.0.0.1:8080/v1", description="the server's OpenAI-compatible URL")
-    json_mode: JsonMode = Field("json_schema", description="response_format sent")
+    json_mode: JsonMode = Field("json_schema_enum", description="response_format sent (llama-cpp-python's form)")
+    temperature: float | None = Field(0.0, ge=0.0, le=2.0, description="sampling temperature of a step's first attempt")
+    retry_temperature_step: float = Field(0.4, ge=0.0, le=2.0,
+                                          description="added to temperature for each retry of a step (capped at 2)")
+    send_seed: bool = Field(True, description="send a per-attempt seed derived from the trial seed, step and attempt")
     timeout_s: float = Field(300.0, gt=0, le=3600, description="per-request timeout")
     max_retries: int = Field(2, ge=0, le=20, description="retries on 429/5xx/timeouts/connection errors")
 

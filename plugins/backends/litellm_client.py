@@ -5,7 +5,9 @@ per socket read. Rate limits (429), server errors (5xx), refused connections and
 retried up to ``max_retries`` times with exponential backoff (jitter from the call's seeded rng;
 a server's ``Retry-After`` is honoured up to ``backoff_max_s``); a malformed reply (a 200 that is
 not a chat completion) is retried once, since a broken proxy or a restarting server can send one
-but a server that always does would only burn the backoff. Anything else -- a bad key, an unknown
+but a server that always does would only burn the backoff; so is an HTTP error whose status and
+text repeat word for word on the same request (a server that refuses the request itself, like
+llama-cpp-python answering an unknown ``response_format`` with HTTP 500, is not overloaded). Anything else -- a bad key, an unknown
 model, a request the provider refuses -- fails at once. Either way the failure becomes a
 :class:`~safeembodai_core.errors.BackendError` with one clean line of the provider's text
 (:mod:`.litellm_errors`). litellm's own retry layers are off (``max_retries=0`` to the openai
@@ -30,10 +32,11 @@ from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError
 from safeembodai_core.logs import register_secret
 from safeembodai_core.models import Prompt
+from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
 
 from .litellm_api import NO_KEY
 from .litellm_call import call_with_deadline
-from .litellm_errors import MALFORMED, Failure, classify, retry_after, scrub_message
+from .litellm_errors import MALFORMED, Failure, classify, format_hint, repeated, retry_after, scrub_message
 from .litellm_reply import answer_text, finish_reason, first_choice, model_name, token_usage
 from .litellm_runtime import import_litellm
 from .messages import chat_messages, response_format
@@ -100,6 +103,29 @@ class LiteLLMBackend(LLMBackend):
         self._secrets = tuple(secrets)
         self._sleep = sleep
         self._litellm = import_litellm()
+        self._limits = DEFAULT_LIMITS
+        self._sampling: dict[str, float | int] | None = None
+
+    def prepare_attempt(self, index: int, limits: ControlLimits, rng: np.random.Generator) -> dict[str, float | int]:
+        """Called by Algorithm 1 before attempt ``index`` of a step (0: the first try).
+
+        The next :meth:`complete` sends a decoding schema built from ``limits`` and this attempt's
+        sampling: ``temperature + index * retry_temperature_step`` (capped at 2) and, with
+        ``send_seed``, a seed drawn from ``rng`` (seeded by trial, step and attempt). Returns
+        what will be sent, for the attempt's record.
+        """
+        self._limits = limits
+        self._sampling = self._draw_sampling(index, rng)
+        return dict(self._sampling)
+
+    def _draw_sampling(self, index: int, rng: np.random.Generator | None) -> dict[str, float | int]:
+        o = self.options
+        sampling: dict[str, float | int] = {}
+        if o.temperature is not None:
+            sampling["temperature"] = round(min(2.0, o.temperature + index * o.retry_temperature_step), 6)
+        if o.send_seed and rng is not None:
+            sampling["seed"] = int(rng.integers(0, 2**31 - 1))
+        return sampling
 
     def _scrub(self, text: str) -> str:
         """The one way a provider's or litellm's text reaches an error or a log."""
@@ -119,13 +145,11 @@ class LiteLLMBackend(LLMBackend):
         }
         if o.api_base:
             kwargs["api_base"] = o.api_base
-        if o.temperature is not None:
-            kwargs["temperature"] = o.temperature
-        fmt = response_format(o.json_mode)
+        sampling, self._sampling = self._sampling, None  # prepared for one call only
+        kwargs.update(sampling if sampling is not None else self._draw_sampling(0, rng))
+        fmt = response_format(o.json_mode, self._limits)
         if fmt is not None:
             kwargs["response_format"] = fmt
-        if o.send_seed and rng is not None:
-            kwargs["seed"] = int(rng.integers(0, 2**31 - 1))
         kwargs.update(o.completion_kwargs)
         return kwargs
 
@@ -136,6 +160,7 @@ class LiteLLMBackend(LLMBackend):
         if key is not None:
             kwargs["api_key"] = key
         malformed = 0
+        previous: Failure | None = None
         for attempt in range(o.max_retries + 1):
             started = time.perf_counter()
             try:
@@ -146,13 +171,14 @@ class LiteLLMBackend(LLMBackend):
                     malformed += 1
                     retryable = malformed <= _MALFORMED_RETRIES
                 failure = Failure(kind, retryable, self._scrub(str(error)), retry_after(error))
+                failure, previous = repeated(failure, previous), failure
             else:
                 return self._reply(response, time.perf_counter() - started)
             if not failure.retryable or attempt == o.max_retries:
                 tries = f"{attempt + 1} {'try' if attempt == 0 else 'tries'}"
                 log.warning("backend.failed", backend=self.name, model=o.model, reason=failure.kind, tries=attempt + 1)
                 raise BackendError(f"llm backend {self.name!r} (model {o.model}) gave up after {tries}: "
-                                   f"{failure.kind}; provider said: {failure.detail}") from None
+                                   f"{failure.kind}; provider said: {failure.detail}{format_hint(failure, o)}") from None
             delay = min(o.backoff_max_s, o.backoff_s * 2**attempt) * (0.5 + float(rng.random()))
             if failure.retry_after_s is not None:
                 delay = min(o.backoff_max_s, max(delay, failure.retry_after_s))

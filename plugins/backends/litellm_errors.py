@@ -15,8 +15,8 @@ traceback, no file path, no class repr, no control character, no secret, at most
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
-from typing import Iterable
+from dataclasses import dataclass, replace
+from typing import Any, Iterable
 
 from safeembodai_core.logs import MASK, redact
 
@@ -25,6 +25,7 @@ from .litellm_call import CallTimedOut, TooManyHungCalls
 MESSAGE_CHARS = 300
 MALFORMED = "malformed reply (not a chat completion)"
 TIMED_OUT = "timed out"
+SERVER_ERROR = "server error"
 
 _NOT_RETRIED = {
     401: "authentication failed (HTTP 401), check the key in the variable named by api_key_env",
@@ -108,12 +109,35 @@ def classify(error: Exception) -> tuple[str, bool]:
     if status == 500 and isinstance(error, openai.OpenAIError) and not _answered_with_an_error_status(error):
         return MALFORMED, True  # the caller allows it one retry only
     if isinstance(status, int) and 500 <= status < 600:
-        return f"server error (HTTP {status})", True
+        return f"{SERVER_ERROR} (HTTP {status})", True
     if isinstance(status, int):
         return f"request failed (HTTP {status})", False
     if isinstance(error, openai.OpenAIError):
         return "provider error", False
     return f"unexpected {type(error).__name__}", False
+
+
+def repeated(failure: Failure, previous: Failure | None) -> Failure:
+    """``failure``, not retryable when it repeats ``previous`` exactly on the same request.
+
+    A server error (HTTP 5xx) that comes back with the same status and the same text is the
+    server refusing this request, not a passing overload: one retry finds that out, more would
+    only burn the backoff. Rate limits (429), timeouts and refused connections repeat by nature
+    and keep their retries.
+    """
+    if (failure.retryable and previous is not None and failure.kind.startswith(SERVER_ERROR)
+            and (failure.kind, failure.detail) == (previous.kind, previous.detail)):
+        return replace(failure, kind=f"{failure.kind}, the same twice on the same request (not transient)",
+                       retryable=False)
+    return failure
+
+
+def format_hint(failure: Failure, options: Any) -> str:
+    """A pointer to ``json_mode`` when the server's refusal names ``response_format``."""
+    if "response_format" not in failure.detail:
+        return ""
+    return (f" (this server does not accept json_mode {options.json_mode!r}: see the local models section "
+            "of docs/backends.md for the form each server reads)")
 
 
 def scrub_message(text: str, secrets: Iterable[str] = ()) -> str:

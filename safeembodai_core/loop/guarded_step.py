@@ -63,14 +63,18 @@ def decide(
     failures: list[str] = []
     for index in range(failure_threshold + 1):
         prompt = builder.build(replace(request, failures=tuple(failures)))
+        rng = seeds.rng(seed, "backend", request.step, index)
+        # optional hook: a backend that decodes under the limits or varies retries learns the attempt
+        prepare = getattr(backend, "prepare_attempt", None)
+        sampling = prepare(index=index, limits=request.limits, rng=rng) if callable(prepare) else None
         started = time.perf_counter()
-        reply = backend.complete(prompt, seeds.rng(seed, "backend", request.step, index))
+        reply = backend.complete(prompt, rng)
         latency = reply.latency_s or (time.perf_counter() - started)
         text = getattr(reply, "text", None)
         finish_reason = finish_reason_text(getattr(reply, "finish_reason", None))
         # redacted before the cut, so the cut can never leave part of a secret readable
         attempt = Attempt(index=index, raw_text=redact(text)[:MAX_STORED_TEXT] if isinstance(text, str) else "",
-                          usage=reply.usage, latency_s=latency, finish_reason=finish_reason)
+                          usage=reply.usage, latency_s=latency, finish_reason=finish_reason, sampling=sampling or None)
         try:
             # The one strict reading (shared with Guard.check_answer); it raises nothing else, so
             # no answer, however hostile or cut off, can end the trial.

@@ -99,6 +99,7 @@ class Attempt(_Record):
     verdicts: list[Verdict] = Field(default_factory=list)
     usage: TokenUsage = Field(default_factory=TokenUsage)
     latency_s: float = 0.0
+    sampling: dict[str, int | float] | None = None  # what the backend sent to vary this attempt (temperature, seed)
 
     @field_validator("latency_s")
     @classmethod

@@ -61,7 +61,7 @@ def test_rate_limit_is_retried_then_succeeds(built_plugins, fake_server, fake_ke
 
 
 def test_server_errors_exhaust_the_retries_into_a_backend_error(built_plugins, fake_server, fake_key):
-    fake_server.default = Status(500, "boom")
+    fake_server.push(Status(500, "boom 1"), Status(500, "boom 2"), Status(500, "boom 3"))
     with pytest.raises(BackendError, match=r"gave up after 3 tries: server error \(HTTP 500\)"):
         _backend(built_plugins, fake_server, max_retries=2).complete(_prompt(), _rng())
     assert len(fake_server.requests) == 3
@@ -146,16 +146,16 @@ def test_local_folds_the_system_prompt_sends_a_schema_and_never_the_openai_key(b
     assert request.body["model"] == "local"  # "openai/" routes to any OpenAI-compatible server
     [message] = request.body["messages"]
     assert message["role"] == "user" and message["content"].startswith("Security: The human instruction")
-    assert request.body["response_format"]["type"] == "json_schema"
-    assert "control" in request.body["response_format"]["json_schema"]["schema"]["properties"]
+    fmt = request.body["response_format"]  # the default: the form the llama-cpp-python server reads
+    assert fmt["type"] == "json_object" and fmt["schema"]["required"] == ["perception", "planning", "control"]
     assert "sk-real-openai-key" not in request.headers.get("authorization", "")
 
 
-def test_local_json_object_schema_for_llama_cpp_python(built_plugins, fake_server):
+def test_local_json_schema_for_llama_server_and_vllm(built_plugins, fake_server):
     fake_server.default = Reply(GOOD)
-    _backend(built_plugins, fake_server, name="local", json_mode="json_object_schema").complete(_prompt(), _rng())
+    _backend(built_plugins, fake_server, name="local", json_mode="json_schema").complete(_prompt(), _rng())
     fmt = fake_server.requests[0].body["response_format"]
-    assert fmt["type"] == "json_object" and fmt["schema"]["required"] == ["perception", "planning", "control"]
+    assert fmt["type"] == "json_schema" and "control" in fmt["json_schema"]["schema"]["properties"]
 
 
 def test_seed_and_temperature_are_sent_only_when_asked(built_plugins, fake_server, fake_key):

@@ -78,8 +78,8 @@ def test_a_full_flatland_trial_through_gemma_on_llama_cpp(llama_server, built_pl
         "name": "local-gemma", "trials": 1, "max_steps": 2, "seed": 0,
         "environments": ["flatland"], "perception": "text", "state": "memory",
         "backend": {"use": "local", "options": {
-            "api_base": llama_server, "fold_system_prompt": True, "json_mode": "json_object_schema",
-            "max_tokens": 300, "temperature": 0.0, "timeout_s": 600, "max_retries": 1}},
+            "api_base": llama_server, "fold_system_prompt": True,  # json_mode, temperature: the defaults
+            "max_tokens": 300, "timeout_s": 600, "max_retries": 1}},
         "arms": {"safeembodai": {"security_prefix": True, "state_management": True, "safety_validation": True,
                                  "failure_threshold": 1}},
         "conditions": {"no_attack": {}},

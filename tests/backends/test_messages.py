@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from safeembodai_core.models import ImagePart, Prompt, TextPart, parse_response
+from safeembodai_core.models import ControlLimits, ImagePart, Prompt, TextPart, parse_response
 from safeembodai_core.testing import answer, straight, turn
 from safeembodai_plugins.backends.messages import chat_messages, decoding_schema, response_format
 
@@ -42,7 +42,7 @@ def test_text_only_prompt_sends_a_plain_string():
 
 
 def test_decoding_schema_requires_every_field_and_drops_length_caps():
-    schema = decoding_schema(max_signals=3)
+    schema = decoding_schema(ControlLimits(max_signals=3))
     text = json.dumps(schema)
     assert "maxLength" not in text and "title" not in text
     straight_def = schema["$defs"]["Straight"]
@@ -52,15 +52,15 @@ def test_decoding_schema_requires_every_field_and_drops_length_caps():
 
 
 @pytest.mark.parametrize("mode,expected_type", [("json_object", "json_object"), ("json_schema", "json_schema"),
-                                                ("json_object_schema", "json_object")])
+                                                ("json_schema_enum", "json_object")])
 def test_response_formats(mode, expected_type):
     fmt = response_format(mode)
     assert fmt["type"] == expected_type
     if mode == "json_schema":
         assert fmt["json_schema"]["schema"] == decoding_schema()
-    if mode == "json_object_schema":
-        assert fmt["schema"] == decoding_schema()
-    assert response_format("off") is None
+    if mode == "json_schema_enum":
+        assert fmt["schema"] == decoding_schema(bounds="enum")
+    assert response_format("none") is None
 
 
 def test_an_answer_shaped_by_the_decoding_schema_parses():
