@@ -201,14 +201,25 @@ def parse_response(text: str, limits: ControlLimits = DEFAULT_LIMITS, *, finish_
         ) from None
 
 
-def schema_outline() -> str:
+def schema_outline(limits: ControlLimits = DEFAULT_LIMITS) -> str:
     """A compact JSON outline of the response schema, generated from :class:`LLMResponse`.
 
     Prompts carry this instead of the full JSON schema (fewer tokens); being generated from the
-    model, it cannot drift from what :func:`parse_response` accepts.
+    model, it cannot drift from what :func:`parse_response` accepts. Numbers are shown as JSON
+    numbers, never as quoted text (``"distance": "number (millimetres)"`` invited strings): a
+    distance or angle as half its limit in ``limits`` (a whole number inside the contract, so a
+    model that copies the outline still writes a valid value), any other number as 0.
     """
     schema = LLMResponse.model_json_schema()
     defs = schema.get("$defs", {})
+    examples = {"distance": limits.max_distance_mm, "angle": limits.max_angle_deg}
+
+    def number(name: str) -> int | float:
+        limit = examples.get(name)
+        if limit is None:
+            return 0
+        half = limit / 2
+        return int(half) if half >= 1 else round(half, 3)
 
     def outline(node: dict[str, Any]) -> Any:
         if "$ref" in node:
@@ -221,14 +232,15 @@ def schema_outline() -> str:
             return [outline(option) for option in node.get("oneOf") or node.get("anyOf")]
         kind = node.get("type")
         if kind == "object":
-            return {name: outline(sub) for name, sub in node.get("properties", {}).items()}
+            return {name: number(name) if sub.get("type") in ("number", "integer") else outline(sub)
+                    for name, sub in node.get("properties", {}).items()}
         if kind == "array":
             inner = outline(node.get("items", {}))
             return inner if isinstance(inner, list) else [inner]
-        if kind == "number":
-            return "number (" + str(node.get("description", "")).split(",")[0] + ")" if node.get("description") else "number"
+        if kind in ("number", "integer"):
+            return 0
         if kind == "boolean":
             return node.get("default", False)
-        return {"string": "text", "integer": "integer"}.get(kind, "value")
+        return {"string": "text"}.get(kind, "value")
 
     return json.dumps(outline(schema), separators=(",", ":"))

@@ -1,4 +1,4 @@
-"""Issue 12: the decoding schema carries the scenario's limits, the default ``json_mode`` of
+"""Issue 12: the prompt outline shows numbers as numbers, the decoding schema carries the scenario's limits, the default ``json_mode`` of
 ``local`` is the form the llama-cpp-python server reads, a server error that repeats word for
 word stops the retries, and a step's retries can differ from its first attempt."""
 
@@ -13,6 +13,7 @@ import yaml
 from fake_openai import Reply, Status
 from safeembodai_core.errors import BackendError, ComponentError
 from safeembodai_core.models import ControlLimits, Prompt, TextPart, parse_response
+from safeembodai_core.models.response import schema_outline
 from safeembodai_core.runner import ScenarioRunner, trial_spec
 from safeembodai_core.scenario import parse_scenario
 from safeembodai_core.testing import answer, straight, turn
@@ -136,3 +137,14 @@ def test_without_prepare_attempt_the_first_attempts_sampling_is_sent(built_plugi
     body = fake_server.requests[0].body
     assert body["temperature"] == 0.0 and isinstance(body["seed"], int)
     assert json.dumps(body["response_format"]["schema"]).count('"enum"') >= 2
+
+
+def test_schema_outline_shows_numbers_as_numbers_inside_the_contract():
+    straight_entry, turn_entry = json.loads(schema_outline())["control"]
+    assert (straight_entry["distance"], turn_entry["angle"]) == (200, 45)  # never "number (millimetres)"
+    assert '"distance":"' not in schema_outline() and '"angle":"' not in schema_outline()
+    tight = ControlLimits(max_distance_mm=150, max_angle_deg=1)
+    straight_entry, turn_entry = json.loads(schema_outline(tight))["control"]
+    assert (straight_entry["distance"], turn_entry["angle"]) == (75, 0.5)
+    copied = [{**straight_entry, "direction": "forward"}, {**turn_entry, "direction": "left"}]
+    assert parse_response(json.dumps({**json.loads(schema_outline(tight)), "control": copied}), tight)
