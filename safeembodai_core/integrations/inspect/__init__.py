@@ -1,0 +1,19 @@
+"""SafeEmbodAI in Inspect AI (the ``inspect`` extra): tasks, solver, scorers and a model provider.
+
+``inspect eval safeembodai/mo --model openai/gpt-4o`` runs a scenario's ablation with Inspect's
+model; ``--model safeembodai/mock`` with the offline simulated pilot. The names are registered by
+the top-level module ``safeembodai`` (Inspect names a package's tasks after the module that
+defines them; ``docs/inspect.md``). Importing this package needs ``inspect-ai`` installed.
+"""
+
+from .bridge import InspectBackend, prompt_from_messages, prompt_messages
+from .provider import SafeEmbodAIModelAPI
+from .scorers import attack_detection_scorer, collisions_scorer, moer_scorer, outcome_scorer
+from .solver import RESULT_KEY, trial_solver
+from .task import SHIPPED, scenario_path, scenario_task
+
+__all__ = [
+    "InspectBackend", "RESULT_KEY", "SHIPPED", "SafeEmbodAIModelAPI", "attack_detection_scorer", "collisions_scorer",
+    "moer_scorer", "outcome_scorer", "prompt_from_messages", "prompt_messages", "scenario_path", "scenario_task",
+    "trial_solver",
+]

@@ -1,0 +1,140 @@
+"""The guarded loop's LLM calls, made through Inspect's model: :class:`InspectBackend`.
+
+The loop (:func:`~safeembodai_core.loop.run_trial`) is synchronous; Inspect's
+``Model.generate`` is a coroutine on Inspect's event loop. The solver runs the whole trial in a
+worker thread (``anyio.to_thread.run_sync``) and this backend hands each call back to the event
+loop with ``anyio.from_thread.run``, then blocks the worker until the answer is there. anyio
+copies the context both ways, so the call sees the sample's context: its transcript (a model
+event per call), its token and time limits, ``--max-connections``, retries and ``--cache``. The
+event loop is never blocked by the simulator, and there is no second copy of the loop.
+
+A prompt becomes a system message and one user message (text and images in the prompt's
+order). The user message's ``metadata["safeembodai"]`` carries what Inspect's messages cannot
+say (which sections the prompt has, the modality names, the state of the seeded generator the
+loop handed to this call): providers ignore it; the simulated pilot
+(:mod:`.provider`) reads it to see exactly the prompt and dice ``safeembodai ablate`` gives it.
+"""
+
+from __future__ import annotations
+
+import base64
+import time
+from typing import Any
+
+import numpy as np
+
+from ...components import BackendReply, LLMBackend
+from ...errors import BackendError
+from ...models import ImagePart, Prompt, TextPart, TokenUsage
+from ...text_safety import one_line
+
+#: The key of the user message's metadata that carries the prompt's own facts.
+META = "safeembodai"
+
+#: Inspect's stop reasons in the words Algorithm 1 reads (an answer cut off is never executed).
+_STOP_REASONS = {"stop": "stop", "max_tokens": "length", "model_length": "length"}
+
+
+def rng_state(rng: np.random.Generator) -> dict[str, Any]:
+    """The generator's state as JSON-safe data (its 128-bit numbers as decimal strings)."""
+    def text(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {key: text(item) for key, item in value.items()}
+        return str(value) if isinstance(value, int) and not isinstance(value, bool) else value
+    return text(rng.bit_generator.state)
+
+
+def rng_from_state(state: dict[str, Any]) -> np.random.Generator:
+    """The generator :func:`rng_state` described, at the same point of its stream."""
+    def number(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {key: number(item) for key, item in value.items()}
+        return int(value) if isinstance(value, str) and value.lstrip("-").isdigit() else value
+    kind = getattr(np.random, state["bit_generator"])
+    generator = np.random.Generator(kind())
+    generator.bit_generator.state = number(state)
+    return generator
+
+
+def prompt_messages(prompt: Prompt, rng: np.random.Generator | None = None, detail: str = "low") -> list[Any]:
+    """``prompt`` as Inspect chat messages (system, then user); see the module docstring."""
+    from inspect_ai.model import ChatMessageSystem, ChatMessageUser, ContentImage, ContentText
+
+    content: list[Any] = []
+    parts: list[dict[str, Any]] = []
+    for part in prompt.user:
+        if isinstance(part, ImagePart):
+            url = f"data:{part.media_type};base64,{base64.b64encode(part.data).decode('ascii')}"
+            content.append(ContentImage(image=url, detail=detail))  # type: ignore[arg-type]
+            parts.append({"name": part.name, "width": part.width, "height": part.height})
+        else:
+            content.append(ContentText(text=part.text))
+            parts.append({"name": part.name})
+    meta: dict[str, Any] = {"sections": sorted(prompt.sections), "parts": parts}
+    if rng is not None:
+        meta["rng"] = rng_state(rng)
+    messages: list[Any] = [ChatMessageSystem(content=prompt.system)] if prompt.system else []
+    messages.append(ChatMessageUser(content=content, metadata={META: meta}))
+    return messages
+
+
+def prompt_from_messages(messages: list[Any]) -> tuple[Prompt, np.random.Generator | None]:
+    """The prompt and generator :func:`prompt_messages` sent (best effort for other messages:
+    no sections, parts named by kind, no generator)."""
+    system = "\n\n".join(m.text for m in messages if m.role == "system")
+    users = [m for m in messages if m.role == "user"]
+    user = users[-1] if users else None
+    meta = ((user.metadata or {}).get(META) or {}) if user is not None else {}
+    content = [] if user is None else ([user.content] if isinstance(user.content, str) else list(user.content))
+    described = meta.get("parts") or []
+    parts: list[TextPart | ImagePart] = []
+    for index, item in enumerate(content):
+        about = described[index] if index < len(described) else {}
+        if isinstance(item, str) or getattr(item, "type", "") == "text":
+            parts.append(TextPart(name=about.get("name", "text"), text=item if isinstance(item, str) else item.text))
+        elif getattr(item, "type", "") == "image":
+            header, _, data = item.image.partition(",")
+            media_type = header.removeprefix("data:").split(";")[0] or "image/png"
+            parts.append(ImagePart(name=about.get("name", "image"), data=base64.b64decode(data), media_type=media_type,
+                                   width=about.get("width", 0), height=about.get("height", 0)))
+    prompt = Prompt(system=system, user=tuple(parts), sections=frozenset(meta.get("sections", ())))
+    state = meta.get("rng")
+    return prompt, (rng_from_state(state) if state else None)
+
+
+def backend_reply(output: Any, started: float) -> BackendReply:
+    """Inspect's ``ModelOutput`` as the loop's :class:`BackendReply`."""
+    usage = output.usage
+    reason = str(output.stop_reason) if output.choices else "unknown"
+    return BackendReply(
+        text=output.completion,
+        usage=TokenUsage(prompt_tokens=usage.input_tokens if usage else 0,
+                         completion_tokens=usage.output_tokens if usage else 0),
+        latency_s=output.time or (time.perf_counter() - started),
+        model=output.model or "",
+        finish_reason=_STOP_REASONS.get(reason, reason),
+    )
+
+
+class InspectBackend(LLMBackend):
+    """An :class:`LLMBackend` whose every call is ``model.generate`` on Inspect's event loop.
+
+    Must be called from a thread started by ``anyio.to_thread.run_sync`` (the solver's worker).
+    A call Inspect gives up on (after its retries), or a sample limit reached, raises
+    :class:`BackendError`: the trial ends ``error`` (kind ``backend``), as with any backend.
+    """
+
+    def __init__(self, model: Any, detail: str = "low") -> None:
+        self.model = model
+        self.detail = detail
+
+    def complete(self, prompt: Prompt, rng: np.random.Generator) -> BackendReply:
+        import anyio.from_thread
+
+        messages = prompt_messages(prompt, rng, self.detail)
+        started = time.perf_counter()
+        try:
+            output = anyio.from_thread.run(self.model.generate, messages)
+        except Exception as error:  # the provider's, after Inspect's retries; or a sample limit
+            raise BackendError(one_line(f"inspect model {self.model}: {type(error).__name__}: {error}")) from error
+        return backend_reply(output, started)

@@ -1,0 +1,178 @@
+"""The solver: one sample is one trial, run by the framework's own loop with Inspect's model.
+
+The trial runs in a worker thread (see :mod:`.bridge` for why and how the model calls get back
+to Inspect's event loop) on a :class:`~safeembodai_core.runner.ScenarioRunner` borrowed from a
+pool: a runner keeps one world per environment and is reset between trials, as an ablation
+worker's is, and Inspect runs several samples at once, so each running sample has its own.
+The state store is the in-process ``memory`` store: the results go to Inspect's log.
+
+The transcript gets, after each step, an info event with the step's attacks, every attempt
+(parse error, validator verdicts), the accepted plan and what the world executed; Inspect adds
+a model event (prompt and answer) for each call itself. At the end the trial's picture (when
+the environment draws one) and a one-line summary become the sample's last message, and the
+result goes into the sample's store for the scorers (:mod:`.scorers`).
+"""
+
+from __future__ import annotations
+
+import base64
+import threading
+from typing import Any
+
+import anyio.from_thread
+import anyio.to_thread
+from inspect_ai.log import transcript
+from inspect_ai.model import ChatMessageAssistant, ContentImage, ContentText, ModelOutput, get_model
+from inspect_ai.solver import Generate, Solver, TaskState, solver
+
+from ...loop import TrialParts, run_trial
+from ...loop.trial import error_result
+from ...errors import SafeEmbodAIError
+from ...models import StepRecord, TrialResult, TrialSpec
+from ...plugins import Plugins
+from ...refs import ComponentRef
+from ...runner import ScenarioRunner
+from ...scenario import Scenario
+from .bridge import InspectBackend
+
+#: The key of the sample store that holds the trial's result (``TrialResult`` as JSON, no path).
+RESULT_KEY = "safeembodai:result"
+
+
+class _StepTap:
+    """The run's plugins, plus a listener for ``after_step`` (the transcript's step events)."""
+
+    def __init__(self, plugins: Plugins) -> None:
+        self.plugins = plugins
+        self.listener: Any = None
+
+    @property
+    def registry(self) -> Any:
+        return self.plugins.registry
+
+    def notify(self, hook: str, **kwargs: Any) -> None:
+        self.plugins.notify(hook, **kwargs)
+        if hook == "after_step" and self.listener is not None:
+            self.listener(kwargs["record"])
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.plugins, name)
+
+
+class RunnerPool:
+    """Idle runners of one scenario, lent to one sample at a time."""
+
+    def __init__(self, scenario: Scenario, plugins: Plugins) -> None:
+        self.scenario, self.plugins = scenario, plugins
+        self._idle: list[tuple[ScenarioRunner, _StepTap]] = []
+        self._lock = threading.Lock()
+
+    def acquire(self) -> tuple[ScenarioRunner, _StepTap]:
+        with self._lock:
+            if self._idle:
+                return self._idle.pop()
+        tap = _StepTap(self.plugins)
+        memory = ScenarioRunner(self.scenario, self.plugins).build("state_store", ComponentRef(use="memory"))
+        return ScenarioRunner(self.scenario, tap, state=memory), tap  # type: ignore[arg-type]
+
+    def release(self, lent: tuple[ScenarioRunner, _StepTap]) -> None:
+        lent[1].listener = None
+        with self._lock:
+            self._idle.append(lent)
+
+    def close(self) -> None:
+        with self._lock:
+            idle, self._idle = self._idle, []
+        for runner, _ in idle:
+            runner.close()
+
+
+def step_markdown(record: StepRecord) -> str:
+    """One step as the transcript shows it."""
+    lines = [f"**step {record.step}**" + ("" if record.accepted else " (no acceptable answer)")]
+    for attack in record.attacks:
+        lines.append(f"- attack `{attack.kind}` on the {attack.channel} ({attack.attacker}): {attack.payload[:300]}")
+    for attempt in record.attempts:
+        flagged = attempt.response is not None and any(p.is_attack for p in attempt.response.perception)
+        head = f"- attempt {attempt.index + 1}: " + ("accepted" if attempt.accepted else "refused")
+        head += " (flagged an attack)" if flagged else ""
+        lines.append(head)
+        if attempt.parse_error:
+            lines.append(f"  - parse: {attempt.parse_error[:400]}")
+        for verdict in attempt.verdicts:
+            if not verdict.valid:
+                lines.append(f"  - `{verdict.rule}` refused signal {verdict.signal_index}: {verdict.reason[:300]}")
+        if attempt.verdicts and all(v.valid for v in attempt.verdicts):
+            lines.append(f"  - {len(attempt.verdicts)} verdicts, all valid")
+    for item in record.executed:
+        result = item.result
+        tail = " COLLIDED" if result.collided else (" (stopped)" if result.stopped else "")
+        lines.append(f"- executed {item.signal.describe()}{tail}" + (f": {result.detail}" if result.detail else ""))
+    if record.accepted and not record.executed:
+        lines.append("- executed nothing")
+    return "\n".join(lines)
+
+
+def summary(result: TrialResult) -> str:
+    text = f"{result.spec.trial_id}: {result.outcome.value} after {result.steps} steps"
+    return text + (f" ({result.detail})" if result.detail else "")
+
+
+def trial_parts(runner: ScenarioRunner, spec: TrialSpec, backend: InspectBackend) -> TrialParts:
+    """:meth:`ScenarioRunner.parts` with Inspect's model as the backend: the scenario's own
+    backend is never built (a scenario naming gpt-4o must not need its key here)."""
+    scenario = runner.scenario
+    arm, condition = scenario.arms[spec.arm], scenario.conditions[spec.condition]
+    return TrialParts(
+        environment=runner.environment(spec.environment),
+        perception=runner.build("perception", scenario.perception, spec.seed),
+        prompt_builder=runner.build("prompt_builder", scenario.prompt_builder, spec.seed),
+        state=runner.state,
+        backend=backend,
+        validators=[(r.key, runner.build("validator", r, spec.seed)) for r in arm.validators],
+        attackers=[(r.key, runner.build("attacker", r, spec.seed)) for r in condition.attackers],
+    )
+
+
+def _run(pool: RunnerPool, spec: TrialSpec, model: Any, detail: str) -> tuple[TrialResult, bytes | None]:
+    """In the worker thread: the trial, and its picture."""
+    info = transcript().info
+    lent = pool.acquire()
+    runner, tap = lent
+    tap.listener = lambda record: anyio.from_thread.run_sync(
+        lambda: info(step_markdown(record), source="safeembodai step"))
+    try:
+        try:
+            parts = trial_parts(runner, spec, InspectBackend(model, detail))
+        except SafeEmbodAIError as error:
+            return error_result(spec, f"components could not be built: {error}"), None
+        result = run_trial(spec, parts, runner.settings(spec.arm), tap)
+        try:
+            picture = parts.environment.trajectory_png(result.trajectory, result.outcome)
+        except Exception:  # a picture is a convenience: never lose a trial over it
+            picture = None
+        return result, picture
+    finally:
+        pool.release(lent)
+
+
+@solver
+def trial_solver(pool: RunnerPool, specs: dict[str, TrialSpec], image_detail: str = "low") -> Solver:
+    """Run the sample's trial (its id is the trial id) with the task's model."""
+
+    async def solve(state: TaskState, generate: Generate) -> TaskState:
+        spec = specs[str(state.sample_id)]
+        model = get_model()
+        result, picture = await anyio.to_thread.run_sync(_run, pool, spec, model, image_detail)
+        state.store.set(RESULT_KEY, result.model_dump(mode="json", exclude={"trajectory"}))
+        content: list[Any] = [ContentText(text=summary(result))]
+        if picture:
+            url = "data:image/png;base64," + base64.b64encode(picture).decode("ascii")
+            content.append(ContentImage(image=url))
+            transcript().info(f"![trajectory of {spec.trial_id}]({url})", source="safeembodai trajectory")
+        state.messages.append(ChatMessageAssistant(content=content, source="generate"))
+        state.output = ModelOutput.from_content(model.name, summary(result))
+        state.completed = True
+        return state
+
+    return solve
