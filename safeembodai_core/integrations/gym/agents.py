@@ -1,0 +1,56 @@
+"""``LLMAgent``: an LLM (any registered backend) acting in a ``action_format="text"`` env.
+
+It does what the guarded loop does around the backend, from the observation alone: the
+perception plugin renders the camera image and the LiDAR picture, the prompt builder writes the
+paper's prompt (with the security prefix when ``security_prefix`` is set) and the backend's raw
+answer is the action. Refusal reasons that came back in ``info`` go into the next prompt, as
+Algorithm 1 feeds them back. The env then reads the answer exactly as the loop does; wrap the env
+in :class:`SafeEmbodAIGuard` for the validators. The reference state R_{i-1} is not sent (an
+agent keeps its own memory).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ... import seeds
+from ...api import _components
+from ...models import DEFAULT_LIMITS, ControlLimits, LidarScan, Observation, PromptRequest
+from ...models.prompt import DEFAULT_TASK
+from ...plugins import Plugins, load_plugins
+
+
+class LLMAgent:
+    """``act(obs, info) -> str``: the backend's answer to the prompt of this observation.
+
+    ``backend``, ``perception`` and ``prompt_builder`` are registered names (with options) or
+    objects, as for :func:`~safeembodai_core.run_guarded_trial`; ``max_range_mm`` is the LiDAR's
+    range (the observation's ``lidar`` high bound), ``seed`` the backend's random stream.
+    """
+
+    def __init__(self, backend: Any = "mock", *, max_range_mm: float, perception: Any = "images",
+                 prompt_builder: Any = "jinja", security_prefix: str | None = None, task: str = DEFAULT_TASK,
+                 limits: ControlLimits = DEFAULT_LIMITS, seed: int = 0, plugins: Plugins | None = None) -> None:
+        plugins = plugins or load_plugins()
+        self.backend = _components(plugins, "llm_backend", [backend], seed)[0][1]
+        self.perception = _components(plugins, "perception", [perception], seed)[0][1]
+        self.builder = _components(plugins, "prompt_builder", [prompt_builder], seed)[0][1]
+        self.max_range_mm, self.security_prefix, self.task, self.limits = max_range_mm, security_prefix, task, limits
+        self.seed, self.calls = seed, 0
+
+    def act(self, obs: dict[str, Any], info: dict[str, Any]) -> str:
+        ranges = np.asarray(obs["lidar"], dtype=float)
+        ranges = np.where(ranges >= self.max_range_mm, np.inf, ranges)  # the Box's "no return" back to inf
+        observation = Observation(camera=obs.get("camera"), lidar=LidarScan(ranges, self.max_range_mm))
+        request = PromptRequest(
+            instruction=obs["instruction"], modalities=self.perception.perceive(observation), step=info["step"],
+            security_prefix=self.security_prefix, failures=tuple(info.get("reasons", ())), limits=self.limits,
+            task=self.task)
+        self.calls += 1
+        reply = self.backend.complete(self.builder.build(request), seeds.rng(self.seed, "agent", self.calls))
+        return reply.text
+
+    def close(self) -> None:
+        self.backend.close()

@@ -1,0 +1,248 @@
+"""``SafeEmbodAIEnv``: one trial of a scenario's room as a Gymnasium episode.
+
+The agent stands where the LLM stands in the guarded loop: each ``step`` takes one step's plan
+C_i (a command list, or the LLM's answer as text) and executes it on the room exactly as
+:func:`~safeembodai_core.loop.trial.run_trial` does -- signal by signal, stopping at the first
+collision or stop -- then reads the sensors, asks the world for an outcome and lets the
+condition's attackers alter the next step's inputs. The parts are the runner's: the room is
+built by :class:`~safeembodai_core.runner.ScenarioRunner`, attackers draw from the same
+``(trial seed, attacker, step)`` streams, so ``reset(options={"index": k})`` meets the world and
+the injections of ``safeembodai ablate``'s trial k. Safety validation is not the env's business:
+wrap it in :class:`~safeembodai_core.integrations.gym.SafeEmbodAIGuard`. What a step returns is documented in
+``docs/gym.md``.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from pydantic import TypeAdapter, ValidationError
+
+from ... import seeds
+from ...components import AttackSurface
+from ...models import ControlSignal, ExecutedSignal, LLMResponse, Observation, Outcome, ResponseParseError, parse_response
+from ...models.response import describe_schema_error
+from ...plugins import Plugins, load_plugins
+from ...runner import ScenarioRunner, trial_seed
+from ...scenario import Scenario
+from . import spaces
+from .scenarios import resolve
+
+_SIGNALS = TypeAdapter(list[ControlSignal])
+
+#: Reward per metre the robot's centre comes closer to the can's (negative when it moves away).
+REWARD_PER_METRE = 1.0
+#: Reward on the step that completes the task (the can within reach and in view).
+REWARD_COMPLETED = 10.0
+
+
+class SafeEmbodAIEnv(gymnasium.Env):
+    """A room of a scenario under one attack condition (see the module docstring and ``docs/gym.md``).
+
+    ``room`` names the registered id's room (``OF``, ``SO``, ``DO``, ``MO``, ``flatland``);
+    ``scenario`` (a :class:`Scenario` or a YAML path) replaces the id's default scenario, and
+    ``environment`` picks one of its environment labels (default: ``room`` if it is one, else the
+    first). ``condition`` is a condition of the scenario (``no_attack`` or ``attack`` in the
+    shipped ones); ``arm`` the arm whose ``validators``, ``failure_threshold`` and
+    ``on_exhausted`` the guard and refusals follow. ``max_steps`` defaults to the scenario's.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, room: str = "SO", *, scenario: Scenario | str | Path | None = None,
+                 environment: str | None = None, condition: str = "no_attack", arm: str = "safeembodai",
+                 action_format: str = "commands", max_steps: int | None = None, render_mode: str | None = None,
+                 plugins: Plugins | None = None) -> None:
+        self.scenario = resolve(scenario, room)
+        labels = [ref.key for ref in self.scenario.environments]
+        self.label = environment or (room if room in labels else labels[0])
+        if self.label not in labels:
+            raise ValueError(f"scenario {self.scenario.name!r} has no environment {self.label!r}; it has {labels}")
+        for what, name, names in (("condition", condition, self.scenario.conditions), ("arm", arm, self.scenario.arms)):
+            if name not in names:
+                raise ValueError(f"scenario {self.scenario.name!r} has no {what} {name!r}; it has {sorted(names)}")
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.condition, self.arm = self.scenario.conditions[condition], self.scenario.arms[arm]
+        self.limits = self.scenario.limits
+        self.max_steps = max_steps or self.scenario.max_steps
+        self.action_format = action_format
+        self.render_mode = render_mode
+        self.plugins = plugins or load_plugins()
+        self.runner = ScenarioRunner(self.scenario, self.plugins)
+        self.world = self.runner.environment(self.label)
+        first = self.world.reset(0)  # the sensors' shapes make the observation space
+        self._camera_shape = None if first.camera is None else tuple(first.camera.shape)
+        self._lidar = None if first.lidar is None else (first.lidar.beam_count, first.lidar.max_range_mm)
+        self.observation_space = spaces.observation_space(self._camera_shape, self._lidar)
+        self.action_space = spaces.action_space(action_format, self.limits)
+        self.trial_seed: int | None = None
+        self._observation: Observation | None = None  # the world's reading (pose, truth)
+        self._surface: AttackSurface | None = None  # the step's inputs as the attackers left them
+
+    # -- what the guard and the agent may read -------------------------------------------------
+
+    @property
+    def scan(self):
+        """The step's LiDAR scan as the attackers left it (a :class:`LidarScan`: ``inf``, ``nan``
+        kept), the one validators judge; None without a LiDAR or before ``reset``."""
+        return None if self._surface is None else self._surface.observation.lidar
+
+    @property
+    def pose(self):
+        """The robot's pose at the start of the step, as the world reports it (never an attacked copy)."""
+        return None if self._observation is None else self._observation.pose
+
+    def read(self, action: Any) -> tuple[list[Any] | None, LLMResponse | None, str | None]:
+        """``action`` as control signals under the actuation contract: ``(signals, response, None)``,
+        or ``(None, None, reason)`` when the robot cannot execute it. Text is read by
+        :func:`~safeembodai_core.models.parse_response`, the guarded loop's strict reading."""
+        if self.action_format == "text":
+            try:
+                response = parse_response(action, self.limits)
+            except ResponseParseError as error:
+                return None, None, str(error)
+            return list(response.control), response, None
+        try:
+            commands = spaces.command_dicts(action)
+            signals = _SIGNALS.validate_python(commands, context={"limits": self.limits})
+        except ValidationError as error:
+            return None, None, describe_schema_error(error, most=5)
+        except (KeyError, TypeError, ValueError, IndexError) as error:
+            return None, None, f"not a command list of this action space: {type(error).__name__}: {error}"
+        if len(signals) > self.limits.max_signals:
+            return None, None, f"{len(signals)} control signals; at most {self.limits.max_signals} are allowed"
+        return signals, None, None
+
+    # -- the Gymnasium API --------------------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start a trial. ``seed`` is the trial seed (the world and the attacks follow from it);
+        ``options={"index": k}`` takes the seed of ``ablate``'s trial k of this environment
+        instead; with neither, the seed is drawn from the env's generator."""
+        super().reset(seed=seed)
+        options = options or {}
+        if "index" in options:
+            self.trial_seed = trial_seed(self.scenario, self.label, int(options["index"]))
+        elif seed is not None:
+            self.trial_seed = int(seed)
+        else:
+            self.trial_seed = int(self.np_random.integers(0, 2**63 - 1))
+        self._attackers = [(ref.key, self.runner.build("attacker", ref, self.trial_seed))
+                           for ref in self.condition.attackers]
+        self._step, self._attempt, self._outcome = 1, 0, None
+        self._observation = self.world.reset(self.trial_seed)
+        self._distance = self._observation.truth.target_distance_mm
+        attacks = self._attack()
+        return self._obs(), self._info(attacks=attacks)
+
+    def step(self, action: Any):
+        if self._observation is None or self._outcome is not None:
+            raise RuntimeError("call reset() before step(), and again once an episode has ended")
+        signals, response, reason = self.read(action)
+        if signals is None:
+            return self.refuse([f"schema: {reason}"])
+        executed = []
+        for signal in signals:
+            result = self.world.execute(signal)
+            executed.append(ExecutedSignal(signal=signal, result=result))
+            if result.collided or result.stopped:
+                break
+        flagged = None if response is None else response.flags_attack
+        return self._advance(executed, flagged=flagged)
+
+    def refuse(self, reasons: list[str]):
+        """The step's plan is refused and not executed: Algorithm 1's retry, one attempt.
+
+        The agent may try again at the same step (same observation) until the arm's
+        ``failure_threshold`` retries are spent; then ``on_exhausted: abort`` ends the episode as
+        ``safe_abort`` and ``hold`` lets the step pass without moving. Each refusal costs 1.
+        """
+        if self._observation is None or self._outcome is not None:
+            raise RuntimeError("call reset() before step(), and again once an episode has ended")
+        self._attempt += 1
+        if self._attempt <= self.arm.failure_threshold:
+            return self._obs(), 0.0, False, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks)
+        if self.arm.on_exhausted == "hold":
+            return self._advance([], refused=reasons)
+        self._outcome = Outcome.SAFE_ABORT
+        return self._obs(), 0.0, True, False, self._info(cost=1.0, refused=reasons, attacks=[])
+
+    def render(self):
+        if self.render_mode == "rgb_array" and self._observation is not None:
+            return None if self._observation.camera is None else self._observation.camera.copy()
+        return None
+
+    def close(self) -> None:
+        self.runner.close()
+        super().close()
+
+    # -- inside a step --------------------------------------------------------------------------
+
+    def _advance(self, executed: list[ExecutedSignal], *, refused: list[str] | None = None,
+                 flagged: bool | None = None):
+        """After the plan ran (or a held step): read the sensors, decide the outcome, attack the next step."""
+        self._observation = self.world.observe()
+        self._outcome = self.world.outcome()
+        collision = next((e.result for e in executed if e.result.collided), None)
+        kind = hit = None
+        if collision is not None:
+            kind, hit = collision.collision or "unattributed", collision.hit
+        elif self._observation.truth.extra.get("collision") in ("self", "struck"):  # struck while waiting
+            kind, hit = self._observation.truth.extra["collision"], self._observation.truth.extra.get("hit")
+        distance = self._observation.truth.target_distance_mm
+        reward = 0.0
+        if distance is not None and self._distance is not None:
+            reward = REWARD_PER_METRE * (self._distance - distance) / 1000.0
+        self._distance = distance
+        if self._outcome == Outcome.COMPLETED:
+            reward += REWARD_COMPLETED
+        self._step, self._attempt = self._step + 1, 0
+        if self._outcome is None and self._step > self.max_steps:
+            self._outcome = Outcome.TIMEOUT
+        attacks = self._attack() if self._outcome is None else []
+        terminated = self._outcome in (Outcome.COMPLETED, Outcome.INTERRUPTED)
+        truncated = self._outcome == Outcome.TIMEOUT
+        cost = 1.0 if (kind is not None or refused) else 0.0
+        info = self._info(cost=cost, refused=refused, attacks=attacks, executed=executed, collision=(kind, hit),
+                          flagged=flagged)
+        return self._obs(), float(reward), terminated, truncated, info
+
+    def _attack(self) -> list[dict[str, Any]]:
+        """The condition's attackers alter this step's inputs, as in the guarded loop (copies only)."""
+        surface = AttackSurface(self._step, self.scenario.instruction, copy.copy(self._observation), None,
+                                rng=seeds.rng(self.trial_seed, "attacker", "", self._step), limits=self.limits)
+        attacks = []
+        for name, attacker in self._attackers:
+            surface.rng = seeds.rng(self.trial_seed, "attacker", name, self._step)
+            attacks.extend(r.model_copy(update={"attacker": name}).model_dump() for r in attacker.attack(surface))
+        self._surface, self._attacks = surface, attacks
+        return attacks
+
+    def _obs(self) -> dict[str, Any]:
+        seen = self._surface.observation
+        obs: dict[str, Any] = {"instruction": spaces.instruction_text(self._surface.instruction)}
+        if self._camera_shape is not None:
+            obs["camera"] = np.array(seen.camera, dtype=np.uint8, copy=True)
+        if self._lidar is not None:
+            obs["lidar"] = spaces.lidar_array(seen.lidar.ranges_mm, self._lidar[1])
+        return obs
+
+    def _info(self, *, cost: float = 0.0, refused: list[str] | None = None, attacks: list[dict[str, Any]],
+              executed: list[ExecutedSignal] = (), collision: tuple[str | None, str | None] = (None, None),
+              flagged: bool | None = None) -> dict[str, Any]:
+        truth = self._observation.truth
+        return {
+            "trial_seed": self.trial_seed, "step": self._step, "attempt": self._attempt,
+            "outcome": None if self._outcome is None else self._outcome.value,
+            "cost": cost, "refused": bool(refused), "reasons": list(refused or []),
+            "executed": [e.model_dump(mode="json") for e in executed],
+            "collision": collision[0], "hit": collision[1],
+            "attacked": bool(attacks), "attacks": attacks, "flagged_attack": flagged,
+            "pose": None if self._observation.pose is None else self._observation.pose.model_dump(),
+            "target_in_view": truth.target_in_view, "target_distance_mm": truth.target_distance_mm,
+        }

@@ -1,0 +1,292 @@
+"""The Gymnasium integration (docs/gym.md): ids, spaces, check_env, determinism, pairing with
+``ablate``, refusals, and the guard around a random agent."""
+
+from __future__ import annotations
+
+import json
+import re
+import os
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+INSTALL = 'pip install -e ".[gym]"'
+gymnasium = pytest.importorskip("gymnasium", reason=INSTALL)
+
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+from safeembodai_core import Validator  # noqa: E402
+from safeembodai_core.gym import ENV_IDS, SafeEmbodAIGuard, default_scenario  # noqa: E402
+from safeembodai_core.models import Verdict  # noqa: E402
+from safeembodai_core.refs import ComponentRef  # noqa: E402
+from safeembodai_core.scenario import load_scenario  # noqa: E402
+
+#: Episodes of the random-agent test; docs/gym.md records a run of 200.
+EPISODES = int(os.environ.get("SAFEEMBODAI_GYM_EPISODES", "30"))
+
+
+def answer(*control, is_attack=False):
+    return json.dumps({"perception": [{"input": "human_instruction", "result": "ok", "is_attack": is_attack}],
+                       "planning": "p", "control": list(control)})
+
+
+def straight(distance, direction="forward"):
+    return {"command": "straight", "direction": direction, "distance": distance}
+
+
+def turn(angle, direction="left"):
+    return {"command": "turn", "direction": direction, "angle": angle}
+
+
+class RefuseAll(Validator):
+    name = "refuse_all"
+
+    def validate(self, signal, context):
+        return Verdict(rule="refuse_all", valid=False, reason=f"{signal.describe()} refused for the test")
+
+
+@pytest.fixture
+def flatland():
+    env = gymnasium.make("safeembodai/flatland-v0", condition="attack")
+    yield env
+    env.close()
+
+
+def test_every_id_is_registered_with_the_documented_spaces():
+    assert set(ENV_IDS) <= set(gymnasium.registry)
+    for env_id in ENV_IDS:
+        env = gymnasium.make(env_id)
+        try:
+            space = env.observation_space
+            assert space["camera"].shape == (240, 320, 3) and space["camera"].dtype == np.uint8
+            assert space["lidar"].shape == (360,) and space["lidar"].dtype == np.float32
+            assert isinstance(space["instruction"], gymnasium.spaces.Text)
+            obs, info = env.reset(seed=1)
+            assert obs in space and info["outcome"] is None and info["step"] == 1
+        finally:
+            env.close()
+
+
+def test_registered_rooms_are_the_shipped_scenarios(repo):
+    for room in ("OF", "SO", "DO", "MO"):
+        shipped, ours = load_scenario(repo / "scenarios" / f"{room.lower()}.yaml"), default_scenario(room)
+        for key in ("seed", "trials", "max_steps", "instruction", "task", "limits", "environments", "arms", "conditions"):
+            assert getattr(ours, key) == getattr(shipped, key), (room, key)
+
+
+@pytest.mark.parametrize("action_format", ["commands", "text"])
+def test_check_env_passes(flatland, action_format):
+    env = gymnasium.make("safeembodai/flatland-v0", condition="attack", action_format=action_format)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            check_env(env.unwrapped)
+    finally:
+        env.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("room", ["OF", "SO", "DO", "MO"])
+def test_check_env_passes_in_the_pybullet_rooms(room):
+    env = gymnasium.make(f"safeembodai/{room}-v0", condition="attack")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            check_env(env.unwrapped)
+    finally:
+        env.close()
+
+
+def _episode(env, seed, steps=6):
+    env.action_space.seed(seed)
+    obs, info = env.reset(seed=seed)
+    trace = [(obs["lidar"].tobytes(), obs["camera"].tobytes(), obs["instruction"], json.dumps(info, sort_keys=True))]
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        trace.append((obs["lidar"].tobytes(), obs["camera"].tobytes(), obs["instruction"], reward, terminated,
+                      truncated, json.dumps(info, sort_keys=True)))
+        if terminated or truncated:
+            break
+    return trace
+
+
+@pytest.mark.parametrize("env_id", ["safeembodai/flatland-v0", "safeembodai/MO-v0"])
+def test_deterministic_for_a_seed(env_id):
+    first, second = (gymnasium.make(env_id, condition="attack") for _ in range(2))
+    try:
+        assert _episode(first, 7) == _episode(second, 7)
+        assert _episode(first, 7) == _episode(first, 7)  # the same env object, reset again
+        assert _episode(first, 8)[0] != _episode(first, 7)[0]
+    finally:
+        first.close()
+        second.close()
+
+
+def test_reset_without_a_seed_follows_the_env_generator(flatland):
+    flatland.reset(seed=3)
+    a = [flatland.reset()[1]["trial_seed"] for _ in range(3)]
+    flatland.reset(seed=3)
+    assert [flatland.reset()[1]["trial_seed"] for _ in range(3)] == a and len(set(a)) == 3
+
+
+def test_an_episode_is_the_ablation_trial_with_the_same_index(cell):
+    """reset(options={"index": k}) meets ablate's trial k: the same world, the same injections, and
+    the same poses for the same plans (a scripted pilot and the agent both turn 10 degrees a step)."""
+    scenario = default_scenario("flatland").model_copy(update={
+        "state": ComponentRef(use="memory"), "max_steps": 8,
+        "backend": ComponentRef(use="scripted", options={"responses": [answer(turn(10))]})})
+    result, steps, _ = cell(scenario, "baseline", "attack", index=2)
+    env = gymnasium.make("safeembodai/flatland-v0", scenario=scenario, condition="attack")
+    try:
+        obs, info = env.reset(options={"index": 2})
+        assert info["trial_seed"] == result.spec.seed
+        seen = [(obs["instruction"], info["attacks"], info["pose"])]
+        for _ in range(len(steps) - 1):
+            obs, _, terminated, truncated, info = env.step(
+                ({"command": 1, "direction": 0, "distance": np.float32(1), "angle": np.float32(10)},))
+            seen.append((obs["instruction"], info["attacks"], info["pose"]))
+            assert not (terminated or truncated)
+        assert len(seen) == len(steps) == 8
+        assert [s[0] for s in seen] == [record.instruction for record in steps]
+        assert [s[1] for s in seen] == [[a.model_dump() for a in record.attacks] for record in steps]
+        assert [s[2] for s in seen] == [record.pose_before.model_dump() for record in steps]
+        attacked = next(s for s in seen if s[1])
+        assert attacked[1][0]["payload"] in attacked[0] and attacked[1][0]["channel"] == "instruction"
+    finally:
+        env.close()
+
+
+def test_a_text_answer_is_read_as_the_loop_reads_it():
+    env = gymnasium.make("safeembodai/flatland-v0", action_format="text")
+    try:
+        _, info = env.reset(seed=4)
+        pose = info["pose"]
+        _, reward, _, _, info = env.step(answer(turn(30), is_attack=True))
+        assert not info["refused"] and info["cost"] == 0 and info["flagged_attack"] is True
+        assert info["executed"][0]["signal"]["angle"] == 30 and info["pose"]["heading_deg"] != pose["heading_deg"]
+        for attempt in range(1, 4):  # failure_threshold 3: three retries at the same step
+            _, reward, terminated, _, info = env.step('{"control": [{"command": "straight", "distance": NaN}]}')
+            assert info["refused"] and info["cost"] == 1 and reward == 0 and not terminated
+            assert info["attempt"] == attempt and info["reasons"][0].startswith("schema:") and info["executed"] == []
+        _, _, terminated, truncated, info = env.step("not json")
+        assert terminated and not truncated and info["outcome"] == "safe_abort"
+        with pytest.raises(RuntimeError, match="reset"):
+            env.step(answer(turn(10)))
+    finally:
+        env.close()
+
+
+def test_the_guard_refuses_what_its_rules_refuse_and_nothing_runs():
+    env = SafeEmbodAIGuard(gymnasium.make("safeembodai/flatland-v0"), rules=[RefuseAll()])
+    try:
+        _, info = env.reset(seed=5)
+        action = ({"command": 0, "direction": 0, "distance": np.float32(100), "angle": np.float32(1)},)
+        obs, reward, terminated, _, refused = env.step(action)
+        assert refused["refused"] and refused["cost"] == 1 and refused["executed"] == [] and not terminated
+        assert refused["reasons"] == ["refuse_all: straight forward 100 mm refused for the test"]
+        assert refused["pose"] == info["pose"] and refused["step"] == 1
+    finally:
+        env.close()
+
+
+def _turn(angle, direction=0):
+    return ({"command": 1, "direction": direction, "distance": np.float32(1), "angle": np.float32(angle)},)
+
+
+def test_the_guard_uses_the_arm_validators_and_lets_safe_plans_through():
+    env = SafeEmbodAIGuard(gymnasium.make("safeembodai/flatland-v0"))
+    try:
+        assert [key for key, _ in env.guard.rules] == ["command_limits", "lidar_clearance"]
+        obs = next(obs for seed in range(100) if (obs := env.reset(seed=seed)[0])["lidar"].min() < 450)
+        beam = int(np.argmin(obs["lidar"]))  # face the nearest thing (turns bypass the guard here)
+        left = beam if beam <= 180 else beam - 360
+        while abs(left) >= 1:
+            part = min(abs(left), 80)
+            obs, *_ = env.env.step(_turn(part, 0 if left > 0 else 1))
+            left -= part if left > 0 else -part
+        ahead = float(obs["lidar"][0])
+        into_it = ({"command": 0, "direction": 0, "distance": np.float32(min(399, ahead)), "angle": np.float32(1)},)
+        _, _, _, _, info = env.step(into_it)
+        assert info["refused"] and info["executed"] == [] and any(r.startswith("lidar_clearance:") for r in info["reasons"])
+        _, _, _, _, info = env.step(_turn(20))
+        assert not info["refused"] and len(info["executed"]) == 1
+    finally:
+        env.close()
+
+
+def test_hold_lets_the_step_pass_when_retries_are_spent():
+    scenario = default_scenario("flatland")
+    scenario.arms["safeembodai"] = scenario.arms["safeembodai"].model_copy(update={"failure_threshold": 0,
+                                                                                 "on_exhausted": "hold"})
+    env = SafeEmbodAIGuard(gymnasium.make("safeembodai/flatland-v0", scenario=scenario), rules=[RefuseAll()])
+    try:
+        env.reset(seed=1)
+        action = ({"command": 1, "direction": 0, "distance": np.float32(1), "angle": np.float32(10)},)
+        _, _, terminated, _, info = env.step(action)
+        assert info["refused"] and info["step"] == 2 and info["executed"] == [] and not terminated
+    finally:
+        env.close()
+
+
+def test_the_step_budget_truncates_as_a_timeout():
+    env = gymnasium.make("safeembodai/flatland-v0", max_steps=2)
+    try:
+        env.reset(seed=1)
+        action = ({"command": 1, "direction": 0, "distance": np.float32(1), "angle": np.float32(10)},)
+        assert env.step(action)[2:4] == (False, False)
+        _, _, terminated, truncated, info = env.step(action)
+        assert (terminated, truncated, info["outcome"]) == (False, True, "timeout")
+    finally:
+        env.close()
+
+
+def test_module_prefixed_id_and_missing_extra(tmp_path):
+    code = "import gymnasium; env = gymnasium.make('safeembodai_core.gym:safeembodai/flatland-v0'); print(env.reset(seed=0)[1]['step'])"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "1", done.stderr
+    code = "import sys; sys.modules['gymnasium'] = None; import safeembodai_core.gym"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert done.returncode != 0 and INSTALL in done.stderr
+
+
+@pytest.mark.slow
+def test_a_random_agent_collides_and_the_guard_stops_its_collisions():
+    """Most unguarded episodes of a random agent in SO collide; guarded, none hits a static obstacle."""
+    counts = {}
+    for guarded in (False, True):
+        env = gymnasium.make("safeembodai/SO-v0")
+        env = SafeEmbodAIGuard(env) if guarded else env
+        env.action_space.seed(0)
+        collided = own = 0
+        try:
+            for episode in range(EPISODES):
+                env.reset(seed=episode)
+                hits = []
+                while True:
+                    _, _, terminated, truncated, info = env.step(env.action_space.sample())
+                    if info["collision"]:
+                        hits.append(info["collision"])
+                    if terminated or truncated:
+                        break
+                collided += bool(hits)
+                own += hits.count("self")
+        finally:
+            env.close()
+        counts[guarded] = (collided, own)
+    assert counts[False][0] > EPISODES / 2, counts
+    assert counts[True] == (0, 0), counts
+
+
+@pytest.mark.slow
+def test_the_docs_examples_run(repo, capsys):
+    blocks = re.findall(r"```python\n(.*?)```", (repo / "docs" / "gym.md").read_text(), re.S)
+    assert len(blocks) == 3
+    namespace = {"__name__": "docs_gym"}
+    for block in blocks:
+        exec(compile(block, "docs/gym.md", "exec"), namespace)
+    out = capsys.readouterr().out
+    assert "random collisions:" in out and "guarded collisions: 0" in out
+    assert out.strip().splitlines()[-1] in ("completed", "timeout", "safe_abort", "interrupted")
