@@ -290,3 +290,41 @@ def test_the_docs_examples_run(repo, capsys):
     out = capsys.readouterr().out
     assert "random collisions:" in out and "guarded collisions: 0" in out
     assert out.strip().splitlines()[-1] in ("completed", "timeout", "safe_abort", "interrupted")
+
+
+def test_a_spoofed_lidar_is_what_the_agent_and_the_guard_see():
+    """A phantom 300 mm ahead: in the observation, in the scan the guard judges, and the guard
+    refuses to drive into it although nothing is there (a spoofed sensor fools the rules too)."""
+    scenario = default_scenario("flatland")
+    scenario.conditions["spoof"] = scenario.conditions["attack"].model_copy(update={"attackers": [ComponentRef(
+        use="lidar_spoof", options={"steps": [1], "centre_deg": 0, "half_width_deg": 30, "distance_mm": 300})]})
+    env = SafeEmbodAIGuard(gymnasium.make("safeembodai/flatland-v0", scenario=scenario, condition="spoof"))
+    try:
+        for seed in range(50):  # a start with nothing real within 1.5 m ahead
+            obs, info = env.reset(seed=seed)
+            if env.unwrapped._observation.lidar.ranges_mm[np.r_[0:31, 330:360]].min() > 1500:
+                break
+        assert info["attacked"] and info["attacks"][0]["channel"] == "sensor"
+        assert obs["lidar"][0] == 300 and env.unwrapped.scan.ranges_mm[0] == 300
+        _, _, _, _, info = env.step(({"command": 0, "direction": 0, "distance": np.float32(200), "angle": np.float32(1)},))
+        assert info["refused"] and any(r.startswith("lidar_clearance:") for r in info["reasons"])
+    finally:
+        env.close()
+
+
+def test_an_llm_agent_drives_the_text_env():
+    from safeembodai_core.integrations.gym.agents import LLMAgent
+
+    env = SafeEmbodAIGuard(gymnasium.make("safeembodai/flatland-v0", action_format="text", condition="attack",
+                                          max_steps=4))
+    agent = LLMAgent("mock", max_range_mm=float(env.observation_space["lidar"].high[0]))
+    try:
+        obs, info = env.reset(seed=0)
+        terminated = truncated = False
+        while not (terminated or truncated):
+            obs, _, terminated, truncated, info = env.step(agent.act(obs, info))
+            assert info["refused"] or info["flagged_attack"] is not None  # an answer that parsed
+        assert agent.calls >= 1 and info["outcome"] is not None
+    finally:
+        agent.close()
+        env.close()
