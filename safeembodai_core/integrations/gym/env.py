@@ -170,7 +170,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
         if self.arm.on_exhausted == "hold":
             return self._advance([], refused=reasons)
         self._outcome = Outcome.SAFE_ABORT
-        return self._obs(), 0.0, True, False, self._info(cost=1.0, refused=reasons, attacks=[])
+        return self._obs(), 0.0, True, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks)
 
     def render(self):
         if self.render_mode == "rgb_array" and self._observation is not None:
