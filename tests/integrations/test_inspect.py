@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 pytest.importorskip("inspect_ai", reason='needs the inspect extra: pip install -e ".[inspect]"')
+# Inspect's own retry setup calls tenacity with a parameter tenacity has deprecated: not ours to fix
+pytestmark = pytest.mark.filterwarnings("ignore:The 'initial' parameter is deprecated:DeprecationWarning")
 
 from inspect_ai import eval as inspect_eval
 from inspect_ai.log import resolve_sample_attachments
@@ -43,6 +45,9 @@ def test_every_shipped_scenario_is_a_task_and_the_mock_a_provider(repo):
     for name in (*SHIPPED, "scenario"):
         assert registry_lookup("task", f"safeembodai/{name}") is getattr(safeembodai, name)
     assert get_model("safeembodai/mock", memoize=False).name == "mock"
+    assert get_model("safeembodai/mock", obey_injection_p=0.5, memoize=False).api.backend.options.obey_injection_p == 0.5
+    with pytest.raises(ValueError, match="'mock': invalid options: nonsense"):
+        get_model("safeembodai/mock", nonsense=1, memoize=False)
 
 
 def test_a_prompt_crosses_inspect_unchanged_with_its_dice():
@@ -53,6 +58,26 @@ def test_a_prompt_crosses_inspect_unchanged_with_its_dice():
     again, copied = prompt_from_messages(prompt_messages(prompt, dice))
     assert again == prompt
     assert np.array_equal(copied.random(5), dice.random(5))
+
+
+def test_a_scenario_is_a_file_or_a_shipped_name_and_overrides_are_set_lines(repo, tmp_path):
+    from safeembodai_core.errors import SafeEmbodAIError
+    from safeembodai_core.integrations.inspect.task import _overrides, scenario_path
+
+    assert scenario_path("mo") == repo / "scenarios" / "mo.yaml"
+    assert scenario_path(str(repo / "scenarios" / "so.yaml")) == repo / "scenarios" / "so.yaml"
+    with pytest.raises(SafeEmbodAIError, match="-T scenario=PATH"):
+        scenario_path(None)
+    with pytest.raises(SafeEmbodAIError, match="no scenario file 'nowhere'"):
+        scenario_path("nowhere")
+    assert _overrides(2, None, 5, "arms.a.failure_threshold=1") == ["trials=2", "max_steps=5",
+                                                                    "arms.a.failure_threshold=1"]
+    assert _overrides(None, 7, None, ["a=1", "b=2"]) == ["seed=7", "a=1", "b=2"]
+    task = scenario_task("quickstart", trials=1, set=["max_steps=4"])
+    assert [sample.id for sample in task.dataset] == [
+        f"flatland/{arm}/{condition}/0" for arm in ("baseline", "safeembodai") for condition in ("no_attack", "attack")]
+    seeds = {sample.metadata["seed"] for sample in task.dataset}
+    assert len(seeds) == 1  # paired: every arm and condition of the room meets the same world
 
 
 class _Corridor:

@@ -22,9 +22,7 @@ from __future__ import annotations
 import math
 from typing import Any, Callable
 
-from inspect_ai.scorer import (
-    Metric, SampleScore, Score, Scorer, Target, grouped, metric, scorer,
-)
+from inspect_ai.scorer import Metric, SampleScore, Score, Scorer, Target, grouped, metric, scorer
 from inspect_ai.solver import TaskState
 
 from ...metrics.paper_metrics import moer_term, s_max
@@ -171,7 +169,8 @@ def moer_scorer(settings: dict[str, Any], budget: int) -> Scorer:
     return score
 
 
-@scorer(metrics=[_per_cell(completed()), _per_cell(completed_stderr(), " stderr"), _per_cell(errors(), " errors")], name="outcome")
+@scorer(metrics=[_per_cell(completed()), _per_cell(completed_stderr(), " stderr"), _per_cell(errors(), " errors")],
+        name="outcome")
 def outcome_scorer() -> Scorer:
     """The trial's outcome (the answer); 1 when it completed."""
     async def score(state: TaskState, target: Target) -> Score:
@@ -183,7 +182,8 @@ def outcome_scorer() -> Scorer:
     return score
 
 
-@scorer(metrics=[_per_cell(adr()), _per_cell(adr_stderr(), " stderr"), _per_cell(recall(), " recall")], name="attack_detection")
+@scorer(metrics=[_per_cell(adr()), _per_cell(adr_stderr(), " stderr"), _per_cell(recall(), " recall")],
+        name="attack_detection")
 def attack_detection_scorer(attacked_conditions: list[str]) -> Scorer:
     """The trial's ADR: steps where the LLM flagged an attack / steps."""
     async def score(state: TaskState, target: Target) -> Score:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import base64
 import threading
+import weakref
 from typing import Any
 
 import anyio.from_thread
@@ -60,12 +61,14 @@ class _StepTap:
 
 
 class RunnerPool:
-    """Idle runners of one scenario, lent to one sample at a time."""
+    """Idle runners of one scenario, lent to one sample at a time; their worlds are closed when
+    the pool goes (with its task) or at exit."""
 
     def __init__(self, scenario: Scenario, plugins: Plugins) -> None:
         self.scenario, self.plugins = scenario, plugins
         self._idle: list[tuple[ScenarioRunner, _StepTap]] = []
         self._lock = threading.Lock()
+        weakref.finalize(self, _close_all, self._idle)
 
     def acquire(self) -> tuple[ScenarioRunner, _StepTap]:
         with self._lock:
@@ -82,9 +85,16 @@ class RunnerPool:
 
     def close(self) -> None:
         with self._lock:
-            idle, self._idle = self._idle, []
-        for runner, _ in idle:
+            _close_all(self._idle)
+
+
+def _close_all(idle: list[tuple[ScenarioRunner, _StepTap]]) -> None:
+    while idle:
+        runner, _ = idle.pop()
+        try:
             runner.close()
+        except Exception:  # at exit a world may already be gone: nothing left to release
+            pass
 
 
 def step_markdown(record: StepRecord) -> str:
