@@ -126,6 +126,43 @@ def test_a_trial_ends_in_each_outcome_with_inspects_mockllm(tmp_path, outputs, o
         assert "mockllm" in sample.scores["outcome"].explanation
 
 
+def _fake_openai(repo):
+    """The fake OpenAI-compatible server of the backend tests (tests/backends/fake_openai.py)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("fake_openai", repo / "tests" / "backends" / "fake_openai.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("fake_openai", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_real_provider_gets_the_prompt_as_chat_messages_with_images(repo, tmp_path, monkeypatch):
+    """Inspect's OpenAI-compatible provider against a local fake server: what goes on the wire.
+
+    Inspect's OpenAI providers need openai >= 3.4; the core's pin (``openai<3``) keeps 2.x.
+    """
+    openai = pytest.importorskip("openai")
+    if tuple(int(n) for n in openai.__version__.split(".")[:2]) < (3, 4):
+        pytest.skip(f"Inspect's OpenAI providers need openai>=3.4 (installed {openai.__version__}, pinned <3 by the core)")
+    fake = _fake_openai(repo)
+    with fake.FakeOpenAI(fake.Reply(answer(*[straight(390)] * 4), usage=(1234, 56))) as server:
+        monkeypatch.setenv("FAKE_API_KEY", "sk-fake")
+        monkeypatch.setenv("FAKE_BASE_URL", server.url)
+        log = _eval(_corridor_task(tmp_path), get_model("openai-api/fake/robot-pilot", memoize=False), tmp_path)
+    [sample] = log.samples
+    assert sample.scores["outcome"].answer == "completed"
+    assert sample.store["safeembodai:result"]["prompt_tokens"] == 1234  # the provider's usage, via Inspect
+    [request] = server.requests
+    system, user = request.body["messages"]
+    assert system["role"] == "system" and "Control the robot" in system["content"]
+    kinds = [part["type"] for part in user["content"]]
+    assert "text" in kinds and kinds.count("image_url") == 2  # camera and LiDAR pictures
+    assert all(part["image_url"]["url"].startswith("data:image/png;base64,")
+               for part in user["content"] if part["type"] == "image_url")
+    assert "metadata" not in json.dumps(request.body) and "bit_generator" not in json.dumps(request.body)
+
+
 @pytest.mark.slow
 def test_inspect_with_the_mock_gives_ablates_per_cell_moer(repo, tmp_path):
     """The same scenario and seed: the same trials (outcome, steps, tokens) and the same per-cell MOER."""
