@@ -42,6 +42,20 @@ class SectorReading:
 
 
 @dataclass(frozen=True)
+class PastScan:
+    """A scan the robot took at an earlier step of the same trial (for rules about motion).
+
+    ``scan`` is the scan as the validators of that step saw it (as attackers left it), ``pose``
+    where the robot really stood then (world frame, as the environment reported it) and
+    ``sim_time_s`` the environment's simulated clock when it was read.
+    """
+
+    scan: LidarScan
+    pose: Pose
+    sim_time_s: float
+
+
+@dataclass(frozen=True)
 class ValidationContext:
     """What a validator knows when it judges one signal of a plan (``docs/plugin_hooks.md``).
 
@@ -56,6 +70,12 @@ class ValidationContext:
       world (room) frame, as the environment reports it -- never the attacked copy an attacker
       may alter; None when the environment reports no pose. :attr:`planned_pose` is it moved by
       ``offset``.
+    * ``sim_time_s``: the simulated clock when ``scan`` was read (the observation's), or None.
+    * ``history``: the trial's earlier scans with their poses and times (:class:`PastScan`),
+      oldest first; only steps whose observation had a scan and a pose. Empty on step 1 and for
+      library users who pass none.
+    * ``earlier_signals``: the signals of the plan judged before this one (what ``offset`` sums
+      up, in order): a rule about time needs their durations, which ``offset`` cannot give.
     """
 
     scan: LidarScan | None
@@ -63,15 +83,19 @@ class ValidationContext:
     limits: ControlLimits = DEFAULT_LIMITS
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     start_pose: Pose | None = None
+    sim_time_s: float | None = None
+    history: tuple[PastScan, ...] = ()
+    earlier_signals: tuple[ControlSignal, ...] = ()
 
     def advanced(self, signal: ControlSignal) -> "ValidationContext":
         """The context after ``signal`` is executed exactly as commanded."""
         x, y, heading = self.offset
+        earlier = self.earlier_signals + (signal,)
         if isinstance(signal, Turn):
-            return replace(self, offset=(x, y, heading + signal.signed_angle_deg))
+            return replace(self, offset=(x, y, heading + signal.signed_angle_deg), earlier_signals=earlier)
         rad = math.radians(heading)
         d = signal.signed_distance_mm
-        return replace(self, offset=(x + d * math.cos(rad), y + d * math.sin(rad), heading))
+        return replace(self, offset=(x + d * math.cos(rad), y + d * math.sin(rad), heading), earlier_signals=earlier)
 
     @property
     def planned_pose(self) -> Pose | None:
@@ -296,4 +320,4 @@ def _ray_hits(n: int, inc: float, starts: np.ndarray, ends: np.ndarray) -> np.nd
     return np.where(np.isinf(result), np.nan, result)
 
 
-__all__ = ["SectorReading", "ValidationContext", "validate_plan"]
+__all__ = ["PastScan", "SectorReading", "ValidationContext", "validate_plan"]

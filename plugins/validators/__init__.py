@@ -12,6 +12,11 @@
 * ``footprint_sweep`` -- stronger than the paper: the rectangle the robot's body sweeps along a
   ``straight`` (its width plus a margin) must hold no LiDAR point, so an obstacle just outside
   ±r but inside the robot's width is caught; a ``turn`` must not sweep the body's circle over one.
+* ``moving_obstacles`` -- beyond the paper: returns that moved between the trial's last two scans
+  (both in the room frame) are movers with a velocity; a ``straight`` whose body will come
+  within a margin (growing with prediction time) of a mover's predicted position, at any moment
+  of its execution after the think time, is refused. It judges movers only: pair it with
+  ``lidar_clearance`` or ``footprint_sweep``.
 
 Every rule judges the signal from the *planned* pose (earlier signals of the same answer already
 applied). A scan that is malformed (wrong shape, wrong beam count) is refused with a reason
@@ -96,6 +101,37 @@ class FootprintSweepOptions(BaseModel):
     expected_beams: int | None = Field(None, ge=4, description="refuse scans with another number of beams")
 
 
+class MovingObstaclesOptions(BaseModel):
+    """Options of ``moving_obstacles``; timing defaults are the pybullet rooms' (``docs/defences.md``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    think_time_s: float | None = Field(None, ge=0, le=600, allow_inf_nan=False, description=(
+        "simulated seconds between the scan and the first signal (the environment's think time); "
+        "default: estimated from the observation times"))
+    robot_speed_mm_s: float = Field(200.0, gt=0, le=5000, allow_inf_nan=False,
+                                    description="the robot's straight-line speed (pybullet rooms: 200)")
+    robot_turn_rate_deg_s: float = Field(60.0, gt=0, le=3600, allow_inf_nan=False,
+                                         description="the robot's turning speed (pybullet rooms: 60)")
+    margin_mm: float = Field(80.0, ge=0, le=2000, allow_inf_nan=False,
+                             description="clearance kept between the body and a mover's predicted disc")
+    margin_growth_mm_s: float = Field(30.0, ge=0, le=2000, allow_inf_nan=False,
+                                      description="added to the margin per second of prediction")
+    unknown_speed_mm_s: float = Field(50.0, ge=0, le=5000, allow_inf_nan=False, description=(
+        "speed, in any direction, assumed for a mover whose earlier position was not seen"))
+    sample_s: float = Field(0.1, gt=0, le=2, allow_inf_nan=False, description="time step of the check")
+    static_tolerance_mm: float = Field(100.0, gt=0, le=2000, allow_inf_nan=False, description=(
+        "a return counts as moved only where the earlier scan saw this much farther"))
+    cluster_gap_mm: float = Field(150.0, gt=0, le=2000, allow_inf_nan=False,
+                                  description="neighbouring returns closer than this belong to one obstacle")
+    min_moved_points: int = Field(2, ge=1, le=100, description="moved returns a cluster needs to count as a mover")
+    max_obstacle_mm: float = Field(800.0, gt=0, le=10_000, allow_inf_nan=False,
+                                   description="largest mover; a larger cluster keeps only its moved returns")
+    max_obstacle_speed_mm_s: float = Field(1000.0, gt=0, le=10_000, allow_inf_nan=False,
+                                           description="faster pairings are not the same obstacle")
+    expected_beams: int | None = Field(None, ge=4, description="refuse scans with another number of beams")
+
+
 def _limits(options, context):
     from .rules import CommandLimitsRule
 
@@ -114,6 +150,12 @@ def _sweep(options, context):
     return FootprintSweepRule(options)
 
 
+def _moving(options, context):
+    from .moving import MovingObstaclesRule
+
+    return MovingObstaclesRule(options)
+
+
 @hookimpl
 def register_validators(register):
     register("command_limits", _limits, options=CommandLimitsOptions,
@@ -122,3 +164,5 @@ def register_validators(register):
              description="the paper's V(C): l(θ) - |d| >= dist for θ in [-r, r]")
     register("footprint_sweep", _sweep, options=FootprintSweepOptions,
              description="the rectangle the body sweeps (width + margin) holds no LiDAR point")
+    register("moving_obstacles", _moving, options=MovingObstaclesOptions,
+             description="refuses straights that will meet a mover predicted from the last two scans")

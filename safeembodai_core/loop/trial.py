@@ -40,7 +40,7 @@ from ..models import (
 )
 from ..models.prompt import DEFAULT_TASK
 from ..text_safety import one_line, storable
-from ..validation import ValidationContext
+from ..validation import PastScan, ValidationContext
 from .defences import Defences
 from .guarded_step import decide
 
@@ -182,6 +182,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         observation = parts.environment.reset(spec.seed)
         if observation.pose is not None:
             totals.trajectory.append(observation.pose)
+        history: list[PastScan] = []  # the validators' earlier scans (ValidationContext.history)
         for step in range(1, settings.max_steps + 1):
             if step > 1:
                 observation = parts.environment.observe()
@@ -191,7 +192,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
                     outcome = ended
                     break
             notify("before_step", spec=spec, step=step, observation=observation)
-            record = storable(_decide(spec, step, observation, parts, settings))
+            record = storable(_decide(spec, step, observation, parts, settings, history))
             if record.planned:
                 _store(lambda: parts.state.record_step(record),
                        f"record the plan of step {step} before executing it (nothing of it ran)")
@@ -251,7 +252,7 @@ def _store(call: Any, what: str) -> Any:
 
 
 def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialParts,
-            settings: LoopSettings) -> StepRecord:
+            settings: LoopSettings, history: list[PastScan] | None = None) -> StepRecord:
     """Step i up to execution: attackers, perception, Algorithm 1; the record with the accepted plan."""
     defences = settings.defences
     reference = (_store(lambda: parts.state.reference_state(spec.trial_id, step),
@@ -270,7 +271,10 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
     )
     # the scan as attacked (a spoofed sensor fools the rules too); the pose as the world reports it
     context = ValidationContext(scan=surface.observation.lidar, robot=parts.environment.robot, limits=settings.limits,
-                                start_pose=observation.pose)
+                                start_pose=observation.pose, sim_time_s=observation.sim_time_s,
+                                history=tuple(history or ()))
+    if history is not None and context.scan is not None and observation.pose is not None:
+        history.append(PastScan(context.scan, observation.pose, observation.sim_time_s))
     attempts, response = decide(
         request, builder=parts.prompt_builder, backend=parts.backend,
         validators=parts.validators if defences.safety_validation else [],

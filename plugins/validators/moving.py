@@ -1,0 +1,192 @@
+"""``moving_obstacles``: refuse a motion that will meet a mover where it is predicted to be.
+
+The rule compares the step's scan with the latest earlier scan of the trial
+(``ValidationContext.history``), both in the room frame, to find the returns that moved
+(:mod:`.tracking`) and their velocities. The robot's motion is timed with the rule's own model:
+nothing moves for the think time after the scan (the LLM deciding), then the plan's signals run
+one after the other, straights at ``robot_speed_mm_s`` and turns at ``robot_turn_rate_deg_s``.
+Every mover is predicted on a straight line at its estimated velocity from where the scan saw
+it. A ``straight`` is refused when, at any moment of it (sampled every ``sample_s``), the robot's
+body comes within ``margin_mm + margin_growth_mm_s * t`` of a mover's predicted disc, t being
+the time since the scan: predictions further ahead are trusted less.
+
+What the rule assumes:
+
+* a return seen once -- on step 1, in a static scene, or where the earlier scan could not see
+  (occluded, out of range) -- is static: this rule never refuses because of it (other rules
+  judge where things are now);
+* a mover whose earlier position was not seen (it came out of a shadow) has unknown velocity: it
+  may move ``unknown_speed_mm_s`` in any direction, so its disc grows with time;
+* a mover keeps its velocity; one that turns or stops after the scan is where the margin's
+  growth may or may not cover it (``docs/defences.md``);
+* a turn in place is always accepted: the body does not leave its circle, so refusing it keeps
+  no mover away (the straights that follow are judged at the times they will run); likewise a
+  straight that meets a mover is refused only if it brings the body nearer to it than standing
+  still for the same time would (least distance over the motion): a mover bound to reach the
+  robot where it waits is the mover's doing (``struck``), and stepping out of its way must pass.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from safeembodai_core.components import Validator
+from safeembodai_core.models import ControlSignal, Straight, Turn, Verdict
+from safeembodai_core.validation import ValidationContext
+
+from .rules import checked_scan, direction_words
+from .tracking import Blob, TrackingSettings, find_movers
+
+_WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
+
+
+class MovingObstaclesRule(Validator):
+    """Predicts movers from consecutive scans; refuses straights whose sweep meets one."""
+
+    name = "moving_obstacles"
+
+    def __init__(self, options) -> None:
+        self.options = options
+        self.tracking = TrackingSettings(
+            tolerance_mm=options.static_tolerance_mm, cluster_gap_mm=options.cluster_gap_mm,
+            min_points=options.min_moved_points, max_size_mm=options.max_obstacle_mm,
+            max_speed_mm_s=options.max_obstacle_speed_mm_s)
+        self._cache: tuple[tuple, list[Blob], float] | None = None
+
+    # -- what the scans say ---------------------------------------------------------------------
+
+    def movers(self, context: ValidationContext) -> tuple[list[Blob], float]:
+        """The movers of the context's scan, and the think time the rule assumes (s)."""
+        key = (id(context.scan), id(context.history[-1].scan) if context.history else 0, context.start_pose,
+               context.sim_time_s)
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1], self._cache[2]
+        blobs: list[Blob] = []
+        usable = [past for past in context.history
+                  if context.sim_time_s is not None and past.sim_time_s < context.sim_time_s]
+        if usable and context.start_pose is not None:
+            past = usable[-1]
+            blobs = find_movers(context.scan, context.start_pose, context.sim_time_s,
+                                past.scan, past.pose, past.sim_time_s, self.tracking)
+        think = self.think_time_s(context)
+        self._cache = (key, blobs, think)
+        return blobs, think
+
+    def think_time_s(self, context: ValidationContext) -> float:
+        """The option, or an estimate from the observation times: over consecutive observations,
+        the least of (time between them - the least time the pose change needs at the rule's
+        speeds), an upper bound on the think time when the world adds one per step."""
+        o = self.options
+        if o.think_time_s is not None:
+            return o.think_time_s
+        if context.start_pose is None or context.sim_time_s is None or not context.history:
+            return 0.0
+        chain = [(p.pose, p.sim_time_s) for p in context.history] + [(context.start_pose, context.sim_time_s)]
+        bounds = []
+        for (a, ta), (b, tb) in zip(chain, chain[1:]):
+            turned = abs((b.heading_deg - a.heading_deg + 180.0) % 360.0 - 180.0)
+            need = math.hypot(b.x_mm - a.x_mm, b.y_mm - a.y_mm) / o.robot_speed_mm_s + turned / o.robot_turn_rate_deg_s
+            if tb > ta:
+                bounds.append(tb - ta - need)
+        return max(0.0, min(bounds)) if bounds else 0.0
+
+    def duration_s(self, signal: ControlSignal) -> float:
+        if isinstance(signal, Straight):
+            return signal.distance / self.options.robot_speed_mm_s
+        return signal.angle / self.options.robot_turn_rate_deg_s
+
+    # -- the check ------------------------------------------------------------------------------
+
+    def first_meeting(self, context: ValidationContext, signal: Straight, blobs: list[Blob], start_s: float
+                      ) -> tuple[float, float, Blob, float] | None:
+        """The first sampled moment the body meets a predicted mover: (time since the scan, distance
+        driven by then, the mover, the gap short of the margin); None if it meets none. A mover
+        that would come as close to the robot standing still (over the same time) is no reason to
+        refuse: refusing would not keep it away, and a motion that gets out of its way must pass."""
+        o = self.options
+        pose = context.planned_pose
+        duration = self.duration_s(signal)
+        times = start_s + np.linspace(0.0, duration, max(2, int(math.ceil(duration / o.sample_s)) + 1))
+        driven = (times - start_s) * o.robot_speed_mm_s
+        rad = math.radians(pose.heading_deg)
+        sign = 1.0 if signal.direction == "forward" else -1.0
+        robot = np.column_stack((pose.x_mm + sign * driven * math.cos(rad), pose.y_mm + sign * driven * math.sin(rad)))
+        best = None
+        for blob in blobs:
+            velocity = blob.velocity if blob.velocity is not None else np.zeros(2)
+            spread = 0.0 if blob.velocity is not None else o.unknown_speed_mm_s
+            where = blob.centre + times[:, None] * velocity
+            reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + (o.margin_growth_mm_s + spread) * times
+            distance = np.hypot(*(robot - where).T)
+            gap = distance - reach
+            if gap.min() >= 0 or distance.min() >= np.hypot(*(robot[0] - where).T).min() - _WORSE_MM:
+                continue  # clear of it, or never nearer to it than standing still would have been
+            hits = np.flatnonzero(gap < 0)
+            if hits.size and (best is None or times[hits[0]] < best[0]):
+                k = hits[0]
+                best = (float(times[k]), float(driven[k]), blob, float(gap[k]))
+        return best
+
+    def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
+        scan = checked_scan(context, self.name, self.options.expected_beams)
+        if isinstance(signal, Turn):
+            return Verdict(rule=self.name, valid=True, reason="a turn in place keeps the body where it is")
+        if context.start_pose is None:
+            return Verdict(rule=self.name, valid=True, reason="no pose: earlier scans cannot be compared")
+        del scan
+        blobs, think = self.movers(context)
+        if not blobs:
+            return Verdict(rule=self.name, valid=True)
+        start = think + sum(self.duration_s(s) for s in context.earlier_signals)
+        meeting = self.first_meeting(context, signal, blobs, start)
+        if meeting is None:
+            return Verdict(rule=self.name, valid=True)
+        return Verdict(rule=self.name, valid=False, reason=self._reason(signal, context, blobs, start, think, meeting))
+
+    # -- the reason -----------------------------------------------------------------------------
+
+    def _reason(self, signal: Straight, context: ValidationContext, blobs: list[Blob], start: float, think: float,
+                meeting: tuple[float, float, Blob, float]) -> str:
+        when, driven, blob, _ = meeting
+        pose = context.planned_pose
+        direction, _ = direction_words(signal)
+        rad = math.radians(pose.heading_deg)
+        c, s = math.cos(rad), math.sin(rad)
+
+        def local(point: np.ndarray) -> tuple[float, float]:
+            dx, dy = point[0] - pose.x_mm, point[1] - pose.y_mm
+            x, y = dx * c + dy * s, -dx * s + dy * c
+            return math.hypot(x, y), math.degrees(math.atan2(y, x))
+
+        now_d, now_b = local(blob.centre)
+        if blob.velocity is None:
+            motion = (f"moved since the last scan, from where it was not seen: velocity unknown, assumed up to "
+                      f"{self.options.unknown_speed_mm_s:g} mm/s any way")
+        else:
+            speed = float(np.hypot(*blob.velocity))
+            course = math.degrees(math.atan2(blob.velocity[1], blob.velocity[0])) - pose.heading_deg
+            then_d, then_b = local(blob.centre + blob.velocity * when)
+            motion = (f"heads {(course + 180.0) % 360.0 - 180.0:.0f} deg at {speed:.0f} mm/s; predicted "
+                      f"{then_d:.0f} mm away at {then_b:.0f} deg {when:.1f} s after the scan")
+        safe = self._safe_distance(signal, context, blobs, start)
+        if safe >= 1:
+            advice = f"going {direction}, at most {safe} mm is safe"
+        else:
+            advice = f"no {direction} motion is safe now (at most 0 mm is safe): turn in place and let it pass"
+        return (f"{signal.describe()}: a moving obstacle, now {now_d:.0f} mm away at {now_b:.0f} deg, {motion}; "
+                f"this motion (from {start:.1f} s, after {think:g} s think time) comes within its safety margin "
+                f"{driven:.0f} mm in; {advice}")
+
+    def _safe_distance(self, signal: Straight, context: ValidationContext, blobs: list[Blob], start: float) -> int:
+        """The longest straight in the same direction, in 10 mm steps, that meets no predicted mover."""
+        best, low, high = 0, 1, int(signal.distance) - 1
+        while low <= high:
+            middle = (low + high) // 2
+            shorter = Straight(command="straight", direction=signal.direction, distance=middle)
+            if self.first_meeting(context, shorter, blobs, start) is None:
+                best, low = middle, middle + 1
+            else:
+                high = middle - 1
+        return best // 10 * 10

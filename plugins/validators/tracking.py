@@ -1,0 +1,181 @@
+"""Finding what moved between two LiDAR scans, in the room frame, and how fast.
+
+Both scans are moved into the world (room) frame by the poses they were taken from, so walls and
+balls land on themselves and cancel out. A return of the newer scan is **arrived** where the
+older scan's beams passed beyond it (the older scan saw free space there: something came in);
+a return of the older scan is **departed** where the newer scan sees beyond it. Returns are
+grouped into clusters (neighbouring beams, gaps under ``cluster_gap_mm``); a cluster with at
+least ``min_points`` arrived (or departed) returns is a mover, seen as a disc (:class:`Blob`)
+fitted to the arc the sensor saw. Each arrived disc is paired with the nearest departed disc it
+could have come from (at most ``max_speed_mm_s`` away over the time between the scans): that
+pair gives the velocity. An arrived disc with no partner (where it was was hidden, or out of
+range) is a mover of unknown velocity. A mover coming along the line of sight hides where it was
+behind where it is: a compact cluster of the older scan now hidden behind an arrived return
+counts as departed too (a ball behind a mover can then be taken for where it came from).
+
+Everything else -- returns consistent with the older scan, and returns the older scan could not
+see (occluded, or beyond its range) -- is taken to be static: seen once, its motion is unknown.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from safeembodai_core.models import LidarScan, Pose
+
+
+@dataclass(frozen=True)
+class Blob:
+    """A moving obstacle as a disc in the room frame (mm, mm/s); ``velocity`` None: unknown."""
+
+    centre: np.ndarray
+    radius_mm: float
+    velocity: np.ndarray | None
+    points: int
+
+
+def _to_room(points: np.ndarray, pose: Pose) -> np.ndarray:
+    rad = math.radians(pose.heading_deg)
+    c, s = math.cos(rad), math.sin(rad)
+    return np.column_stack((pose.x_mm + points[:, 0] * c - points[:, 1] * s,
+                            pose.y_mm + points[:, 0] * s + points[:, 1] * c))
+
+
+def _returns(scan: LidarScan) -> tuple[np.ndarray, np.ndarray]:
+    """Beam indices with a return (finite range), and their points in the scan frame."""
+    ranges = np.asarray(scan.ranges_mm, dtype=float)
+    index = np.flatnonzero(np.isfinite(ranges))
+    rad = np.radians(scan.angles_deg[index])
+    return index, np.column_stack((ranges[index] * np.cos(rad), ranges[index] * np.sin(rad)))
+
+
+def _seen_beyond(points_room: np.ndarray, scan: LidarScan, pose: Pose, tolerance_mm: float) -> np.ndarray:
+    """Per room point: did ``scan`` (taken at ``pose``) see free space at it and beyond?
+
+    True only where the beam nearest the point's bearing and both its neighbours read farther
+    than the point by more than ``tolerance_mm`` (a no-return beam reads its range); a point
+    beyond the sensor's range, or on a beam with no reading, is never seen beyond.
+    """
+    rad = math.radians(pose.heading_deg)
+    c, s = math.cos(rad), math.sin(rad)
+    dx, dy = points_room[:, 0] - pose.x_mm, points_room[:, 1] - pose.y_mm
+    local = np.column_stack((dx * c + dy * s, -dx * s + dy * c))
+    distance = np.hypot(local[:, 0], local[:, 1])
+    n, inc = scan.beam_count, scan.increment_deg
+    beam = np.rint(np.degrees(np.arctan2(local[:, 1], local[:, 0])) / inc).astype(int) % n
+    ranges = np.where(np.isposinf(scan.ranges_mm), scan.max_range_mm, scan.ranges_mm)
+    reach = np.minimum(ranges[beam], np.minimum(ranges[(beam - 1) % n], ranges[(beam + 1) % n]))
+    return (distance < scan.max_range_mm) & (reach > distance + tolerance_mm)  # nan compares False
+
+
+def _clusters(index: np.ndarray, points: np.ndarray, beams: int, gap_mm: float) -> list[np.ndarray]:
+    """Runs of neighbouring beams whose consecutive returns are closer than ``gap_mm`` (positions
+    into ``index``); the run across beam 0 is joined."""
+    if index.size == 0:
+        return []
+    breaks = (np.diff(index) != 1) | (np.hypot(*np.diff(points, axis=0).T) > gap_mm)
+    runs = np.split(np.arange(index.size), np.flatnonzero(breaks) + 1)
+    if (len(runs) > 1 and index[0] == 0 and index[-1] == beams - 1
+            and math.hypot(*(points[0] - points[-1])) <= gap_mm):
+        runs = [np.concatenate((runs[-1], runs[0]))] + runs[1:-1]
+    return runs
+
+
+def _disc(points_room: np.ndarray, sensor: np.ndarray, beam_gap_mm: float, max_size_mm: float) -> tuple[np.ndarray, float]:
+    """The disc whose near arc the sensor saw as ``points_room``: radius half the arc's extent
+    (plus half a beam's spacing), centre that far behind the nearest point, on the arc's bearing."""
+    spread = points_room - points_room.mean(axis=0)
+    extent = 2.0 * float(np.max(np.hypot(spread[:, 0], spread[:, 1]))) if len(points_room) > 1 else 0.0
+    radius = min(extent / 2.0 + beam_gap_mm / 2.0, max_size_mm / 2.0)
+    towards = points_room.mean(axis=0) - sensor
+    unit = towards / max(float(np.hypot(*towards)), 1e-9)
+    near = float(np.min(np.hypot(*(points_room - sensor).T)))
+    return sensor + unit * (near + radius), radius
+
+
+@dataclass(frozen=True)
+class TrackingSettings:
+    tolerance_mm: float = 100.0
+    cluster_gap_mm: float = 150.0
+    min_points: int = 2
+    max_size_mm: float = 800.0
+    max_speed_mm_s: float = 1000.0
+
+
+def _local(points_room: np.ndarray, scan: LidarScan, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
+    """Per room point: the beam of ``scan`` (taken at ``pose``) nearest its bearing, and its distance."""
+    rad = math.radians(pose.heading_deg)
+    c, s = math.cos(rad), math.sin(rad)
+    dx, dy = points_room[:, 0] - pose.x_mm, points_room[:, 1] - pose.y_mm
+    x, y = dx * c + dy * s, -dx * s + dy * c
+    beam = np.rint(np.degrees(np.arctan2(y, x)) / scan.increment_deg).astype(int) % scan.beam_count
+    return beam, np.hypot(x, y)
+
+
+def _shadowed(points_room: np.ndarray, scan: LidarScan, pose: Pose, arrived_beams: np.ndarray,
+              tolerance_mm: float) -> np.ndarray:
+    """Per room point of the older scan: is it now hidden behind an arrived return? (A mover
+    coming along the line of sight hides where it was.)"""
+    beam, distance = _local(points_room, scan, pose)
+    ranges = scan.ranges_mm[beam]
+    return arrived_beams[beam] & np.isfinite(ranges) & (ranges < distance - tolerance_mm)
+
+
+def _movers(scan: LidarScan, pose: Pose, moved_of, s: TrackingSettings,
+            compact_moved_of=None) -> tuple[list[tuple[np.ndarray, float, int]], np.ndarray]:
+    """Discs of ``scan``'s clusters with at least ``min_points`` returns ``moved_of`` marks (a
+    function of the room points), and which beams hold a marked return. ``compact_moved_of``
+    marks more returns, counted for clusters no larger than a mover only."""
+    marked = np.zeros(scan.beam_count, dtype=bool)
+    index, local = _returns(scan)
+    if index.size == 0:
+        return [], marked
+    room = _to_room(local, pose)
+    moved = moved_of(room)
+    marked[index[moved]] = True
+    extra = compact_moved_of(room) if compact_moved_of is not None else np.zeros(len(room), dtype=bool)
+    sensor = np.array([pose.x_mm, pose.y_mm])
+    discs = []
+    for run in _clusters(index, local, scan.beam_count, s.cluster_gap_mm):
+        members = room[run]
+        spread = members - members.mean(axis=0)
+        compact = 2.0 * float(np.max(np.hypot(spread[:, 0], spread[:, 1]))) <= s.max_size_mm
+        count = np.count_nonzero(moved[run] | (extra[run] if compact else False))
+        if count < s.min_points:
+            continue
+        if not compact:
+            members = room[run[moved[run]]]  # a mover beside a wall: its own returns only
+        distance = float(np.hypot(*(members.mean(axis=0) - sensor)))
+        beam_gap = distance * math.radians(scan.increment_deg)
+        centre, radius = _disc(members, sensor, beam_gap, s.max_size_mm)
+        discs.append((centre, radius, len(members)))
+    return discs, marked
+
+
+def find_movers(scan: LidarScan, pose: Pose, time_s: float, before: LidarScan, before_pose: Pose,
+                before_time_s: float, settings: TrackingSettings = TrackingSettings()) -> list[Blob]:
+    """The movers of ``scan`` (positions now), with velocities from ``before`` where paired."""
+    dt = time_s - before_time_s
+    arrived, beams = _movers(scan, pose, lambda room: _seen_beyond(room, before, before_pose, settings.tolerance_mm),
+                             settings)
+    if not arrived:
+        return []
+    departed = []
+    if dt > 0:
+        departed, _ = _movers(before, before_pose, lambda room: _seen_beyond(room, scan, pose, settings.tolerance_mm),
+                              settings, lambda room: _shadowed(room, scan, pose, beams, settings.tolerance_mm))
+    pairs = sorted(((float(np.hypot(*(a[0] - d[0]))), i, j)
+                    for i, a in enumerate(arrived) for j, d in enumerate(departed)))
+    partner: dict[int, int] = {}
+    for gap, i, j in pairs:
+        if i in partner or j in partner.values() or gap > settings.max_speed_mm_s * dt:
+            continue
+        partner[i] = j
+    blobs = []
+    for i, (centre, radius, count) in enumerate(arrived):
+        velocity = (centre - departed[partner[i]][0]) / dt if i in partner else None
+        blobs.append(Blob(centre=centre, radius_mm=radius, velocity=velocity, points=count))
+    return blobs

@@ -1,0 +1,227 @@
+"""``moving_obstacles`` on synthetic scans: a square room with discs, scanned twice.
+
+A mover on a known straight course is found and predicted; a plan crossing its predicted path is
+refused with advice that passes when followed, a plan away from it is accepted; a static scene
+refuses nothing; a return seen once is assumed static. The property test drives the robot with
+random plans towards a mover on a random straight course and checks, with the rule's own motion
+model, that every plan whose motion drives the body into the mover is refused."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from safeembodai_core.models import LidarScan, Pose, Straight, Turn
+from safeembodai_core.validation import PastScan, ValidationContext, validate_plan
+from safeembodai_plugins.validators import MovingObstaclesOptions
+from safeembodai_plugins.validators.moving import MovingObstaclesRule
+
+ROOM_MM = 6000.0
+THINK_S = 5.0
+LABBOT_MM = 120.0
+BALL_MM = 110.0
+
+
+def scan_from(pose: Pose, discs, beams: int = 360, max_range_mm: float = 8000.0) -> LidarScan:
+    """Ranges from ``pose`` to the room's walls (a 0..ROOM_MM square) and to discs (x, y, radius)."""
+    angles = np.radians(pose.heading_deg + np.arange(beams) * 360.0 / beams)
+    ux, uy = np.cos(angles), np.sin(angles)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        tx = np.where(ux > 0, (ROOM_MM - pose.x_mm) / ux, np.where(ux < 0, -pose.x_mm / ux, np.inf))
+        ty = np.where(uy > 0, (ROOM_MM - pose.y_mm) / uy, np.where(uy < 0, -pose.y_mm / uy, np.inf))
+    ranges = np.minimum(tx, ty)
+    for x, y, r in discs:
+        dx, dy = x - pose.x_mm, y - pose.y_mm
+        along = dx * ux + dy * uy
+        across2 = dx * dx + dy * dy - along * along
+        t = along - np.sqrt(np.maximum(r * r - across2, 0.0))
+        ranges = np.where((along > 0) & (across2 <= r * r) & (t < ranges), t, ranges)
+    return LidarScan(ranges_mm=np.where(ranges > max_range_mm, np.inf, ranges), max_range_mm=max_range_mm)
+
+
+def context_for(pose: Pose, now, before=None, before_pose: Pose | None = None, dt_s: float = 5.0) -> ValidationContext:
+    """The step's scan sees discs ``now``; the trial's previous scan, ``dt_s`` earlier, saw
+    ``before`` from ``before_pose`` (default: the same pose); no previous scan if ``before`` is None."""
+    history = () if before is None else (PastScan(scan_from(before_pose or pose, before), before_pose or pose, 10.0),)
+    return ValidationContext(scan=scan_from(pose, now), start_pose=pose, sim_time_s=10.0 + dt_s, history=history)
+
+
+def rule(**options) -> MovingObstaclesRule:
+    return MovingObstaclesRule(MovingObstaclesOptions(**{"think_time_s": THINK_S, **options}))
+
+
+def go(distance: float) -> Straight:
+    return Straight(command="straight", direction="forward" if distance > 0 else "backward", distance=abs(distance))
+
+
+def rotate(angle: float) -> Turn:
+    return Turn(command="turn", direction="left" if angle > 0 else "right", angle=abs(angle))
+
+
+def refusals(plan, context, validator=None):
+    verdicts = validate_plan(plan, context, [("moving_obstacles", validator or rule())])
+    return [v for v in verdicts if not v.valid]
+
+
+ROBOT = Pose(x_mm=1000.0, y_mm=3000.0, heading_deg=0.0)
+BALL = (4500.0, 1500.0, BALL_MM)
+# a Labbot crossing 2 m ahead from left to right at 150 mm/s (750 mm further on than 5 s ago), due
+# to cross the robot's line 13.5 s after the scan
+CROSSING = {"before": [(3000.0, 5775.0, LABBOT_MM), BALL], "now": [(3000.0, 5025.0, LABBOT_MM), BALL]}
+
+
+def test_a_mover_is_found_with_its_velocity():
+    context = context_for(ROBOT, CROSSING["now"], CROSSING["before"])
+    blobs, think = rule().movers(context)
+    assert think == THINK_S and len(blobs) == 1  # the ball and the walls cancel out
+    assert np.allclose(blobs[0].centre, (3000.0, 5025.0), atol=30.0)
+    assert np.allclose(blobs[0].velocity, (0.0, -150.0), atol=10.0)
+    assert abs(blobs[0].radius_mm - LABBOT_MM) < 30.0
+
+
+def test_a_plan_crossing_its_predicted_path_is_refused_and_the_advice_passes():
+    context = context_for(ROBOT, CROSSING["now"], CROSSING["before"])
+    plan = [go(399)] * 5  # reaches x = 3000 when the Labbot is there
+    refused = refusals(plan, context)
+    assert refused and refused[0].signal_index >= 1
+    reason = refused[0].reason
+    assert "a moving obstacle, now" in reason and "think time" in reason
+    assert -95 < float(reason.split("heads ")[1].split(" deg")[0]) < -85  # to the robot's right
+    safe = int(reason.split("at most ")[1].split(" mm")[0])
+    shorter = plan[:refused[0].signal_index] + ([go(safe)] if safe >= 1 else [])
+    assert not refusals(shorter, context)
+
+
+def test_a_plan_away_from_it_is_accepted():
+    context = context_for(ROBOT, CROSSING["now"], CROSSING["before"])
+    assert not refusals([go(-399), go(-399)], context)  # backward, away from its path
+    assert not refusals([rotate(-89), go(399), go(399)], context)  # to the right, out of its way soon enough
+    assert not refusals([go(399)], context)  # one straight is over before it gets there
+
+
+def test_a_static_scene_refuses_nothing():
+    scene = [BALL, (2500.0, 2500.0, LABBOT_MM), (1500.0, 4200.0, 200.0)]
+    moved = Pose(x_mm=800.0, y_mm=2700.0, heading_deg=35.0)  # the robot moved between the scans
+    for before_pose in (ROBOT, moved):
+        context = context_for(ROBOT, scene, scene, before_pose=before_pose)
+        assert rule().movers(context)[0] == []
+        for angle in range(-180, 180, 30):
+            plan = [rotate(angle / 3)] * 3 if angle else []
+            assert not refusals(plan + [go(399), go(399), go(399)], context)
+
+
+def test_a_return_seen_once_is_assumed_static():
+    """Step 1 (no earlier scan): nothing is known to move, so nothing is refused, even a straight
+    at a Labbot; other rules judge where things are. The verdict says nothing of motion."""
+    context = context_for(ROBOT, [(1500.0, 3000.0, LABBOT_MM)])
+    verdict = rule().validate(go(399), context)
+    assert verdict.valid and verdict.reason == ""
+
+
+def test_a_mover_out_of_a_shadow_has_unknown_velocity():
+    """The Labbot now stands where the earlier scan saw free space, but where it was then was
+    hidden behind a pillar: no velocity; it may move ``unknown_speed_mm_s`` any way."""
+    pillar = (2000.0, 3600.0, 250.0)
+    before = [pillar, (3000.0, 4600.0, LABBOT_MM)]  # hidden behind the pillar, seen from ROBOT
+    now = [pillar, (2300.0, 2600.0, LABBOT_MM)]
+    context = context_for(ROBOT, now, before)
+    blobs, _ = rule().movers(context)
+    assert len(blobs) == 1 and blobs[0].velocity is None
+    refused = refusals([go(399), go(399), go(399)], context, rule(unknown_speed_mm_s=100))
+    assert refused and "velocity unknown" in refused[0].reason
+    assert not refusals([go(399), go(399), go(399)], context, rule(unknown_speed_mm_s=0, margin_growth_mm_s=0))
+
+
+def test_the_think_time_is_estimated_from_the_observation_times():
+    """Unset, the think time is the least (time between observations - time the pose change
+    needs): exact after a step whose answers were all refused (the robot did not move)."""
+    scan = scan_from(ROBOT, [])
+    moved = Pose(x_mm=1400.0, y_mm=3000.0, heading_deg=0.0)
+    history = (PastScan(scan, ROBOT, 0.0), PastScan(scan, moved, 8.0))  # 400 mm in 2 s + 6 s thinking
+    context = ValidationContext(scan=scan, start_pose=moved, sim_time_s=13.0, history=history)  # 5 s, no motion
+    assert MovingObstaclesRule(MovingObstaclesOptions()).think_time_s(context) == pytest.approx(5.0)
+    assert MovingObstaclesRule(MovingObstaclesOptions(think_time_s=2)).think_time_s(context) == 2.0
+
+
+def test_a_turn_is_always_accepted_and_no_pose_accepts():
+    context = context_for(ROBOT, CROSSING["now"], CROSSING["before"])
+    assert rule().validate(rotate(45), context).valid
+    blind = ValidationContext(scan=context.scan, history=context.history, sim_time_s=15.0)
+    assert rule().validate(go(399), blind).valid
+
+
+# -- the property: every plan that drives the robot into the mover is refused ----------------------
+
+def _meets_by_its_own_motion(plan, pose: Pose, centre: np.ndarray, velocity: np.ndarray, radius: float,
+                             options: MovingObstaclesOptions) -> bool:
+    """Under the rule's motion model (think time, then the signals at the rule's speeds; the mover
+    on its course): does some straight drive the body into the mover, where standing still at its
+    start for the same time would not have touched it?"""
+    x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, THINK_S
+    reach = 170.0 + radius
+    for signal in plan:
+        if isinstance(signal, Turn):
+            heading += signal.signed_angle_deg
+            t += signal.angle / options.robot_turn_rate_deg_s
+            continue
+        duration = signal.distance / options.robot_speed_mm_s
+        times = t + np.linspace(0.0, duration, 400)
+        rad = math.radians(heading)
+        step = signal.signed_distance_mm * (times - t) / duration
+        body = np.column_stack((x + step * math.cos(rad), y + step * math.sin(rad)))
+        mover = centre + times[:, None] * velocity
+        standing = np.hypot(x - mover[:, 0], y - mover[:, 1])
+        if np.hypot(*(body - mover).T).min() < reach <= standing.min():
+            return True
+        x, y, t = x + signal.signed_distance_mm * math.cos(rad), y + signal.signed_distance_mm * math.sin(rad), t + duration
+    return False
+
+
+def _body_at(plan, pose: Pose, when: float, options: MovingObstaclesOptions) -> np.ndarray:
+    """Where the rule's motion model puts the robot's centre ``when`` seconds after the scan."""
+    x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, THINK_S
+    for signal in plan:
+        straight = isinstance(signal, Straight)
+        duration = signal.distance / options.robot_speed_mm_s if straight else signal.angle / options.robot_turn_rate_deg_s
+        share = min(max((when - t) / duration, 0.0), 1.0)
+        if straight:
+            rad = math.radians(heading)
+            x, y = x + share * signal.signed_distance_mm * math.cos(rad), y + share * signal.signed_distance_mm * math.sin(rad)
+        else:
+            heading += share * signal.signed_angle_deg
+        t += duration
+    return np.array([x, y])
+
+
+signals = st.one_of(
+    st.builds(go, st.floats(1, 399).flatmap(lambda d: st.sampled_from([d, -d]))),
+    st.builds(rotate, st.floats(1, 89).flatmap(lambda a: st.sampled_from([a, -a]))),
+)
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
+@given(plan=st.lists(signals, min_size=1, max_size=5), heading=st.floats(-180, 180), share=st.floats(0, 1),
+       speed=st.floats(80, 250), course=st.floats(-180, 180), offset=st.floats(0, 400), side=st.floats(-180, 180))
+def test_every_plan_that_drives_into_the_mover_is_refused(plan, heading, share, speed, course, offset, side):
+    """The mover, on a straight course at a constant speed, is placed to pass within ``offset`` of
+    where the plan puts the robot at a moment drawn from its execution; the robot starts at the
+    room's centre. Whenever the plan's own motion drives the body into it, the plan is refused."""
+    validator = rule()
+    pose = Pose(x_mm=3000.0, y_mm=3000.0, heading_deg=heading)
+    total = sum(s.distance / 200.0 if isinstance(s, Straight) else s.angle / 60.0 for s in plan)
+    when = THINK_S + share * total
+    rad, aside = math.radians(course), math.radians(side)
+    velocity = speed * np.array([math.cos(rad), math.sin(rad)])
+    meet = _body_at(plan, pose, when, validator.options) + offset * np.array([math.cos(aside), math.sin(aside)])
+    now = meet - when * velocity
+    before = now - 5.0 * velocity
+    for point in (now, before):
+        if np.hypot(*(point - 3000.0)) < 700 or not ((350 < point) & (point < ROOM_MM - 350)).all():
+            return  # the mover is read clear of the robot and of the walls
+    context = context_for(pose, [(*now, LABBOT_MM)], [(*before, LABBOT_MM)])
+    if _meets_by_its_own_motion(plan, pose, now, velocity, LABBOT_MM, validator.options):
+        assert refusals(plan, context, validator), [s.describe() for s in plan]
