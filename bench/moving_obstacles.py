@@ -6,8 +6,9 @@ real pybullet ``DO`` scans (two readings 5 s apart, three Labbots, a plan of thr
 (finding the movers in the two scans, then the check) and for a later signal (the movers are
 cached per scan; the check only). Median and 90th percentile, microseconds, one process.
 
-``python bench/moving_obstacles.py ablation RUN`` reads a run folder of
-``safeembodai ablate scenarios/dynamic.yaml`` (``--set trials=N``) and prints per room, arm and
+``python bench/moving_obstacles.py ablation RUN [RUN ...]`` reads run folders of
+``safeembodai ablate scenarios/dynamic.yaml`` (``--set trials=N``; several runs with other
+``--seed`` values pool) and prints per room, arm and
 condition: trials, outcomes, trials with a ``self`` collision into a Labbot (rate per 100 with a
 95% Wilson interval), ``struck`` collisions, completed share (Wilson interval), MOER (its
 bootstrap interval) and mean steps of completed trials; then, per room, how each arm's ``self``
@@ -67,25 +68,29 @@ def micro(repeats: int) -> None:
         print(f"  {label:55s} {statistics.median(times):8.0f} {times[int(0.9 * len(times))]:8.0f}")
 
 
-def _results(run: Path):
+def _results(runs: list[Path]):
+    """Every finished trial of the runs (runs of the same scenario with other seeds pool)."""
     from safeembodai_core.models import TrialResult
 
-    database = run / "results.sqlite" if run.is_dir() else run
-    with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
-        rows = connection.execute("SELECT result FROM trials WHERE result IS NOT NULL").fetchall()
-    return [TrialResult.model_validate(json.loads(row[0])) for row in rows]
+    results = []
+    for run in runs:
+        database = run / "results.sqlite" if run.is_dir() else run
+        with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
+            rows = connection.execute("SELECT result FROM trials WHERE result IS NOT NULL").fetchall()
+        results.extend(TrialResult.model_validate(json.loads(row[0])) for row in rows)
+    return results
 
 
 def _labbot_self(result) -> bool:
     return result.collisions_self > 0 and "Labbot" in result.detail
 
 
-def ablation(run: Path) -> None:
+def ablation(runs: list[Path]) -> None:
     from safeembodai_core.metrics import cell_metrics, group_by_cell, wilson
 
-    results = _results(run)
+    results = _results(runs)
     cells = group_by_cell(results)
-    print(f"run {run}: {len(results)} trials (backend mock: simulated pilot, not a measurement of an LLM)")
+    print(f"runs {', '.join(map(str, runs))}: {len(results)} trials (backend mock: simulated pilot, not a measurement of an LLM)")
     print("room arm        condition     n  self->Labbot/100 [95% CI]  struck  done [95% CI]       MOER [95% CI]      "
           "steps*  outcomes")
     for (room, arm, condition), cell in sorted(cells.items()):
@@ -126,12 +131,12 @@ def main() -> None:
     timing = commands.add_parser("micro", help="microseconds per check")
     timing.add_argument("--repeats", type=int, default=300)
     read = commands.add_parser("ablation", help="read a run folder of scenarios/dynamic.yaml")
-    read.add_argument("run", type=Path)
+    read.add_argument("runs", type=Path, nargs="+", help="run folders (or results.sqlite files); pooled")
     args = parser.parse_args()
     if args.command == "micro":
         micro(args.repeats)
     else:
-        ablation(args.run)
+        ablation(args.runs)
 
 
 if __name__ == "__main__":

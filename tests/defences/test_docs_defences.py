@@ -15,7 +15,7 @@ from safeembodai_plugins.attackers.poisoning import KINDS
 COMPONENTS = {
     "defences.md": [("prompt_builder", "jinja"), ("state_store", "memory"), ("state_store", "sqlite"),
                     ("validator", "command_limits"), ("validator", "lidar_clearance"),
-                    ("validator", "footprint_sweep")],
+                    ("validator", "footprint_sweep"), ("validator", "moving_obstacles")],
     "attacks.md": [("attacker", "prompt_injection"), ("attacker", "lidar_spoof"), ("attacker", "state_poisoning")],
 }
 
