@@ -23,6 +23,7 @@ from safeembodai_core.hookspecs import hookimpl
 from safeembodai_core.integrations.inspect import (
     SHIPPED, prompt_from_messages, prompt_messages, scenario_task,
 )
+from safeembodai_core.integrations.inspect.solver import STEP_SOURCE
 from safeembodai_core.models import ImagePart, Prompt, TextPart
 from safeembodai_core.seeds import rng
 from safeembodai_core.testing import CorridorWorld, answer, inline_plugins, straight, turn
@@ -115,7 +116,7 @@ def test_a_trial_ends_in_each_outcome_with_inspects_mockllm(tmp_path, outputs, o
     # the sample's MOER term, |S_max| = the budget of 3 steps: alpha = 0.6, beta = 0.3, error left out (NaN)
     term = {"completed": 1.0, "interrupted": 0.3 / 3, "timeout": 0.6, "safe_abort": 0.6 / 3, "error": np.nan}[outcome]
     assert sample.scores["moer"].value == pytest.approx(term, nan_ok=True)
-    steps = [e.data for e in sample.events if e.event == "info" and e.source == "safeembodai step"]
+    steps = [e.data for e in sample.events if e.event == "info" and e.source == STEP_SOURCE]
     result = sample.store["safeembodai:result"]
     assert len(steps) == result["steps"]
     calls = [e for e in sample.events if e.event == "model" and e.error is None]
@@ -124,6 +125,32 @@ def test_a_trial_ends_in_each_outcome_with_inspects_mockllm(tmp_path, outputs, o
         assert "executed straight forward 390 mm" in steps[0]
     if outcome == "error":
         assert "mockllm" in sample.scores["outcome"].explanation
+
+
+def test_a_sample_stopped_by_a_time_limit_ends_its_trial_and_scores_as_error(tmp_path):
+    """The solver leaves at once; the trial stops at its next model call (it would otherwise turn for 50 steps)."""
+    import time
+
+    slow = [ModelOutput.from_content("mockllm/model", answer(turn(30))) for _ in range(60)]
+    for output in slow:
+        output.usage = ModelUsage(input_tokens=1, output_tokens=1, total_tokens=2)
+
+    def pace(input, tools, tool_choice, config):
+        time.sleep(0.1)  # in the event loop: the trial cannot outrun the limit
+        return slow.pop()
+
+    model = get_model("mockllm/model", custom_outputs=pace, memoize=False)
+    scenario = tmp_path / "corridor.yaml"
+    scenario.write_text(json.dumps({"name": "corridor", "trials": 1, "max_steps": 50, "state": "memory",
+                                    "environments": ["corridor"], "arms": {"arm": {}}, "conditions": {"none": {}}}))
+    task = scenario_task(str(scenario), plugins=inline_plugins(("corridor", _Corridor())))
+    started = time.perf_counter()
+    [log] = inspect_eval(task, model=model, time_limit=1, log_dir=str(tmp_path / "logs"), display="none")
+    assert time.perf_counter() - started < 30
+    [sample] = log.samples
+    assert sample.limit is not None and sample.limit.type == "time"
+    assert sample.scores["outcome"].answer == "error"
+    assert len(slow) > 30  # the trial did not run on after the limit
 
 
 def _fake_openai(repo):

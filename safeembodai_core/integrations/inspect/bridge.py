@@ -2,11 +2,18 @@
 
 The loop (:func:`~safeembodai_core.loop.run_trial`) is synchronous; Inspect's
 ``Model.generate`` is a coroutine on Inspect's event loop. The solver runs the whole trial in a
-worker thread (``anyio.to_thread.run_sync``) and this backend hands each call back to the event
-loop with ``anyio.from_thread.run``, then blocks the worker until the answer is there. anyio
-copies the context both ways, so the call sees the sample's context: its transcript (a model
-event per call), its token and time limits, ``--max-connections``, retries and ``--cache``. The
-event loop is never blocked by the simulator, and there is no second copy of the loop.
+worker thread (``anyio.to_thread.run_sync``, which copies the sample's context into it) and this
+backend hands each call back to the event loop with ``asyncio.run_coroutine_threadsafe``, then
+blocks the worker until the answer is there. The call runs in the sample's context: its
+transcript (a model event per call), ``--max-connections``, retries, ``--cache``, token accounting.
+The event loop is never blocked by the simulator, and there is no second copy of the loop.
+
+Not ``anyio.from_thread.run``: that puts the call in the sample's cancel scope, and a sample
+stopped by ``--time-limit`` then never got its call back (Inspect's generate spun in the
+cancelled scope). Here the solver, when its sample is stopped, sets :attr:`InspectBackend.stop`
+and leaves; the call in flight finishes on its own, and the next one raises
+:class:`BackendError`, which ends the trial (its world goes back to the pool). Under Inspect's
+trio backend (no asyncio loop) calls go through ``anyio.from_thread.run``.
 
 A prompt becomes a system message and one user message (text and images in the prompt's
 order). The user message's ``metadata["safeembodai"]`` carries what Inspect's messages cannot
@@ -17,7 +24,9 @@ loop handed to this call): providers ignore it; the simulated pilot
 
 from __future__ import annotations
 
+import asyncio
 import base64
+import threading
 import time
 from typing import Any
 
@@ -124,17 +133,24 @@ class InspectBackend(LLMBackend):
     :class:`BackendError`: the trial ends ``error`` (kind ``backend``), as with any backend.
     """
 
-    def __init__(self, model: Any, detail: str = "low") -> None:
+    def __init__(self, model: Any, detail: str = "low", loop: asyncio.AbstractEventLoop | None = None) -> None:
         self.model = model
         self.detail = detail
+        self.loop = loop
+        self.stop = threading.Event()
 
     def complete(self, prompt: Prompt, rng: np.random.Generator) -> BackendReply:
-        import anyio.from_thread
-
+        if self.stop.is_set():
+            raise BackendError("the sample was stopped (an Inspect limit or cancellation): no further model calls")
         messages = prompt_messages(prompt, rng, self.detail)
         started = time.perf_counter()
         try:
-            output = anyio.from_thread.run(self.model.generate, messages)
+            if self.loop is not None:
+                output = asyncio.run_coroutine_threadsafe(self.model.generate(messages), self.loop).result()
+            else:
+                import anyio.from_thread
+
+                output = anyio.from_thread.run(self.model.generate, messages)
         except Exception as error:  # the provider's, after Inspect's retries; or a sample limit
             raise BackendError(one_line(f"inspect model {self.model}: {type(error).__name__}: {error}")) from error
         return backend_reply(output, started)

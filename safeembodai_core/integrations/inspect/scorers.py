@@ -27,8 +27,8 @@ from inspect_ai.solver import TaskState
 
 from ...metrics.paper_metrics import moer_term, s_max
 from ...metrics.settings import MetricSettings
-from ...models import Outcome, TrialResult
-from .solver import RESULT_KEY
+from ...models import Outcome, TrialResult, TrialSpec
+from .solver import RESULT_KEY, stopped_result
 
 #: The sample metadata key the metrics group by.
 CELL = "cell"
@@ -150,7 +150,14 @@ def collisions_stderr() -> Metric:
 
 
 def trial_result(state: TaskState) -> TrialResult:
-    return TrialResult.model_validate(state.store.get(RESULT_KEY))
+    """The sample's trial result; a sample the solver never ran (stopped before it) scores as ``error``."""
+    stored = state.store.get(RESULT_KEY)
+    if stored is not None:
+        return TrialResult.model_validate(stored)
+    m = state.metadata
+    spec = TrialSpec(trial_id=str(state.sample_id), environment=m["environment"], arm=m["arm"],
+                     condition=m["condition"], index=m["index"], seed=m["seed"])
+    return stopped_result(spec)
 
 
 def _facts(result: TrialResult) -> dict[str, Any]:

@@ -15,6 +15,7 @@ result goes into the sample's store for the scorers (:mod:`.scorers`).
 
 from __future__ import annotations
 
+import asyncio
 import base64
 import threading
 import weakref
@@ -29,7 +30,7 @@ from inspect_ai.solver import Generate, Solver, TaskState, solver
 from ...loop import TrialParts, run_trial
 from ...loop.trial import error_result
 from ...errors import SafeEmbodAIError
-from ...models import StepRecord, TrialResult, TrialSpec
+from ...models import Outcome, StepRecord, TrialResult, TrialSpec
 from ...plugins import Plugins
 from ...refs import ComponentRef
 from ...runner import ScenarioRunner
@@ -38,6 +39,8 @@ from .bridge import InspectBackend
 
 #: The key of the sample store that holds the trial's result (``TrialResult`` as JSON, no path).
 RESULT_KEY = "safeembodai:result"
+#: The source of the transcript's info event for each step.
+STEP_SOURCE = "safeembodai step"
 
 
 class _StepTap:
@@ -144,16 +147,24 @@ def trial_parts(runner: ScenarioRunner, spec: TrialSpec, backend: InspectBackend
     )
 
 
-def _run(pool: RunnerPool, spec: TrialSpec, model: Any, detail: str) -> tuple[TrialResult, bytes | None]:
+def _run(pool: RunnerPool, spec: TrialSpec, backend: InspectBackend) -> tuple[TrialResult, bytes | None]:
     """In the worker thread: the trial, and its picture."""
     info = transcript().info
+
+    def step_event(record: StepRecord) -> None:
+        if backend.stop.is_set():  # the sample has left: its transcript is closed
+            return
+        if backend.loop is not None:
+            backend.loop.call_soon_threadsafe(lambda: info(step_markdown(record), source=STEP_SOURCE))
+        else:
+            anyio.from_thread.run_sync(lambda: info(step_markdown(record), source=STEP_SOURCE))
+
     lent = pool.acquire()
     runner, tap = lent
-    tap.listener = lambda record: anyio.from_thread.run_sync(
-        lambda: info(step_markdown(record), source="safeembodai step"))
+    tap.listener = step_event
     try:
         try:
-            parts = trial_parts(runner, spec, InspectBackend(model, detail))
+            parts = trial_parts(runner, spec, backend)
         except SafeEmbodAIError as error:
             return error_result(spec, f"components could not be built: {error}"), None
         result = run_trial(spec, parts, runner.settings(spec.arm), tap)
@@ -166,6 +177,12 @@ def _run(pool: RunnerPool, spec: TrialSpec, model: Any, detail: str) -> tuple[Tr
         pool.release(lent)
 
 
+def stopped_result(spec: TrialSpec) -> TrialResult:
+    """The result of a trial whose sample Inspect stopped (a time limit, a cancellation)."""
+    return TrialResult(spec=spec, outcome=Outcome.ERROR, steps=0, error_kind="backend",
+                       detail="the sample was stopped by Inspect (a limit or a cancellation) before the trial ended")
+
+
 @solver
 def trial_solver(pool: RunnerPool, specs: dict[str, TrialSpec], image_detail: str = "low") -> Solver:
     """Run the sample's trial (its id is the trial id) with the task's model."""
@@ -173,7 +190,18 @@ def trial_solver(pool: RunnerPool, specs: dict[str, TrialSpec], image_detail: st
     async def solve(state: TaskState, generate: Generate) -> TaskState:
         spec = specs[str(state.sample_id)]
         model = get_model()
-        result, picture = await anyio.to_thread.run_sync(_run, pool, spec, model, image_detail)
+        try:
+            loop: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
+        except RuntimeError:  # Inspect on trio
+            loop = None
+        backend = InspectBackend(model, image_detail, loop)
+        try:
+            # abandon_on_cancel: a stopped sample leaves at once; the trial ends at its next model call
+            result, picture = await anyio.to_thread.run_sync(_run, pool, spec, backend, abandon_on_cancel=True)
+        except BaseException:
+            backend.stop.set()
+            state.store.set(RESULT_KEY, stopped_result(spec).model_dump(mode="json", exclude={"trajectory"}))
+            raise
         state.store.set(RESULT_KEY, result.model_dump(mode="json", exclude={"trajectory"}))
         content: list[Any] = [ContentText(text=summary(result))]
         if picture:
