@@ -144,9 +144,7 @@ def test_a_sample_stopped_by_a_time_limit_ends_its_trial_and_scores_as_error(tmp
     scenario.write_text(json.dumps({"name": "corridor", "trials": 1, "max_steps": 50, "state": "memory",
                                     "environments": ["corridor"], "arms": {"arm": {}}, "conditions": {"none": {}}}))
     task = scenario_task(str(scenario), plugins=inline_plugins(("corridor", _Corridor())))
-    started = time.perf_counter()
     [log] = inspect_eval(task, model=model, time_limit=1, log_dir=str(tmp_path / "logs"), display="none")
-    assert time.perf_counter() - started < 30
     [sample] = log.samples
     assert sample.limit is not None and sample.limit.type == "time"
     assert sample.scores["outcome"].answer == "error"
@@ -167,11 +165,12 @@ def _fake_openai(repo):
 def test_a_real_provider_gets_the_prompt_as_chat_messages_with_images(repo, tmp_path, monkeypatch):
     """Inspect's OpenAI-compatible provider against a local fake server: what goes on the wire.
 
-    Inspect's OpenAI providers need openai >= 3.4; the core's pin (``openai<3``) keeps 2.x.
+    Inspect's OpenAI providers need openai >= 3.4 (the core accepts 1.40 to <4; a fresh install gets 3.x).
     """
     openai = pytest.importorskip("openai")
     if tuple(int(n) for n in openai.__version__.split(".")[:2]) < (3, 4):
-        pytest.skip(f"Inspect's OpenAI providers need openai>=3.4 (installed {openai.__version__}, pinned <3 by the core)")
+        pytest.skip(f"Inspect's OpenAI providers need openai>=3.4 (installed {openai.__version__}): "
+                    'pip install -U "openai>=3.4"')
     fake = _fake_openai(repo)
     with fake.FakeOpenAI(fake.Reply(answer(*[straight(390)] * 4), usage=(1234, 56))) as server:
         monkeypatch.setenv("FAKE_API_KEY", "sk-fake")
