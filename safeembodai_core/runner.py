@@ -14,7 +14,7 @@ from typing import Any
 
 
 from . import seeds
-from .components import BuildContext, StateStore
+from .components import BuildContext, LLMBackend, StateStore
 from .errors import SafeEmbodAIError
 from .loop import LoopSettings, TrialParts, run_trial
 from .loop.trial import error_result
@@ -101,7 +101,9 @@ class ScenarioRunner:
             self._environments[label] = self.build("environment", self.scenario.environment(label))
         return self._environments[label]
 
-    def parts(self, spec: TrialSpec) -> TrialParts:
+    def parts(self, spec: TrialSpec, backend: LLMBackend | None = None) -> TrialParts:
+        """The components of trial ``spec``; ``backend`` replaces the scenario's (which is then
+        never built: an integration that brings its own model needs no key for the scenario's)."""
         arm = self.scenario.arms[spec.arm]
         condition = self.scenario.conditions[spec.condition]
         return TrialParts(
@@ -109,7 +111,7 @@ class ScenarioRunner:
             perception=self.build("perception", self.scenario.perception, spec.seed),
             prompt_builder=self.build("prompt_builder", self.scenario.prompt_builder, spec.seed),
             state=self.state,
-            backend=self.build("llm_backend", self.scenario.backend, spec.seed),
+            backend=backend if backend is not None else self.build("llm_backend", self.scenario.backend, spec.seed),
             validators=[(r.key, self.build("validator", r, spec.seed)) for r in arm.validators],
             attackers=[(r.key, self.build("attacker", r, spec.seed)) for r in condition.attackers],
         )

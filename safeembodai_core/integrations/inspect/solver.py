@@ -134,17 +134,7 @@ def summary(result: TrialResult) -> str:
 def trial_parts(runner: ScenarioRunner, spec: TrialSpec, backend: InspectBackend) -> TrialParts:
     """:meth:`ScenarioRunner.parts` with Inspect's model as the backend: the scenario's own
     backend is never built (a scenario naming gpt-4o must not need its key here)."""
-    scenario = runner.scenario
-    arm, condition = scenario.arms[spec.arm], scenario.conditions[spec.condition]
-    return TrialParts(
-        environment=runner.environment(spec.environment),
-        perception=runner.build("perception", scenario.perception, spec.seed),
-        prompt_builder=runner.build("prompt_builder", scenario.prompt_builder, spec.seed),
-        state=runner.state,
-        backend=backend,
-        validators=[(r.key, runner.build("validator", r, spec.seed)) for r in arm.validators],
-        attackers=[(r.key, runner.build("attacker", r, spec.seed)) for r in condition.attackers],
-    )
+    return runner.parts(spec, backend=backend)
 
 
 def _run(pool: RunnerPool, spec: TrialSpec, backend: InspectBackend) -> tuple[TrialResult, bytes | None]:
