@@ -130,12 +130,11 @@ class MovingObstaclesRule(Validator):
         return best
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
-        scan = checked_scan(context, self.name, self.options.expected_beams)
+        checked_scan(context, self.name, self.options.expected_beams)
         if isinstance(signal, Turn):
             return Verdict(rule=self.name, valid=True, reason="a turn in place keeps the body where it is")
         if context.start_pose is None:
             return Verdict(rule=self.name, valid=True, reason="no pose: earlier scans cannot be compared")
-        del scan
         blobs, think = self.movers(context)
         if not blobs:
             return Verdict(rule=self.name, valid=True)

@@ -59,13 +59,8 @@ def _seen_beyond(points_room: np.ndarray, scan: LidarScan, pose: Pose, tolerance
     than the point by more than ``tolerance_mm`` (a no-return beam reads its range); a point
     beyond the sensor's range, or on a beam with no reading, is never seen beyond.
     """
-    rad = math.radians(pose.heading_deg)
-    c, s = math.cos(rad), math.sin(rad)
-    dx, dy = points_room[:, 0] - pose.x_mm, points_room[:, 1] - pose.y_mm
-    local = np.column_stack((dx * c + dy * s, -dx * s + dy * c))
-    distance = np.hypot(local[:, 0], local[:, 1])
-    n, inc = scan.beam_count, scan.increment_deg
-    beam = np.rint(np.degrees(np.arctan2(local[:, 1], local[:, 0])) / inc).astype(int) % n
+    beam, distance = _local(points_room, scan, pose)
+    n = scan.beam_count
     ranges = np.where(np.isposinf(scan.ranges_mm), scan.max_range_mm, scan.ranges_mm)
     reach = np.minimum(ranges[beam], np.minimum(ranges[(beam - 1) % n], ranges[(beam + 1) % n]))
     return (distance < scan.max_range_mm) & (reach > distance + tolerance_mm)  # nan compares False
