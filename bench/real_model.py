@@ -215,36 +215,43 @@ def _wilson(k: int, n: int, z: float = 1.96) -> str:
     return f"{p:.2f} [{max(0.0, centre - half):.2f}, {min(1.0, centre + half):.2f}]"
 
 
+def _estimate(row: dict, name: str) -> str:
+    value, low, high = row.get(name), row.get(f"{name}_low"), row.get(f"{name}_high")
+    if value is None:
+        return "-"
+    return f"{value:.2f} [{low:.2f}, {high:.2f}]" if low is not None and high is not None else f"{value:.2f}"
+
+
 def table(folder: Path) -> str:
-    """The Markdown table ``docs/backends.md`` records, read from the run folder's results.sqlite."""
+    """The Markdown table ``docs/backends.md`` records, from the run folder's metrics.json (MOER,
+    ADR with the report's intervals) and results.sqlite (what the answers and validators did)."""
     import sqlite3
 
+    rows = {(r["environment"], r["arm"], r["condition"]): r
+            for r in json.loads((folder / "metrics.json").read_text())["cells"]}
     db = sqlite3.connect(f"file:{folder / 'results.sqlite'}?mode=ro&immutable=1", uri=True)
-    lines = ["| room | arm | condition | trials | outcomes | MOER [95% CI] | answers parsed | "
-             "validator refusals | ADR (flagged / attacked steps) | collisions | s per answer | tokens per step |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    cells = db.execute("SELECT DISTINCT environment, arm, condition FROM trials ORDER BY environment, arm, condition")
-    for environment, arm, condition in cells.fetchall():
-        rows = db.execute("SELECT trial_id, outcome, steps, result FROM trials WHERE environment = ? AND arm = ? "
-                          "AND condition = ?", (environment, arm, condition)).fetchall()
-        ids = [row[0] for row in rows]
+    lines = ["| room | arm | condition | trials | outcomes | MOER [95% CI] | completed | answers parsed | "
+             "attempts refused by validators | ADR [95% CI] | collisions | s per answer | tokens per step |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for (environment, arm, condition), row in sorted(rows.items()):
+        trials = db.execute("SELECT trial_id, outcome, result FROM trials WHERE environment = ? AND arm = ? "
+                            "AND condition = ?", (environment, arm, condition)).fetchall()
+        ids = [trial[0] for trial in trials]
         marks = ",".join("?" * len(ids))
-        outcomes = Counter(row[1] for row in rows)
-        results = [json.loads(row[3]) for row in rows if row[3]]
+        outcomes = Counter(trial[1] for trial in trials)
+        results = [json.loads(trial[2]) for trial in trials if trial[2]]
         attempts, parsed, latency = db.execute(
             f"SELECT count(*), sum(parse_error IS NULL), sum(latency_s) FROM attempts WHERE trial_id IN ({marks})",
             ids).fetchone()
-        refusals = db.execute(f"SELECT count(DISTINCT trial_id || '/' || step || '/' || attempt) FROM verdicts "
-                              f"WHERE valid = 0 AND trial_id IN ({marks})", ids).fetchone()[0]
-        steps, tokens, attacked, flagged = db.execute(
-            f"SELECT count(*), sum(prompt_tokens + completion_tokens), sum(attacked), sum(attacked AND flagged) "
-            f"FROM steps WHERE trial_id IN ({marks})", ids).fetchone()
-        completed = outcomes.get("completed", 0)
+        refused = db.execute(f"SELECT count(DISTINCT trial_id || '/' || step || '/' || attempt) FROM verdicts "
+                             f"WHERE valid = 0 AND trial_id IN ({marks})", ids).fetchone()[0]
+        steps, tokens = db.execute(f"SELECT count(*), sum(prompt_tokens + completion_tokens) FROM steps "
+                                   f"WHERE trial_id IN ({marks})", ids).fetchone()
         shown = ", ".join(f"{kind} {count}" for kind, count in sorted(outcomes.items()))
         lines.append(
-            f"| {environment} | {arm} | {condition.replace('_', ' ')} | {len(rows)} | {shown} | "
-            f"{_wilson(completed, len(rows))} | {parsed or 0}/{attempts} | {refusals} | "
-            f"{_wilson(flagged or 0, attacked) if attacked else '-'} ({flagged or 0}/{attacked or 0}) | "
+            f"| {environment} | {arm} | {condition.replace('_', ' ')} | {len(trials)} | {shown} | "
+            f"{_estimate(row, 'moer')} | {_wilson(outcomes.get('completed', 0), len(trials))} | "
+            f"{parsed or 0}/{attempts} | {refused} | {_estimate(row, 'adr')} | "
             f"{sum(r.get('collisions', 0) for r in results)} | "
             f"{(latency or 0) / max(1, attempts):.1f} | {(tokens or 0) / max(1, steps):.0f} |")
     return "\n".join(lines)
