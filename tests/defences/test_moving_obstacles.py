@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from safeembodai_core.models import LidarScan, Pose, Straight, Turn
@@ -206,6 +206,10 @@ signals = st.one_of(
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
 @given(plan=st.lists(signals, min_size=1, max_size=5), heading=st.floats(-180, 180), share=st.floats(0, 1),
        speed=st.floats(80, 250), course=st.floats(-180, 180), offset=st.floats(0, 400), side=st.floats(-180, 180))
+# a Labbot coming from behind along the line of sight while the robot backs into it (it hides where
+# it was: found by this test once), and one crossing ahead of three straights
+@example(plan=[go(-290.0)], heading=0.0, share=1.0, speed=138.0, course=0.0, offset=0.0, side=0.0)
+@example(plan=[go(399.0)] * 3, heading=0.0, share=0.6, speed=150.0, course=-90.0, offset=0.0, side=0.0)
 def test_every_plan_that_drives_into_the_mover_is_refused(plan, heading, share, speed, course, offset, side):
     """The mover, on a straight course at a constant speed, is placed to pass within ``offset`` of
     where the plan puts the robot at a moment drawn from its execution; the robot starts at the
@@ -223,5 +227,7 @@ def test_every_plan_that_drives_into_the_mover_is_refused(plan, heading, share, 
         if np.hypot(*(point - 3000.0)) < 700 or not ((350 < point) & (point < ROOM_MM - 350)).all():
             return  # the mover is read clear of the robot and of the walls
     context = context_for(pose, [(*now, LABBOT_MM)], [(*before, LABBOT_MM)])
-    if _meets_by_its_own_motion(plan, pose, now, velocity, LABBOT_MM, validator.options):
+    meets = _meets_by_its_own_motion(plan, pose, now, velocity, LABBOT_MM, validator.options)
+    event("meets" if meets else "does not meet")  # `pytest --hypothesis-show-statistics`: about 1 in 10 meets
+    if meets:
         assert refusals(plan, context, validator), [s.describe() for s in plan]
