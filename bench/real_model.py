@@ -231,8 +231,9 @@ def table(folder: Path) -> str:
             for r in json.loads((folder / "metrics.json").read_text())["cells"]}
     db = sqlite3.connect(f"file:{folder / 'results.sqlite'}?mode=ro&immutable=1", uri=True)
     lines = ["| room | arm | condition | trials | outcomes | MOER [95% CI] | completed | answers parsed | "
-             "attempts refused by validators | ADR [95% CI] | collisions | s per answer | tokens per step |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "attempts refused by validators | ADR [95% CI] | collisions | moved per trial (mm) | s per answer | "
+             "tokens per step |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for (environment, arm, condition), row in sorted(rows.items()):
         trials = db.execute("SELECT trial_id, outcome, result FROM trials WHERE environment = ? AND arm = ? "
                             "AND condition = ?", (environment, arm, condition)).fetchall()
@@ -253,6 +254,7 @@ def table(folder: Path) -> str:
             f"{_estimate(row, 'moer')} | {_wilson(outcomes.get('completed', 0), len(trials))} | "
             f"{parsed or 0}/{attempts} | {refused} | {_estimate(row, 'adr')} | "
             f"{sum(r.get('collisions', 0) for r in results)} | "
+            f"{sum(r.get('distance_mm', 0.0) for r in results) / max(1, len(results)):.0f} | "
             f"{(latency or 0) / max(1, attempts):.1f} | {(tokens or 0) / max(1, steps):.0f} |")
     return "\n".join(lines)
 
