@@ -84,11 +84,17 @@ class JinjaPromptBuilder(PromptBuilder):
     def __init__(self, options: Any) -> None:
         self.options = options
         self.templates = TemplateSet(options.template_dir)
-        self.outline = schema_outline()
+        self._outlines: dict[Any, str] = {}
         # Fail at build time, naming the file, rather than in the middle of a trial.
         self.templates.load(options.system_template)
         self.templates.load(options.user_template)
         self.build(_sample_request())
+
+    def _outline(self, limits: Any) -> str:
+        """The response outline for the step's limits (its example values lie inside them)."""
+        if limits not in self._outlines:
+            self._outlines[limits] = schema_outline(limits)
+        return self._outlines[limits]
 
     # -- the parts of the prompt ----------------------------------------------------------------
 
@@ -154,7 +160,7 @@ class JinjaPromptBuilder(PromptBuilder):
             "texts": sorted(m.texts),
             "has_reference": reference is not None,
             "inputs": inputs,
-            "response_outline": self.outline,
+            "response_outline": self._outline(request.limits),
             "max_distance_mm": f"{request.limits.max_distance_mm:g}",
             "max_angle_deg": f"{request.limits.max_angle_deg:g}",
             "max_signals": request.limits.max_signals,

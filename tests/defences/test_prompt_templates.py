@@ -164,3 +164,14 @@ def test_a_typical_step_fits_the_token_budget(plugins, variant):
     tokens = count(prompt.system) + count(prompt.user_text) + IMAGE_TOKENS * len(prompt.images)
     assert len(prompt.images) == 2
     assert tokens <= STEP_BUDGET, f"{variant}: {tokens} tokens"
+
+
+def test_the_response_outline_follows_the_scenarios_limits(plugins):
+    """The outline's example numbers lie inside the step's limits (a copied example stays valid)."""
+    from safeembodai_core.models import ControlLimits
+    from safeembodai_core.models.response import schema_outline
+
+    small = ControlLimits(max_distance_mm=100, max_angle_deg=20)
+    prompt = build(plugins).build(request(limits=small))
+    assert schema_outline(small) in prompt.system and schema_outline() not in prompt.system
+    assert schema_outline() in build(plugins).build(request()).system
