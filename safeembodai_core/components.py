@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -191,6 +191,15 @@ class LLMBackend(ABC):
     @abstractmethod
     def complete(self, prompt: Prompt, rng: np.random.Generator) -> "BackendReply":
         """Send ``prompt``; raise :class:`~safeembodai_core.errors.BackendError` when no answer can be had."""
+
+    def prepare_attempt(self, index: int, limits: ControlLimits, rng: np.random.Generator) -> dict[str, Any] | None:
+        """Optional: called by Algorithm 1 before attempt ``index`` of a step (0 is the first try),
+        with the step's actuation ``limits`` and the attempt's seeded ``rng`` (the one
+        :meth:`complete` then receives). A backend that decodes under the limits, or makes a retry
+        differ from the refused answer (a temperature step, a per-attempt seed), prepares it here
+        and returns what it will send; the dict is recorded as ``Attempt.sampling``. The default
+        prepares nothing and returns None."""
+        return None
 
     def preflight(self) -> None:
         """Optional: raise :class:`~safeembodai_core.errors.BackendError` (one line) when this backend
