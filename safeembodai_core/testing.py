@@ -20,7 +20,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from .components import Environment, RobotSpec
+from .components import BackendReply, Environment, LLMBackend, RobotSpec
 from .models import (
     ControlSignal,
     ExecutionResult,
@@ -36,7 +36,8 @@ from .models import (
 from .plugins import Plugins, load_plugins
 from .scenario import Scenario, parse_scenario
 
-__all__ = ["CorridorWorld", "answer", "inline_plugins", "run_tiny_trial", "straight", "tiny_scenario", "turn"]
+__all__ = ["CorridorWorld", "ReplayBackend", "StagedWorld", "answer", "inline_plugins", "run_tiny_trial", "straight",
+           "tiny_scenario", "turn"]
 
 
 def straight(distance: float, direction: str = "forward", justification: str = "") -> dict[str, Any]:
@@ -173,7 +174,8 @@ class CorridorWorld(Environment):
         if step > free:
             self.x += max(free, 0.0)
             self.collided = True
-            return ExecutionResult(distance_mm=max(free, 0.0), stopped=True, collided=True, detail="hit the wall")
+            return ExecutionResult(distance_mm=max(free, 0.0), stopped=True, collided=True, collision="self",
+                                   hit="wall", detail="hit the wall")
         self.x += step
         return ExecutionResult(distance_mm=step)
 
@@ -183,3 +185,48 @@ class CorridorWorld(Environment):
         if self.wall_mm - self.x <= self.reach_mm + self.robot.radius_mm:
             return Outcome.COMPLETED
         return None
+
+
+class ReplayBackend(LLMBackend):
+    """An LLM backend for tests: answers with ``answers`` in order, then the last one again for
+    every further call. ``calls`` counts the calls and ``prompts`` keeps every prompt it was sent."""
+
+    def __init__(self, *answers: str) -> None:
+        if not answers:
+            raise ValueError("ReplayBackend needs at least one answer")
+        self.answers, self.calls, self.prompts = list(answers), 0, []
+
+    def complete(self, prompt: Any, rng: np.random.Generator) -> BackendReply:
+        self.calls += 1
+        self.prompts.append(prompt)
+        return BackendReply(text=self.answers[min(self.calls, len(self.answers)) - 1])
+
+
+class StagedWorld(Environment):
+    """Wraps a built environment (``room``) and passes every call through to it; subclass it and
+    override ``reset`` -- call ``super().reset(seed)``, then move things in ``self.room`` -- to
+    stage one situation (a Labbot heading at the robot, say) for a deterministic test."""
+
+    def __init__(self, room: Environment) -> None:
+        self.room, self.robot = room, room.robot
+
+    def reset(self, seed: int) -> Observation:
+        return self.room.reset(seed)
+
+    def observe(self) -> Observation:
+        return self.room.observe()
+
+    def execute(self, signal: ControlSignal) -> ExecutionResult:
+        return self.room.execute(signal)
+
+    def outcome(self) -> Outcome | None:
+        return self.room.outcome()
+
+    def pose(self) -> Pose | None:
+        return self.room.pose()
+
+    def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
+        return self.room.trajectory_png(poses, outcome)
+
+    def close(self) -> None:
+        self.room.close()

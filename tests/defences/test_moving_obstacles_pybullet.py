@@ -9,34 +9,19 @@ import numpy as np
 import pytest
 
 from safeembodai_core import run_guarded_trial
-from safeembodai_core.components import BackendReply, Environment, LLMBackend
 from safeembodai_core.loop import Defences
 from safeembodai_core.plugins import load_plugins
-from safeembodai_core.testing import answer, straight, turn
+from safeembodai_core.testing import ReplayBackend, StagedWorld, answer, straight, turn
 
 THINK_S = 5.0
 
 
-class Replay(LLMBackend):
-    """Answers in order; the last one again for every further call."""
-
-    def __init__(self, *answers: str) -> None:
-        self.answers, self.calls = list(answers), 0
-
-    def complete(self, prompt, rng):
-        self.calls += 1
-        return BackendReply(text=self.answers[min(self.calls, len(self.answers)) - 1])
-
-
-class CrossingRoom(Environment):
+class CrossingRoom(StagedWorld):
     """A 6 m ``DO`` room: the robot at (1000, 2000) facing +x, one blind Labbot driving -y along
     x = 1800 at 150 mm/s, timed to stand across the robot's path when a plan of step 3 gets there."""
 
-    def __init__(self, room) -> None:
-        self.room, self.robot = room, room.robot
-
     def reset(self, seed):
-        self.room.reset(seed)
+        super().reset(seed)
         room = self.room
         room.xy, room.heading = np.array([1000.0, 2000.0]), 0.0
         room.can_xy = np.array([5600.0, 400.0])
@@ -46,21 +31,6 @@ class CrossingRoom(Environment):
         room._sync()
         room._thought = True  # the reading below is the step's observation, as after reset
         return room.observe()
-
-    def observe(self):
-        return self.room.observe()
-
-    def execute(self, signal):
-        return self.room.execute(signal)
-
-    def outcome(self):
-        return self.room.outcome()
-
-    def pose(self):
-        return self.room.pose()
-
-    def close(self):
-        self.room.close()
 
 
 @pytest.fixture
@@ -82,7 +52,7 @@ PLAN = (answer(turn(2, "left")), answer(turn(2, "right")), answer(straight(399),
 
 def _run(env, plugins, validators):
     defences = Defences(safety_validation=True, validators=validators, failure_threshold=0, on_exhausted="hold")
-    return run_guarded_trial(env, Replay(*PLAN), defences=defences, seed=1, max_steps=5, plugins=plugins)
+    return run_guarded_trial(env, ReplayBackend(*PLAN), defences=defences, seed=1, max_steps=5, plugins=plugins)
 
 
 def test_lidar_clearance_alone_drives_into_the_crossing_labbot(plugins, crossing):

@@ -9,51 +9,23 @@ import numpy as np
 import pytest
 
 from safeembodai_core import run_guarded_trial
-from safeembodai_core.components import BackendReply, Environment, LLMBackend
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import ExecutionResult, Outcome, TrialResult, TrialSpec
 from safeembodai_core.plugins import load_plugins
-from safeembodai_core.testing import answer, straight, turn
+from safeembodai_core.testing import ReplayBackend, StagedWorld, answer, straight, turn
 
 
-class Replay(LLMBackend):
-    def __init__(self, *answers: str) -> None:
-        self.answers, self.calls = list(answers), 0
-
-    def complete(self, prompt, rng):
-        self.calls += 1
-        return BackendReply(text=self.answers[min(self.calls, len(self.answers)) - 1])
-
-
-class ChargedRoom(Environment):
+class ChargedRoom(StagedWorld):
     """A pybullet ``DO`` room whose one blind Labbot starts 700 mm from the robot, heading at it."""
 
-    def __init__(self, room) -> None:
-        self.room, self.robot = room, room.robot
-
     def reset(self, seed):
-        observation = self.room.reset(seed)
+        observation = super().reset(seed)
         scan = observation.lidar
         direction = math.radians(observation.pose.heading_deg + scan.angles_deg[int(np.argmax(scan.ranges_mm))])
         self.room.swarm.xy[0] = self.room.xy + 700.0 * np.array([math.cos(direction), math.sin(direction)])
         self.room.swarm.heading[0] = math.degrees(direction) + 180.0
         self.room.scene.place_labbots(self.room.swarm.xy, self.room.swarm.heading)
         return observation
-
-    def observe(self):
-        return self.room.observe()
-
-    def execute(self, signal):
-        return self.room.execute(signal)
-
-    def outcome(self):
-        return self.room.outcome()
-
-    def pose(self):
-        return self.room.pose()
-
-    def close(self):
-        self.room.close()
 
 
 @pytest.fixture
@@ -71,7 +43,7 @@ def charged(plugins):
 
 def test_a_labbot_striking_the_robot_in_its_think_time_counts_as_struck(plugins, charged, tmp_path):
     store = {"use": "sqlite", "options": {"path": str(tmp_path / "state.sqlite")}}
-    result, steps = run_guarded_trial(charged, Replay(answer(turn(3))), defences=Defences(), seed=3,
+    result, steps = run_guarded_trial(charged, ReplayBackend(answer(turn(3))), defences=Defences(), seed=3,
                                       state=store, plugins=plugins)
     assert result.outcome is Outcome.INTERRUPTED
     assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 0, 1)
@@ -90,7 +62,7 @@ def test_a_labbot_striking_the_robot_while_no_command_came_is_counted(plugins, c
     The world has ended by then, so the trial ends without asking the LLM for step 2 (an answer
     nobody could execute); the collision is counted against step 1, whose think time it ended."""
     hold = Defences(safety_validation=True, on_exhausted="hold", failure_threshold=0)
-    backend = Replay("no JSON here")
+    backend = ReplayBackend("no JSON here")
     result, steps = run_guarded_trial(charged, backend, defences=hold, seed=3, plugins=plugins)
     assert result.outcome is Outcome.INTERRUPTED and result.steps == 1 and len(steps) == 1
     assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 0, 1)
@@ -102,7 +74,7 @@ def test_a_labbot_striking_the_robot_while_no_command_came_is_counted(plugins, c
 def test_the_robot_driving_into_a_wall_counts_as_self(plugins):
     env = plugins.registry.build("environment", "OF", {})
     try:
-        result, steps = run_guarded_trial(env, Replay(answer(straight(399))), defences=Defences(), seed=0,
+        result, steps = run_guarded_trial(env, ReplayBackend(answer(straight(399))), defences=Defences(), seed=0,
                                           max_steps=30, plugins=plugins)
     finally:
         env.close()
