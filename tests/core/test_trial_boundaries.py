@@ -11,18 +11,9 @@ from safeembodai_core.components import Attacker, BackendReply, LLMBackend, Vali
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import GroundTruth, Outcome, ResponseParseError, parse_response
 from safeembodai_core.plugins import load_plugins
-from safeembodai_core.testing import CorridorWorld, answer, straight, turn
+from safeembodai_core.testing import CorridorWorld, ReplayBackend, answer, straight, turn
 
 GUARDED = Defences(security_prefix=True, state_management=True, safety_validation=True)
-
-
-class Replay(LLMBackend):
-    def __init__(self, *texts):
-        self.texts, self.calls = list(texts), 0
-
-    def complete(self, prompt, rng):
-        self.calls += 1
-        return BackendReply(text=self.texts[min(self.calls, len(self.texts)) - 1])
 
 
 def test_deeply_nested_json_is_a_refusal_not_a_crash():
@@ -30,7 +21,7 @@ def test_deeply_nested_json_is_a_refusal_not_a_crash():
     with pytest.raises(ResponseParseError, match="too deeply"):
         parse_response(hostile)
     world = CorridorWorld()
-    result, steps = run_guarded_trial(world, Replay(hostile, answer(turn(10))), defences=GUARDED, max_steps=1)
+    result, steps = run_guarded_trial(world, ReplayBackend(hostile, answer(turn(10))), defences=GUARDED, max_steps=1)
     assert result.outcome != Outcome.ERROR and steps[0].attempts[0].parse_error and steps[0].accepted
 
 
@@ -55,7 +46,7 @@ def test_a_validator_that_raises_refuses_instead_of_ending_the_trial():
 def test_after_trial_hook_failure_keeps_the_result():
     plugin = types.ModuleType("flaky_exporter")
     plugin.after_trial = hookimpl(lambda spec, result: (_ for _ in ()).throw(RuntimeError("exporter down")))
-    result, _ = run_guarded_trial(CorridorWorld(), Replay(answer(turn(10))), defences=GUARDED, max_steps=2,
+    result, _ = run_guarded_trial(CorridorWorld(), ReplayBackend(answer(turn(10))), defences=GUARDED, max_steps=2,
                                   plugins=load_plugins([plugin], environ={}))
     assert result.outcome == Outcome.TIMEOUT
 
@@ -73,7 +64,7 @@ def test_unbuildable_components_end_that_trial_as_error_and_the_run_goes_on(tmp_
     def factory(options, context):
         if context.seed % 2:
             raise ComponentError("the device for this seed is offline")
-        return Replay(answer(turn(10)))
+        return ReplayBackend(answer(turn(10)))
 
     plugin = types.ModuleType("moody")
     plugin.register_llm_backends = hookimpl(lambda register: register("moody", factory, options=Empty))
@@ -110,7 +101,7 @@ def test_attackers_cannot_rewrite_ground_truth():
             return []
 
     world = CorridorWorld()  # the target is always in view there
-    result, steps = run_guarded_trial(world, Replay(answer(turn(10))), defences=GUARDED, max_steps=2,
+    result, steps = run_guarded_trial(world, ReplayBackend(answer(turn(10))), defences=GUARDED, max_steps=2,
                                       attackers=[Liar()])
     assert all(step.truth.target_in_view for step in steps) and result.target_visible_steps == 2
 

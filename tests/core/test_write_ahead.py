@@ -7,11 +7,11 @@ from __future__ import annotations
 import pytest
 
 from safeembodai_core import run_guarded_trial
-from safeembodai_core.components import BackendReply, LLMBackend, StateStore
+from safeembodai_core.components import StateStore
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import Outcome
-from safeembodai_core.testing import CorridorWorld, answer, straight, turn
+from safeembodai_core.testing import CorridorWorld, ReplayBackend, answer, straight, turn
 from safeembodai_plugins.state.memory import MemoryStateStore
 
 STEPS = 4
@@ -25,15 +25,6 @@ SCRIPT = [
     answer(straight(50), turn(5), straight(50), turn(5, "right")),
 ]
 FAILURES = [StateStoreError("disk full"), OverflowError("Python int too large"), RuntimeError("store bug")]
-
-
-class Replay(LLMBackend):
-    def __init__(self, texts):
-        self.texts, self.calls = list(texts), 0
-
-    def complete(self, prompt, rng):
-        self.calls += 1
-        return BackendReply(text=self.texts[min(self.calls, len(self.texts)) - 1])
 
 
 class LoggingWorld(CorridorWorld):
@@ -79,7 +70,7 @@ class FlakyStore(StateStore):
 
 def run(store: FlakyStore, world: LoggingWorld):
     defences = Defences(state_management=True)
-    return run_guarded_trial(world, Replay(SCRIPT), defences=defences, max_steps=STEPS, state=store,
+    return run_guarded_trial(world, ReplayBackend(*SCRIPT), defences=defences, max_steps=STEPS, state=store,
                              perception="text", trial_id=TRIAL)
 
 
