@@ -1,4 +1,4 @@
-"""The Gymnasium integration (docs/gym.md): ids, spaces, check_env, determinism, pairing with
+"""The Gymnasium integration (docs/gymnasium.md): ids, spaces, check_env, determinism, pairing with
 ``ablate``, refusals, and the guard around a random agent."""
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from safeembodai_core.models import Verdict  # noqa: E402
 from safeembodai_core.refs import ComponentRef  # noqa: E402
 from safeembodai_core.scenario import load_scenario  # noqa: E402
 
-#: Episodes of the random-agent test; docs/gym.md records a run of 200.
+#: Episodes of the random-agent test; docs/gymnasium.md records a run of 200.
 EPISODES = int(os.environ.get("SAFEEMBODAI_GYM_EPISODES", "30"))
 
 
@@ -282,11 +282,11 @@ def test_a_random_agent_collides_and_the_guard_stops_its_collisions():
 
 @pytest.mark.slow
 def test_the_docs_examples_run(repo, capsys):
-    blocks = re.findall(r"```python\n(.*?)```", (repo / "docs" / "gym.md").read_text(), re.S)
+    blocks = re.findall(r"```python\n(.*?)```", (repo / "docs" / "gymnasium.md").read_text(), re.S)
     assert len(blocks) == 3
     namespace = {"__name__": "docs_gym"}
     for block in blocks:
-        exec(compile(block, "docs/gym.md", "exec"), namespace)
+        exec(compile(block, "docs/gymnasium.md", "exec"), namespace)
     out = capsys.readouterr().out
     assert "random collisions:" in out and "guarded collisions: 0" in out
     assert out.strip().splitlines()[-1] in ("completed", "timeout", "safe_abort", "interrupted")

@@ -14,7 +14,7 @@ and ``safeembodai/flatland-v0``. Gymnasium 1.x has no plugin discovery: import t
 name it in the id, ``gymnasium.make("safeembodai_core.gym:safeembodai/SO-v0")``
 (``safeembodai_core.gym`` is this package's short name). Modules: ``env`` (:class:`SafeEmbodAIEnv`),
 ``guard`` (:class:`SafeEmbodAIGuard`), ``spaces`` (the spaces and their conversions),
-``scenarios`` (each id's scenario). See ``docs/gym.md``.
+``scenarios`` (each id's scenario). See ``docs/gymnasium.md``.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ built by :class:`~safeembodai_core.runner.ScenarioRunner`, attackers draw from t
 ``(trial seed, attacker, step)`` streams, so ``reset(options={"index": k})`` meets the world and
 the injections of ``safeembodai ablate``'s trial k. Safety validation is not the env's business:
 wrap it in :class:`~safeembodai_core.integrations.gym.SafeEmbodAIGuard`. What a step returns is documented in
-``docs/gym.md``.
+``docs/gymnasium.md``.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ REWARD_COMPLETED = 10.0
 
 
 class SafeEmbodAIEnv(gymnasium.Env):
-    """A room of a scenario under one attack condition (see the module docstring and ``docs/gym.md``).
+    """A room of a scenario under one attack condition (see the module docstring and ``docs/gymnasium.md``).
 
     ``room`` names the registered id's room (``OF``, ``SO``, ``DO``, ``MO``, ``flatland``);
     ``scenario`` (a :class:`Scenario` or a YAML path) replaces the id's default scenario, and
