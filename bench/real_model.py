@@ -21,14 +21,10 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import json
-import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
-import time
-import urllib.request
 from collections import Counter
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -69,46 +65,15 @@ MODELS = {
 }
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 @contextmanager
 def llama_server(model: LocalModel, log_dir: Path, threads: int = 2) -> Iterator[str]:
     """The OpenAI-compatible URL of a llama-cpp-python server on ``model``; stopped by PID on exit."""
-    port = _free_port()
-    command = [sys.executable, "-m", "llama_cpp.server", "--model", model.locate(), "--host", "127.0.0.1",
-               "--port", str(port), "--n_ctx", "4096", "--n_threads", str(threads)]
-    if model.chat_format:
-        command += ["--chat_format", model.chat_format]
-    log = log_dir / f"server-{model.name}.log"
-    with log.open("w") as sink:
-        server = subprocess.Popen(command, stdout=sink, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{port}/v1"
-    try:
-        deadline = time.monotonic() + 180
-        while True:
-            try:
-                with urllib.request.urlopen(f"{url}/models", timeout=2) as answer:
-                    if answer.status == 200:
-                        break
-            except OSError:
-                pass
-            if server.poll() is not None or time.monotonic() > deadline:
-                raise SystemExit(f"llama-cpp-python server did not start; see {log}")
-            time.sleep(0.5)
-        print(f"server pid {server.pid} on {url} ({model.name})", file=sys.stderr)
+    from safeembodai_plugins.backends.local_server import llama_cpp_server
+
+    with llama_cpp_server(model.locate(), log_path=log_dir / f"server-{model.name}.log", threads=threads,
+                          chat_format=model.chat_format) as url:
+        print(f"server on {url} ({model.name})", file=sys.stderr)
         yield url
-    finally:
-        if server.poll() is None:
-            os.kill(server.pid, signal.SIGTERM)
-            try:
-                server.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                os.kill(server.pid, signal.SIGKILL)
-                server.wait()
 
 
 def backend_options(model: LocalModel, url: str) -> dict:

