@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 import re
 import sys
-from typing import Any
+from typing import Any, Iterable
 
 import structlog
 
@@ -39,18 +39,22 @@ def _unescape_json(text: str) -> str:
     return _JSON_ESCAPE.sub(lambda m: m.group(2) or chr(int(m.group(1), 16)), text)
 
 
+def mask_values(text: str, values: Iterable[str]) -> str:
+    """``text`` with every one of ``values`` (empty ones skipped) replaced by the mask, longest first."""
+    for value in sorted((v for v in values if v), key=len, reverse=True):
+        if value in text:
+            text = text.replace(value, MASK)
+    return text
+
+
 def _mask_registered(text: str) -> str:
-    secrets = sorted(_secrets, key=len, reverse=True)
-    if "\\" in text and not any(secret in text for secret in secrets):
+    if "\\" in text and not any(secret in text for secret in _secrets):
         # a secret written with JSON escapes ("sk\u002d...") in raw answer text: the decoded
         # view is what a reader recovers, so when it holds a secret the decoded text is kept
         decoded = _unescape_json(text)
-        if any(secret in decoded for secret in secrets):
+        if any(secret in decoded for secret in _secrets):
             text = decoded
-    for secret in secrets:
-        if secret in text:
-            text = text.replace(secret, MASK)
-    return text
+    return mask_values(text, _secrets)
 
 
 def redact(value: Any) -> Any:

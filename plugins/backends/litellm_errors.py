@@ -18,7 +18,7 @@ import re
 from dataclasses import dataclass, replace
 from typing import Any, Iterable
 
-from safeembodai_core.logs import MASK, redact
+from safeembodai_core.logs import mask_values, redact
 
 from .litellm_call import CallTimedOut, TooManyHungCalls
 
@@ -142,8 +142,7 @@ def format_hint(failure: Failure, options: Any) -> str:
 
 def scrub_message(text: str, secrets: Iterable[str] = ()) -> str:
     """``text`` as one clean line: secrets masked, no traceback, path, repr or control character."""
-    for secret in sorted((s for s in secrets if s), key=len, reverse=True):
-        text = text.replace(secret, MASK)
+    text = mask_values(text, secrets)
     text = redact(text)
     text = _TRACEBACK.sub(" ", text)
     text = _FILE_LINE.sub(" ", text)

@@ -24,23 +24,16 @@ import re
 from numbers import Real
 from typing import Any, Iterable
 
-from safeembodai_core.logs import MASK
+from safeembodai_core.logs import mask_values
+from safeembodai_core.models.response import NORMAL_FINISH_REASONS
 from safeembodai_core.models import TokenUsage
 
 MAX_TOKENS_REPORTED = 2**31 - 1
 REASON_CHARS = 32
 MODEL_CHARS = 100
-_NORMAL_NATIVE = frozenset({"stop", "end_turn", "stop_sequence", "STOP", "COMPLETE", "STOP_SEQUENCE", "eos",
-                            "eos_token"})
 _NOT_PLAIN = re.compile(r"[^A-Za-z0-9_.:/@+\-]")
 
 
-def mask(text: str, secrets: Iterable[str]) -> str:
-    """``text`` with every one of ``secrets`` replaced by the mask, longest first."""
-    for secret in sorted((s for s in secrets if s), key=len, reverse=True):
-        if secret in text:
-            text = text.replace(secret, MASK)
-    return text
 
 
 def plain(value: Any, most: int) -> str:
@@ -73,7 +66,7 @@ def finish_reason(choice: Any) -> str | None:
     mapped = getattr(choice, "finish_reason", None)
     fields = getattr(choice, "provider_specific_fields", None)
     native = fields.get("native_finish_reason") if isinstance(fields, dict) else None
-    if mapped == "stop" and native is not None and not (isinstance(native, str) and native in _NORMAL_NATIVE):
+    if mapped == "stop" and native is not None and not (isinstance(native, str) and native.lower() in NORMAL_FINISH_REASONS):
         return plain(native, REASON_CHARS) or "_"
     if mapped is None:
         return None
@@ -90,11 +83,11 @@ def first_choice(response: Any) -> Any:
 
 def answer_text(choice: Any, secrets: Iterable[str]) -> str:
     content = getattr(getattr(choice, "message", None), "content", None)
-    return mask(content if isinstance(content, str) else "", secrets)
+    return mask_values(content if isinstance(content, str) else "", secrets)
 
 
 def model_name(response: Any, configured: str, secrets: Iterable[str]) -> str:
     reported = getattr(response, "model", None)
     if not isinstance(reported, str) or not reported:
         return configured
-    return plain(mask(reported, secrets), MODEL_CHARS)
+    return plain(mask_values(reported, secrets), MODEL_CHARS)
