@@ -41,13 +41,7 @@ def trial(arm, condition, index, outcome, steps, **fields):
 def mock_run(tmp_path_factory):
     plugins = load_plugins(environ={})
     scenario = parse_scenario(MOCK_RUN, "mockrun.yaml", registry=plugins.registry)
-    folder = RunFolder(tmp_path_factory.mktemp("run") / "mockrun")
-    ablation = Ablation(scenario, plugins, folder)
-    try:
-        results = ablation.run()
-    finally:
-        ablation.close()
-    return scenario, plugins, folder.path, results
+    return _ablate(scenario, plugins, tmp_path_factory.mktemp("run") / "mockrun")
 
 
 @pytest.fixture(scope="module")
@@ -60,13 +54,17 @@ def scripted_run(tmp_path_factory):
     plugins = load_plugins(environ={})
     repo = Path(__file__).resolve().parents[2]
     scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=3", "max_steps=6"], plugins.registry)
-    folder = RunFolder(tmp_path_factory.mktemp("run") / "quickstart")
-    ablation = Ablation(scenario, plugins, folder)
+    return _ablate(scenario, plugins, tmp_path_factory.mktemp("run") / "quickstart")
+
+
+def _ablate(scenario, plugins, path):
+    """Run every trial of ``scenario`` into the run folder ``path``: (scenario, plugins, path, results)."""
+    ablation = Ablation(scenario, plugins, RunFolder(path))
     try:
         results = ablation.run()
     finally:
         ablation.close()
-    return scenario, plugins, folder.path, results
+    return scenario, plugins, path, results
 
 
 def test_the_header_names_backend_seed_fingerprint_and_n_and_flags_the_simulated_pilot(mock_run):
