@@ -22,9 +22,11 @@ from typing import Any
 from .logs import redact
 
 CLIPPED = "[...]"
-_STILL_UNSAFE = re.compile(
-    "[\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff]"
-)
+#: Characters that can reorder, hide or break a line a reader sees and that JSON leaves as they
+#: are: DEL and C1 controls, line/paragraph separators, bidi controls, lone surrogates (a regex
+#: character-class body; :mod:`.text_safety` adds the C0 controls for terminals).
+UNSAFE_BEYOND_JSON = "\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff"
+_STILL_UNSAFE = re.compile(f"[{UNSAFE_BEYOND_JSON}]")
 
 
 def _escape(match: re.Match[str]) -> str:

@@ -28,6 +28,7 @@ from typing import Any, TypeVar
 from pydantic import BaseModel
 
 from .logs import redact
+from .quoting import UNSAFE_BEYOND_JSON
 
 SQLITE_MAX_INT = 2**63 - 1
 REPLACEMENT = "\ufffd"
@@ -35,7 +36,7 @@ IDENTITY_FIELDS = frozenset({"trial_id", "spec"})  # keys the store files a reco
 
 _SURROGATE = re.compile("[\ud800-\udfff]")
 # C0 and C1 controls, DEL, line/paragraph separators, bidi controls, lone surrogates
-_INVISIBLE = "\x00-\x08\x0b-\x1f\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff"
+_INVISIBLE = "\x00-\x08\x0b-\x1f" + UNSAFE_BEYOND_JSON
 _CONTROL = re.compile(f"[{_INVISIBLE}]")
 _CONTROL_OR_LAYOUT = re.compile(f"[{_INVISIBLE}\t\n]")
 
