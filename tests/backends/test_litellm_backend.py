@@ -98,11 +98,9 @@ def test_a_hang_past_the_timeout_is_retried_then_reported(built_plugins, fake_se
 
 
 def test_refused_connection_is_a_backend_error(built_plugins, fake_key):
-    import socket
+    from safeembodai_plugins.backends.local_server import free_port
 
-    with socket.socket() as probe:  # a port nobody listens on once the probe closes
-        probe.bind(("127.0.0.1", 0))
-        port = probe.getsockname()[1]
+    port = free_port()  # a port nobody listens on
     backend = built_plugins.registry.build("llm_backend", "gpt-4o", {
         "api_base": f"http://127.0.0.1:{port}/v1", "api_key_env": "SAFEEMBODAI_TEST_KEY", "max_retries": 1,
         "backoff_s": 0.0, "timeout_s": 2.0})
