@@ -28,7 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from safeembodai_core.errors import ComponentError
 from safeembodai_core.hookspecs import hookimpl
 
-from .messages import LEGACY_JSON_MODES, JsonMode
+from .messages import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode
 
 _RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries")
 NO_KEY = "no-key-required"
@@ -98,6 +98,8 @@ class LocalModelOptions(_LiteLLMOptions):
     api_key_env: str | None = Field(None, description="environment variable holding a key, if the server wants one")
     api_base: str | None = Field("http://127.0.0.1:8080/v1", description="the server's OpenAI-compatible URL")
     json_mode: JsonMode = Field("json_schema_enum", description="response_format sent (llama-cpp-python's form)")
+    max_tokens: int = Field(DEFAULT_MAX_TOKENS, ge=16, le=32_768,
+                            description="most tokens in an answer; the decoding schema's text caps fit inside it")
     temperature: float | None = Field(0.0, ge=0.0, le=2.0, description="sampling temperature of a step's first attempt")
     retry_temperature_step: float = Field(0.4, ge=0.0, le=2.0,
                                           description="added to temperature for each retry of a step (capped at 2)")

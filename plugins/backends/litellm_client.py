@@ -147,7 +147,7 @@ class LiteLLMBackend(LLMBackend):
             kwargs["api_base"] = o.api_base
         sampling, self._sampling = self._sampling, None  # prepared for one call only
         kwargs.update(sampling if sampling is not None else self._draw_sampling(0, rng))
-        fmt = response_format(o.json_mode, self._limits)
+        fmt = response_format(o.json_mode, self._limits, o.max_tokens)
         if fmt is not None:
             kwargs["response_format"] = fmt
         kwargs.update(o.completion_kwargs)

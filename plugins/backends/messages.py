@@ -10,8 +10,12 @@ from __future__ import annotations
 
 import base64
 import copy
+import json
 import math
+from functools import lru_cache
 from typing import Any, Literal
+
+import structlog
 
 from safeembodai_core.models import ImagePart, Prompt, TextPart
 from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
@@ -24,6 +28,22 @@ Bounds = Literal["range", "enum"]
 LEGACY_JSON_MODES = {"json_object_schema": "json_schema_enum", "off": "none"}
 MAX_ENUM_VALUES = 400
 _DROP_KEYS = ("title", "description", "maxLength", "default")
+
+log = structlog.get_logger(__name__)
+
+#: ``max_tokens`` of the ``local`` backend (its option's default), when a caller names none: with the
+#: default limits, the longest answer then leaves 268 characters to ``planning`` (:func:`text_caps`).
+DEFAULT_MAX_TOKENS = 2048
+#: The longest text field the decoding schema asks for. llama-cpp-python 0.3.x writes a
+#: ``maxLength`` of n as n nested optional groups; its server parses a cap of 1,000 but fails to
+#: parse one of 1,500 or 2,000 (the contract's own cap) and the server process exits.
+MAX_GRAMMAR_TEXT = 1000
+#: The shortest cap a text field gets, however small ``max_tokens`` is (then the bound may not hold).
+MIN_GRAMMAR_TEXT = 16
+#: Cap of a perception entry's ``input`` (an input's name: ``human_instruction``, ``lidar_image``).
+INPUT_NAME_CHARS = 32
+#: How the free-text budget is shared: weight per occurrence of each text field.
+TEXT_SHARES = {"planning": 4, "result": 2, "justification": 1}
 
 
 def data_url(image: ImagePart) -> str:
@@ -77,17 +97,8 @@ def bounded_number(limit: float, bounds: Bounds) -> dict[str, Any]:
     return {"type": "integer", "minimum": values[0], "maximum": values[-1]}
 
 
-def decoding_schema(limits: ControlLimits = DEFAULT_LIMITS, bounds: Bounds = "range",
-                    max_perception: int = 4) -> dict[str, Any]:
-    """The response schema trimmed for constrained decoding (grammar-based JSON), with ``limits``.
-
-    Distances and angles carry the scenario's actuation limits (:func:`bounded_number`), the
-    control list at most ``limits.max_signals`` entries. Titles, descriptions, defaults and
-    string length caps are dropped (a 2,000-character cap becomes a huge grammar); every
-    property is required so small models emit all of them; the perception list gets a small cap
-    so a small model cannot loop until it runs out of tokens. The parser still enforces the full
-    contract on whatever comes back.
-    """
+def _trimmed_schema(limits: ControlLimits, bounds: Bounds, max_perception: int,
+                    caps: dict[str, int]) -> dict[str, Any]:
     schema = copy.deepcopy(response_json_schema())
     schema["properties"]["perception"].update(minItems=1, maxItems=max_perception)
     schema["properties"]["control"].update(minItems=1, maxItems=limits.max_signals)
@@ -104,11 +115,116 @@ def decoding_schema(limits: ControlLimits = DEFAULT_LIMITS, bounds: Bounds = "ra
             return [trim(item) for item in node]
         return node
 
-    return trim(schema)
+    schema = trim(schema)
+    texts = [schema["properties"]["planning"], schema["$defs"]["PerceptionEntry"]["properties"]["result"],
+             schema["$defs"]["PerceptionEntry"]["properties"]["input"],
+             schema["$defs"]["Straight"]["properties"]["justification"],
+             schema["$defs"]["Turn"]["properties"]["justification"]]
+    for node, name in zip(texts, ("planning", "result", "input", "justification", "justification")):
+        node.update(maxLength=caps[name], pattern=text_pattern(caps[name]))
+    return schema
 
 
-def response_format(mode: JsonMode, limits: ControlLimits = DEFAULT_LIMITS) -> dict[str, Any] | None:
-    """The ``response_format`` request field for ``mode`` and the scenario's ``limits`` (None: none).
+def text_pattern(most: int) -> str:
+    """A text field's ``pattern``: at most ``most`` characters, none of them a quote, a backslash
+    or a control character.
+
+    llama-cpp-python 0.3.x reads a string's ``pattern`` before its ``maxLength`` and its own
+    string rule lets raw control characters through (a raw newline inside a string, which no
+    JSON parser accepts: seen from SmolLM2 asked for a long plan); without escapes one character
+    of the grammar is one character of the answer. Servers that read ``maxLength`` get the same cap.
+    """
+    return rf'^[^"\\\x00-\x1f]{{0,{most}}}$'
+
+
+def longest_answer_chars(schema: dict[str, Any]) -> int:
+    """The most characters an answer decoded under ``schema`` can have.
+
+    Counted as llama-cpp-python 0.3.x's grammar writes it: compact JSON with one optional space
+    after every brace, bracket, comma, colon, key and value, every property present; a string
+    of ``maxLength`` n holds n characters (its :func:`text_pattern` allows no escapes). Raises
+    ``ValueError`` for a part with no bound (a string without ``maxLength``, an array without
+    ``maxItems``, a number without a largest value).
+    """
+    defs = schema.get("$defs", {})
+
+    def size(node: dict[str, Any]) -> int:
+        if "$ref" in node:
+            return size(defs[node["$ref"].rsplit("/", 1)[-1]])
+        if "const" in node:
+            return len(json.dumps(node["const"])) + 1
+        if "enum" in node:
+            return max(len(json.dumps(value)) for value in node["enum"]) + 1
+        if "oneOf" in node or "anyOf" in node:
+            return max(size(option) for option in node.get("oneOf") or node["anyOf"])
+        kind = node.get("type")
+        if kind == "object":
+            props = node.get("properties", {})
+            inner = sum(len(json.dumps(key)) + 3 + size(value) for key, value in props.items())
+            return 4 + inner + 2 * max(0, len(props) - 1)
+        if kind == "array" and "maxItems" in node:
+            most = node["maxItems"]
+            return 4 + most * size(node.get("items", {})) + 2 * max(0, most - 1)
+        if kind == "string" and "maxLength" in node:
+            return 3 + node["maxLength"]
+        if kind == "boolean":
+            return len("false") + 1
+        if kind in ("integer", "number") and "maximum" in node:
+            return len(json.dumps(node["maximum"])) + (0 if kind == "integer" else 1) + 1
+        raise ValueError(f"no longest form: {json.dumps(node)[:120]}")
+
+    return size(schema)
+
+
+@lru_cache(maxsize=64)
+def text_caps(limits: ControlLimits = DEFAULT_LIMITS, bounds: Bounds = "range", max_perception: int = 4,
+              max_tokens: int = DEFAULT_MAX_TOKENS) -> tuple[tuple[str, int], ...]:
+    """The ``maxLength`` of each text field, so that the longest answer has at most ``max_tokens`` characters.
+
+    The answer's fixed part (keys, punctuation, enum values, numbers, at most ``max_perception``
+    entries and ``limits.max_signals`` signals) is counted first; what is left is shared by
+    :data:`TEXT_SHARES` (``planning`` 4, each ``result`` 2, each ``justification`` 1), every cap
+    between :data:`MIN_GRAMMAR_TEXT` and :data:`MAX_GRAMMAR_TEXT`; ``input`` gets
+    :data:`INPUT_NAME_CHARS`. One character per token is the worst case of a byte-level
+    tokenizer on ASCII text, so the longest answer fits in ``max_tokens`` tokens. When even the
+    shortest caps do not fit, a warning is logged and the answer can still be cut off.
+    """
+    free_caps = {"planning": 0, "result": 0, "input": INPUT_NAME_CHARS, "justification": 0}
+    fixed = longest_answer_chars(_trimmed_schema(limits, bounds, max_perception, free_caps))
+    units = (TEXT_SHARES["planning"] + TEXT_SHARES["result"] * max_perception
+             + TEXT_SHARES["justification"] * limits.max_signals)
+    unit = max(0, max_tokens - fixed) // units
+    caps = dict(free_caps)
+    for name, share in TEXT_SHARES.items():
+        caps[name] = min(MAX_GRAMMAR_TEXT, max(MIN_GRAMMAR_TEXT, share * unit))
+    longest = longest_answer_chars(_trimmed_schema(limits, bounds, max_perception, caps))
+    if longest > max_tokens:
+        log.warning("decoding.budget_short", max_tokens=max_tokens, longest_answer_chars=longest,
+                    hint="raise max_tokens or lower max_signals: an answer can be cut off at max_tokens")
+    return tuple(caps.items())
+
+
+def decoding_schema(limits: ControlLimits = DEFAULT_LIMITS, bounds: Bounds = "range",
+                    max_perception: int = 4, max_tokens: int = DEFAULT_MAX_TOKENS) -> dict[str, Any]:
+    """The response schema trimmed for constrained decoding (grammar-based JSON), with ``limits``.
+
+    Distances and angles carry the scenario's actuation limits (:func:`bounded_number`), the
+    control list at most ``limits.max_signals`` entries, the perception list at most
+    ``max_perception``. Titles, descriptions and defaults are dropped; every property is
+    required so small models emit all of them. Text fields get the small ``maxLength`` of
+    :func:`text_caps` instead of the contract's 2,000 characters, so that the longest answer the
+    grammar admits fits in ``max_tokens`` (:func:`longest_answer_chars`): a model that loops
+    inside its planning is closed off at the cap rather than cut off at the token limit. The
+    parser still enforces the full contract on whatever comes back.
+    """
+    caps = dict(text_caps(limits, bounds, max_perception, max_tokens))
+    return _trimmed_schema(limits, bounds, max_perception, caps)
+
+
+def response_format(mode: JsonMode, limits: ControlLimits = DEFAULT_LIMITS,
+                    max_tokens: int = DEFAULT_MAX_TOKENS) -> dict[str, Any] | None:
+    """The ``response_format`` request field for ``mode``, the scenario's ``limits`` and the
+    answer's ``max_tokens`` (None: none).
 
     * ``json_schema``: OpenAI's structured-output shape, integer bounds (llama.cpp's
       ``llama-server``, vLLM, Ollama);
@@ -122,9 +238,9 @@ def response_format(mode: JsonMode, limits: ControlLimits = DEFAULT_LIMITS) -> d
     if mode == "json_object":
         return {"type": "json_object"}
     if mode == "json_schema_enum":
-        return {"type": "json_object", "schema": decoding_schema(limits, "enum")}
+        return {"type": "json_object", "schema": decoding_schema(limits, "enum", max_tokens=max_tokens)}
     if mode == "json_schema":
         return {"type": "json_schema",
-                "json_schema": {"name": "safeembodai_response", "schema": decoding_schema(limits, "range"),
+                "json_schema": {"name": "safeembodai_response", "schema": decoding_schema(limits, "range", max_tokens=max_tokens),
                                 "strict": False}}
     return None

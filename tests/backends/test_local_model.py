@@ -11,10 +11,11 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
-from safeembodai_core.models import Outcome
+from safeembodai_core.models import ControlLimits, Outcome, PromptRequest, parse_response
 from safeembodai_core.runner import ScenarioRunner, trial_spec
 from safeembodai_core.scenario import parse_scenario
 
@@ -40,8 +41,8 @@ def llama_server(tmp_path_factory):
     from safeembodai_plugins.backends.local_server import llama_cpp_server
 
     log = tmp_path_factory.mktemp("llama") / "server.log"
-    # no chat_format: the GGUF's own chat template (ChatML)
-    with llama_cpp_server(_smollm2_gguf(), log_path=log, threads=2) as url:
+    # no chat_format: the GGUF's own chat template (ChatML); one thread: CI machines are small and shared
+    with llama_cpp_server(_smollm2_gguf(), log_path=log, threads=1) as url:
         yield url
 
 
@@ -51,7 +52,7 @@ def test_a_full_flatland_trial_through_smollm2_on_llama_cpp_python(llama_server,
         "name": "local-smollm2", "trials": 1, "max_steps": 2, "seed": 0,
         "environments": ["flatland"], "perception": "text", "state": "memory",
         "backend": {"use": "local", "options": {  # json_mode, temperature, seeds: the defaults
-            "api_base": llama_server, "max_tokens": 400, "timeout_s": 600, "max_retries": 1}},
+            "api_base": llama_server, "timeout_s": 600, "max_retries": 1}},
         "arms": {"safeembodai": {"security_prefix": True, "state_management": True, "safety_validation": True,
                                  "failure_threshold": 1}},
         "conditions": {"no_attack": {}},
@@ -69,11 +70,11 @@ def test_a_full_flatland_trial_through_smollm2_on_llama_cpp_python(llama_server,
     attempts = [a for step in steps for a in step.attempts]
     assert attempts and all(a.raw_text.strip() for a in attempts)  # the model answered every time
     assert result.prompt_tokens > 0 and result.completion_tokens > 0  # usage reported by the server
-    # decoded under the limits: an answer is refused for its plan, never for a number or the format
-    # (the one exception the grammar cannot rule out: an answer cut off at max_tokens, about 1 in 20)
-    parsed = [a for a in attempts if a.parse_error is None]
-    assert parsed, [a.parse_error for a in attempts]
-    assert all('finish reason "length"' in a.parse_error for a in attempts if a.parse_error is not None)
+    # decoded under the limits and the text caps: an answer is refused for its plan, never for a number,
+    # the format or a cut at max_tokens (the longest answer the grammar admits fits inside it)
+    assert all(a.parse_error is None and a.finish_reason == "stop" for a in attempts), \
+        [(a.finish_reason, a.parse_error) for a in attempts]
+    parsed = attempts
     for attempt in attempts:
         assert attempt.sampling["temperature"] == pytest.approx(0.4 * attempt.index) and "seed" in attempt.sampling
     for attempt in parsed:
@@ -85,3 +86,32 @@ def test_a_full_flatland_trial_through_smollm2_on_llama_cpp_python(llama_server,
             assert step.executed == []
         else:
             assert [e.signal for e in step.executed] == list(accepted[-1].response.control)[:len(step.executed)]
+
+
+@pytest.mark.timeout(900)
+def test_answers_stay_inside_the_text_caps_sized_from_max_tokens(llama_server, built_plugins):
+    """With a budget small enough that the model's usual planning (100-200 characters) is over its
+    cap, the server closes every text field at its cap: every answer ends normally, parses, and is
+    no longer than the longest form the decoding schema admits."""
+    from safeembodai_plugins.backends.messages import decoding_schema, longest_answer_chars
+
+    limits, max_tokens = ControlLimits(max_signals=1), 700
+    schema = decoding_schema(limits, "enum", max_tokens=max_tokens)
+    planning_cap = schema["properties"]["planning"]["maxLength"]
+    assert planning_cap < 100
+    world = built_plugins.registry.build("environment", "flatland", {"obstacles": 2})
+    seeing = built_plugins.registry.build("perception", "text", {})
+    builder = built_plugins.registry.build("prompt_builder", "jinja", {})
+    backend = built_plugins.registry.build("llm_backend", "local", {
+        "api_base": llama_server, "max_tokens": max_tokens, "timeout_s": 600, "max_retries": 1})
+    instruction = "Find the red can. Explain your plan in great detail, step by step, in at least 300 words."
+    for seed in range(3):
+        request = PromptRequest(instruction=instruction, modalities=seeing.perceive(world.reset(seed)), step=1,
+                                limits=limits)
+        rng = np.random.default_rng(seed)
+        backend.prepare_attempt(0, limits, rng)
+        reply = backend.complete(builder.build(request), rng)
+        assert reply.finish_reason == "stop" and reply.usage.completion_tokens <= max_tokens, reply.text[-200:]
+        assert len(reply.text.strip()) <= longest_answer_chars(schema)
+        response = parse_response(reply.text, limits, finish_reason=reply.finish_reason)
+        assert len(response.planning) <= planning_cap

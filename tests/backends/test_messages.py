@@ -41,10 +41,11 @@ def test_text_only_prompt_sends_a_plain_string():
     assert chat_messages(prompt)[1]["content"] == "U"
 
 
-def test_decoding_schema_requires_every_field_and_drops_length_caps():
+def test_decoding_schema_requires_every_field_and_caps_text_by_the_token_budget():
     schema = decoding_schema(ControlLimits(max_signals=3))
     text = json.dumps(schema)
-    assert "maxLength" not in text and "title" not in text
+    assert "title" not in text and '"maxLength": 2000' not in text  # the contract's cap: too big a grammar
+    assert 0 < schema["properties"]["planning"]["maxLength"] <= 1000
     straight_def = schema["$defs"]["Straight"]
     assert set(straight_def["required"]) == {"command", "direction", "distance", "justification"}
     assert schema["properties"]["control"]["maxItems"] == 3
