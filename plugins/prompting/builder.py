@@ -20,9 +20,11 @@ from __future__ import annotations
 import hashlib
 from typing import Any
 
+import numpy as np
+
 from safeembodai_core.components import PromptBuilder
 from safeembodai_core.models import ImagePart, Prompt, PromptRequest, ReferenceState, TextPart
-from safeembodai_core.models.response import schema_outline
+from safeembodai_core.models.response import OutlineExamples, schema_outline
 
 from .templates import TemplateSet
 
@@ -78,11 +80,30 @@ def _sample_request() -> PromptRequest:
     )
 
 
+#: How the response outline shows distances and angles (see :func:`schema_outline`); chosen by
+#: ``bench/real_model.py outline`` (docs/backends.md, "The outline's example values").
+OUTLINE_EXAMPLES: OutlineExamples = "half"
+
+
+def outline_rng(request: PromptRequest) -> np.random.Generator:
+    """The generator of a ``seeded`` outline: seeded from the step's own inputs (step, instruction,
+    texts, images), so the same trial seed gives the same prompt, and prompts of different steps
+    or scenes show different example values."""
+    digest = hashlib.blake2b(digest_size=8)
+    m = request.modalities
+    for part in (str(request.step), request.instruction, *(f"{k}={m.texts[k]}" for k in sorted(m.texts))):
+        digest.update(part.encode("utf-8", "surrogatepass") + b"\0")
+    for name in sorted(m.images):
+        digest.update(name.encode() + b"\0" + m.images[name].data + b"\0")
+    return np.random.default_rng(int.from_bytes(digest.digest(), "big"))
+
+
 class JinjaPromptBuilder(PromptBuilder):
     """Renders Table I (system) and I_i (user) from sandboxed templates; see the module docstring."""
 
-    def __init__(self, options: Any) -> None:
+    def __init__(self, options: Any, outline_examples: OutlineExamples = OUTLINE_EXAMPLES) -> None:
         self.options = options
+        self.outline_examples = outline_examples
         self.templates = TemplateSet(options.template_dir)
         self._outlines: dict[Any, str] = {}
         # Fail at build time, naming the file, rather than in the middle of a trial.
@@ -90,11 +111,13 @@ class JinjaPromptBuilder(PromptBuilder):
         self.templates.load(options.user_template)
         self.build(_sample_request())
 
-    def _outline(self, limits: Any) -> str:
+    def _outline(self, request: PromptRequest) -> str:
         """The response outline for the step's limits (its example values lie inside them)."""
-        if limits not in self._outlines:
-            self._outlines[limits] = schema_outline(limits)
-        return self._outlines[limits]
+        if self.outline_examples == "seeded":
+            return schema_outline(request.limits, "seeded", outline_rng(request))
+        if request.limits not in self._outlines:
+            self._outlines[request.limits] = schema_outline(request.limits, self.outline_examples)
+        return self._outlines[request.limits]
 
     # -- the parts of the prompt ----------------------------------------------------------------
 
@@ -160,7 +183,7 @@ class JinjaPromptBuilder(PromptBuilder):
             "texts": sorted(m.texts),
             "has_reference": reference is not None,
             "inputs": inputs,
-            "response_outline": self._outline(request.limits),
+            "response_outline": self._outline(request),
             "max_distance_mm": f"{request.limits.max_distance_mm:g}",
             "max_angle_deg": f"{request.limits.max_angle_deg:g}",
             "max_signals": request.limits.max_signals,

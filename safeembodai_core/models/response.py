@@ -39,8 +39,10 @@ See "The parsing contract" in ``docs/defences.md``.
 from __future__ import annotations
 
 import json
-from typing import Any, get_args
+import math
+from typing import Any, Literal, get_args
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..logs import get_logger
@@ -201,25 +203,70 @@ def parse_response(text: str, limits: ControlLimits = DEFAULT_LIMITS, *, finish_
         ) from None
 
 
-def schema_outline(limits: ControlLimits = DEFAULT_LIMITS) -> str:
+#: How the response outline shows a distance and an angle (:func:`schema_outline`).
+OutlineExamples = Literal["half", "varied", "seeded", "zero"]
+OUTLINE_EXAMPLES: tuple[str, ...] = get_args(OutlineExamples)
+#: The fractions of the limit the ``varied`` outline shows, in the order of its four signals.
+VARIED_FRACTIONS = {"turn": (0.22, 0.78), "straight": (0.3, 0.8)}
+
+
+def _inside(limit: float, fraction: float) -> int | float:
+    """``fraction`` of ``limit``: a whole number when one lies inside (0, limit), else 3 decimals."""
+    value = limit * fraction
+    whole = int(value)
+    return whole if 1 <= whole < limit else round(value, 3)
+
+
+def _drawn(limit: float, rng: np.random.Generator) -> int | float:
+    """A value drawn uniformly inside (0, limit): a whole number when there is one."""
+    top = math.ceil(limit) - 1
+    if top >= 1:
+        return int(rng.integers(1, top + 1))
+    return round(float(rng.uniform(0.05, 0.95)) * limit, 3)
+
+
+def schema_outline(limits: ControlLimits = DEFAULT_LIMITS, examples: OutlineExamples = "half",
+                   rng: np.random.Generator | None = None) -> str:
     """A compact JSON outline of the response schema, generated from :class:`LLMResponse`.
 
     Prompts carry this instead of the full JSON schema (fewer tokens); being generated from the
     model, it cannot drift from what :func:`parse_response` accepts. Numbers are shown as JSON
-    numbers, never as quoted text (``"distance": "number (millimetres)"`` invited strings): a
-    distance or angle as half its limit in ``limits`` (a whole number inside the contract, so a
-    model that copies the outline still writes a valid value), any other number as 0.
+    numbers, never as quoted text (``"distance": "number (millimetres)"`` invited strings). How
+    a distance and an angle are shown, ``examples``:
+
+    * ``half``: half the limit (200 mm, 45 degrees by default), one straight and one turn;
+    * ``varied``: four signals, turn / straight / turn / straight, at the
+      :data:`VARIED_FRACTIONS` of the limits (20, 120, 70, 320 by default);
+    * ``seeded``: one straight and one turn with values drawn from ``rng`` inside the limits
+      (the prompt builder seeds it from the step's own inputs, so a prompt is reproducible);
+    * ``zero``: 0 for both, outside the contract (0 < value < limit, stated in words by the
+      prompt's Methods line): a copied 0 is refused.
+
+    Every other number is shown as 0. Shown values other than ``zero`` lie inside ``limits``,
+    so a model that copies the outline still writes a valid value.
     """
+    if examples not in OUTLINE_EXAMPLES:
+        raise ValueError(f"examples must be one of {', '.join(OUTLINE_EXAMPLES)}, got {examples!r}")
+    if examples == "seeded" and rng is None:
+        raise ValueError("the seeded outline needs an rng")
     schema = LLMResponse.model_json_schema()
     defs = schema.get("$defs", {})
-    examples = {"distance": limits.max_distance_mm, "angle": limits.max_angle_deg}
+    limit_of = {"distance": limits.max_distance_mm, "angle": limits.max_angle_deg}
+    command_of = {"distance": "straight", "angle": "turn"}
+    shown: dict[str, int] = {"distance": 0, "angle": 0}  # how many of each the outline has shown so far
 
     def number(name: str) -> int | float:
-        limit = examples.get(name)
-        if limit is None:
+        limit = limit_of.get(name)
+        if limit is None or examples == "zero":
             return 0
-        half = limit / 2
-        return int(half) if half >= 1 else round(half, 3)
+        if examples == "seeded":
+            return _drawn(limit, rng)
+        if examples == "varied":
+            fractions = VARIED_FRACTIONS[command_of[name]]
+            value = _inside(limit, fractions[shown[name] % len(fractions)])
+            shown[name] += 1
+            return value
+        return _inside(limit, 0.5)
 
     def outline(node: dict[str, Any]) -> Any:
         if "$ref" in node:
@@ -229,7 +276,11 @@ def schema_outline(limits: ControlLimits = DEFAULT_LIMITS) -> str:
         if "enum" in node:
             return "|".join(str(v) for v in node["enum"])
         if "oneOf" in node or "anyOf" in node:
-            return [outline(option) for option in node.get("oneOf") or node.get("anyOf")]
+            options = node.get("oneOf") or node.get("anyOf")
+            if examples == "varied":  # turn, straight, turn, straight
+                turn, straight = sorted(options, key=lambda option: "Turn" not in option.get("$ref", ""))
+                return [outline(turn), outline(straight), outline(turn), outline(straight)]
+            return [outline(option) for option in options]
         kind = node.get("type")
         if kind == "object":
             return {name: number(name) if sub.get("type") in ("number", "integer") else outline(sub)
