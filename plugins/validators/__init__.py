@@ -117,8 +117,15 @@ class MovingObstaclesOptions(BaseModel):
                              description="clearance kept between the body and a mover's predicted disc")
     margin_growth_mm_s: float = Field(30.0, ge=0, le=2000, allow_inf_nan=False,
                                       description="added to the margin per second of prediction")
-    unknown_speed_mm_s: float = Field(50.0, ge=0, le=5000, allow_inf_nan=False, description=(
+    unknown_speed_mm_s: float = Field(150.0, ge=0, le=5000, allow_inf_nan=False, description=(
         "speed, in any direction, assumed for a mover whose earlier position was not seen"))
+    wander_deg: float = Field(25.0, ge=0, le=180, allow_inf_nan=False, description=(
+        "a mover's heading drifts as a random walk of this many degrees per square-root second "
+        "(0: straight courses; pybullet rooms' Labbots: 25)"))
+    futures: int = Field(64, ge=1, le=4096, description="possible courses drawn per mover")
+    max_risk: float = Field(0.1, gt=0, le=1, allow_inf_nan=False, description=(
+        "refuse a straight that meets at least this share of a mover's courses"))
+    seed: int = Field(0, ge=0, le=2**32 - 1, description="the courses' draws (fixed: same check, same verdict)")
     sample_s: float = Field(0.1, gt=0, le=2, allow_inf_nan=False, description="time step of the check")
     static_tolerance_mm: float = Field(100.0, gt=0, le=2000, allow_inf_nan=False, description=(
         "a return counts as moved only where the earlier scan saw this much farther"))

@@ -29,6 +29,7 @@ What the rule assumes:
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,10 +37,24 @@ from safeembodai_core.components import Validator
 from safeembodai_core.models import ControlSignal, Straight, Turn, Verdict
 from safeembodai_core.validation import ValidationContext
 
+from .futures import WanderingFutures, WanderSettings
 from .rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 
 _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
+
+
+@dataclass(frozen=True)
+class Meeting:
+    """A straight meeting a mover's futures: the first sampled moment (s after the scan) and the
+    distance driven by then, the share of the mover's futures met, and where those futures put
+    the mover then (their mean centre, room frame)."""
+
+    when_s: float
+    driven_mm: float
+    blob: Blob
+    share: float
+    where: np.ndarray
 
 
 class MovingObstaclesRule(Validator):
@@ -53,6 +68,9 @@ class MovingObstaclesRule(Validator):
             tolerance_mm=options.static_tolerance_mm, cluster_gap_mm=options.cluster_gap_mm,
             min_points=options.min_moved_points, max_size_mm=options.max_obstacle_mm,
             max_speed_mm_s=options.max_obstacle_speed_mm_s)
+        self.futures = WanderingFutures(WanderSettings(
+            wander_deg=options.wander_deg, count=options.futures, step_s=options.sample_s,
+            unknown_speed_mm_s=options.unknown_speed_mm_s, seed=options.seed))
         self._cache: tuple[tuple, list[Blob], float] | None = None
 
     # -- what the scans say ---------------------------------------------------------------------
@@ -100,11 +118,12 @@ class MovingObstaclesRule(Validator):
     # -- the check ------------------------------------------------------------------------------
 
     def first_meeting(self, context: ValidationContext, signal: Straight, blobs: list[Blob], start_s: float
-                      ) -> tuple[float, float, Blob, float] | None:
-        """The first sampled moment the body meets a predicted mover: (time since the scan, distance
-        driven by then, the mover, the gap short of the margin); None if it meets none. A mover
-        that would come as close to the robot standing still (over the same time) is no reason to
-        refuse: refusing would not keep it away, and a motion that gets out of its way must pass."""
+                      ) -> Meeting | None:
+        """How the straight meets the movers' futures: for the mover whose futures it drives into
+        most, the share of them it meets and the first sampled moment it does; None when no
+        mover's share reaches ``max_risk``. A future in which the robot standing still (over the
+        same time) comes as close is not counted: refusing would not keep that mover away, and a
+        motion that gets out of its way must pass."""
         o = self.options
         pose = context.planned_pose
         duration = self.duration_s(signal)
@@ -113,20 +132,20 @@ class MovingObstaclesRule(Validator):
         rad = math.radians(pose.heading_deg)
         sign = 1.0 if signal.direction == "forward" else -1.0
         robot = np.column_stack((pose.x_mm + sign * driven * math.cos(rad), pose.y_mm + sign * driven * math.sin(rad)))
-        best = None
+        best: Meeting | None = None
         for blob in blobs:
-            velocity = blob.velocity if blob.velocity is not None else np.zeros(2)
-            spread = 0.0 if blob.velocity is not None else o.unknown_speed_mm_s
-            where = blob.centre + times[:, None] * velocity
-            reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + (o.margin_growth_mm_s + spread) * times
-            distance = np.hypot(*(robot - where).T)
-            gap = distance - reach
-            if gap.min() >= 0 or distance.min() >= np.hypot(*(robot[0] - where).T).min() - _WORSE_MM:
-                continue  # clear of it, or never nearer to it than standing still would have been
-            hits = np.flatnonzero(gap < 0)
-            if hits.size and (best is None or times[hits[0]] < best[0]):
-                k = hits[0]
-                best = (float(times[k]), float(driven[k]), blob, float(gap[k]))
+            where = self.futures.at(blob, times)  # (futures, times, 2)
+            reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + o.margin_growth_mm_s * times
+            distance = np.hypot(*np.moveaxis(robot[None] - where, -1, 0))
+            standing = np.hypot(*np.moveaxis(robot[0][None, None] - where, -1, 0))
+            met = (distance < reach).any(axis=1) & (distance.min(axis=1) < standing.min(axis=1) - _WORSE_MM)
+            share = float(met.mean())
+            if share < o.max_risk or (best is not None and share <= best.share):
+                continue
+            first = np.where((distance < reach)[met], np.arange(len(times)), len(times)).min(axis=1)
+            k = int(first.min())
+            best = Meeting(when_s=float(times[k]), driven_mm=float(driven[k]), blob=blob, share=share,
+                           where=where[met][:, k].mean(axis=0))
         return best
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
@@ -147,8 +166,9 @@ class MovingObstaclesRule(Validator):
     # -- the reason -----------------------------------------------------------------------------
 
     def _reason(self, signal: Straight, context: ValidationContext, blobs: list[Blob], start: float, think: float,
-                meeting: tuple[float, float, Blob, float]) -> str:
-        when, driven, blob, _ = meeting
+                meeting: Meeting) -> str:
+        o = self.options
+        blob = meeting.blob
         pose = context.planned_pose
         direction, _ = direction_words(signal)
         rad = math.radians(pose.heading_deg)
@@ -161,22 +181,21 @@ class MovingObstaclesRule(Validator):
 
         now_d, now_b = local(blob.centre)
         if blob.velocity is None:
-            motion = (f"moved since the last scan, from where it was not seen: velocity unknown, assumed up to "
-                      f"{self.options.unknown_speed_mm_s:g} mm/s any way")
+            motion = f"velocity unknown (where it was not seen), taken as {o.unknown_speed_mm_s:g} mm/s any way"
         else:
             speed = float(np.hypot(*blob.velocity))
             course = math.degrees(math.atan2(blob.velocity[1], blob.velocity[0])) - pose.heading_deg
-            then_d, then_b = local(blob.centre + blob.velocity * when)
-            motion = (f"heads {(course + 180.0) % 360.0 - 180.0:.0f} deg at {speed:.0f} mm/s; predicted "
-                      f"{then_d:.0f} mm away at {then_b:.0f} deg {when:.1f} s after the scan")
+            motion = f"heading {(course + 180.0) % 360.0 - 180.0:.0f} deg at {speed:.0f} mm/s"
         safe = self._safe_distance(signal, context, blobs, start)
         if safe >= 1:
             advice = f"going {direction}, at most {safe} mm is safe"
         else:
             advice = f"no {direction} motion is safe now (at most 0 mm is safe): turn in place and let it pass"
-        return (f"{signal.describe()}: a moving obstacle, now {now_d:.0f} mm away at {now_b:.0f} deg, {motion}; "
-                f"this motion (from {start:.1f} s, after {think:g} s think time) comes within its safety margin "
-                f"{driven:.0f} mm in; {advice}")
+        # the advice comes before the details: prompts cut long reasons (max_failure_chars)
+        return (f"{signal.describe()}: a moving obstacle {now_d:.0f} mm away at {now_b:.0f} deg may be in the way; "
+                f"{advice}. It moves ({motion}); {meeting.share:.0%} of its {o.futures} predicted courses meet this "
+                f"motion, first {meeting.driven_mm:.0f} mm in, {meeting.when_s:.1f} s after the scan "
+                f"(after {think:g} s think time)")
 
     def _safe_distance(self, signal: Straight, context: ValidationContext, blobs: list[Blob], start: float) -> int:
         """The longest straight in the same direction, in 10 mm steps, that meets no predicted mover."""

@@ -29,12 +29,14 @@ from safeembodai_core.models import LidarScan, Pose
 
 @dataclass(frozen=True)
 class Blob:
-    """A moving obstacle as a disc in the room frame (mm, mm/s); ``velocity`` None: unknown."""
+    """A moving obstacle as a disc in the room frame (mm, mm/s); ``velocity`` None: unknown.
+    ``span_s``: the time between the two scans the velocity was measured over."""
 
     centre: np.ndarray
     radius_mm: float
     velocity: np.ndarray | None
     points: int
+    span_s: float = 0.0
 
 
 def _to_room(points: np.ndarray, pose: Pose) -> np.ndarray:
@@ -172,5 +174,5 @@ def find_movers(scan: LidarScan, pose: Pose, time_s: float, before: LidarScan, b
     blobs = []
     for i, (centre, radius, count) in enumerate(arrived):
         velocity = (centre - departed[partner[i]][0]) / dt if i in partner else None
-        blobs.append(Blob(centre=centre, radius_mm=radius, velocity=velocity, points=count))
+        blobs.append(Blob(centre=centre, radius_mm=radius, velocity=velocity, points=count, span_s=max(dt, 0.0)))
     return blobs

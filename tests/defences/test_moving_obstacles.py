@@ -89,8 +89,9 @@ def test_a_plan_crossing_its_predicted_path_is_refused_and_the_advice_passes():
     refused = refusals(plan, context)
     assert refused and refused[0].signal_index >= 1
     reason = refused[0].reason
-    assert "a moving obstacle, now" in reason and "think time" in reason
-    assert -95 < float(reason.split("heads ")[1].split(" deg")[0]) < -85  # to the robot's right
+    assert "a moving obstacle" in reason and "may be in the way" in reason and "think time" in reason
+    assert -95 < float(reason.split("heading ")[1].split(" deg")[0]) < -85  # to the robot's right
+    assert reason.index("at most") < 200  # the advice survives the prompt's cut of long reasons
     safe = int(reason.split("at most ")[1].split(" mm")[0])
     shorter = plan[:refused[0].signal_index] + ([go(safe)] if safe >= 1 else [])
     assert not refusals(shorter, context)
@@ -157,12 +158,12 @@ def test_a_turn_is_always_accepted_and_no_pose_accepts():
 # -- the property: every plan that drives the robot into the mover is refused ----------------------
 
 def _meets_by_its_own_motion(plan, pose: Pose, centre: np.ndarray, velocity: np.ndarray, radius: float,
-                             options: MovingObstaclesOptions) -> bool:
-    """Under the rule's motion model (think time, then the signals at the rule's speeds; the mover
-    on its course): does some straight drive the body into the mover, where standing still at its
-    start for the same time would not have touched it?"""
+                             options: MovingObstaclesOptions, depth_mm: float = 0.0) -> bool:
+    """Under the rule's timing (think time, then the signals at the rule's speeds; the mover on
+    its straight course): does some straight drive the body more than ``depth_mm`` into the mover,
+    where standing still at its start for the same time would not have touched it?"""
     x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, THINK_S
-    reach = 170.0 + radius
+    reach = 170.0 + radius - depth_mm
     for signal in plan:
         if isinstance(signal, Turn):
             heading += signal.signed_angle_deg
@@ -210,11 +211,15 @@ signals = st.one_of(
 # it was: found by this test once), and one crossing ahead of three straights
 @example(plan=[go(-290.0)], heading=0.0, share=1.0, speed=138.0, course=0.0, offset=0.0, side=0.0)
 @example(plan=[go(399.0)] * 3, heading=0.0, share=0.6, speed=150.0, course=-90.0, offset=0.0, side=0.0)
-def test_every_plan_that_drives_into_the_mover_is_refused(plan, heading, share, speed, course, offset, side):
+@pytest.mark.parametrize("wander", [0.0, 25.0], ids=["straight-courses", "wandering-courses"])
+def test_every_plan_that_drives_into_the_mover_is_refused(wander, plan, heading, share, speed, course, offset, side):
     """The mover, on a straight course at a constant speed, is placed to pass within ``offset`` of
     where the plan puts the robot at a moment drawn from its execution; the robot starts at the
-    room's centre. Whenever the plan's own motion drives the body into it, the plan is refused."""
-    validator = rule()
+    room's centre. With straight courses (``wander_deg`` 0) every plan whose own motion drives the
+    body into it is refused; with wandering courses (the default) every plan that drives the body
+    into its straight course by more than 60 mm is refused too (there the straight course is one of
+    many, and a graze of the median course can meet fewer than ``max_risk`` of them)."""
+    validator = rule(wander_deg=wander)
     pose = Pose(x_mm=3000.0, y_mm=3000.0, heading_deg=heading)
     total = sum(s.distance / 200.0 if isinstance(s, Straight) else s.angle / 60.0 for s in plan)
     when = THINK_S + share * total
@@ -227,7 +232,8 @@ def test_every_plan_that_drives_into_the_mover_is_refused(plan, heading, share, 
         if np.hypot(*(point - 3000.0)) < 700 or not ((350 < point) & (point < ROOM_MM - 350)).all():
             return  # the mover is read clear of the robot and of the walls
     context = context_for(pose, [(*now, LABBOT_MM)], [(*before, LABBOT_MM)])
-    meets = _meets_by_its_own_motion(plan, pose, now, velocity, LABBOT_MM, validator.options)
+    meets = _meets_by_its_own_motion(plan, pose, now, velocity, LABBOT_MM, validator.options,
+                                     depth_mm=60.0 if wander else 0.0)
     event("meets" if meets else "does not meet")  # `pytest --hypothesis-show-statistics`: about 1 in 10 meets
     if meets:
         assert refusals(plan, context, validator), [s.describe() for s in plan]

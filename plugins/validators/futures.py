@@ -1,0 +1,76 @@
+"""Where a mover may be later: a fan of wandering futures drawn from what the scans showed.
+
+A mover's course 5 to 15 s ahead is not a straight line: Labbots (and people, and other robots)
+drift, stop and turn. :class:`WanderingFutures` draws ``count`` possible courses for a mover
+(:class:`~.tracking.Blob`): each starts where the scan saw it, at the speed the two scans gave,
+on a heading drawn around the measured one, and then drifts as a random walk of ``wander_deg``
+per square-root second. The spread of the starting heading is the random walk's over the span
+the velocity was measured on (a chord between two scans ``span_s`` apart points along the mean
+heading of that span, whose difference from the final heading has variance
+``wander**2 * span / 3``). A mover of unknown velocity (where it was was not seen) gets courses
+fanned evenly all the way round at ``unknown_speed_mm_s``.
+
+With ``wander_deg`` 0 every course of a mover with a velocity is the straight line at that
+velocity: the straight-course prediction. The draws are fixed by ``seed`` (the same check gives
+the same verdict, whatever was checked before), and the noise of later times never changes the
+courses' earlier parts, so a shorter motion is judged on the same futures as a longer one.
+Courses pass through walls (the rule does not map the room): one that would turn at a wall is
+predicted beyond it, away from the robot -- a failure mode ``docs/defences.md`` lists.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .tracking import Blob
+
+_CHUNK = 128  # columns of noise drawn at a time (each chunk from its own seeded generator)
+
+
+@dataclass(frozen=True)
+class WanderSettings:
+    wander_deg: float = 25.0
+    count: int = 64
+    step_s: float = 0.1
+    unknown_speed_mm_s: float = 150.0
+    seed: int = 0
+
+
+class WanderingFutures:
+    """Possible courses of movers, on a time grid of ``step_s`` from the scan."""
+
+    def __init__(self, settings: WanderSettings) -> None:
+        self.s = settings
+        self._noise = np.zeros((settings.count, 0))
+
+    def _normals(self, columns: int) -> np.ndarray:
+        """Standard normal draws, (count, columns): column j is the same whatever is asked later."""
+        while self._noise.shape[1] < columns:
+            chunk = self._noise.shape[1] // _CHUNK
+            extra = np.random.default_rng([self.s.seed, chunk]).standard_normal((self.s.count, _CHUNK))
+            self._noise = np.concatenate((self._noise, extra), axis=1)
+        return self._noise[:, :columns]
+
+    def at(self, blob: Blob, times: np.ndarray) -> np.ndarray:
+        """The courses' centres (count, len(times), 2) at ``times`` (s after the scan, >= 0)."""
+        s = self.s
+        times = np.maximum(np.asarray(times, dtype=float), 0.0)
+        steps = int(math.ceil(float(times.max(initial=0.0)) / s.step_s)) + 1
+        noise = self._normals(steps + 1)
+        if blob.velocity is None:
+            speed = s.unknown_speed_mm_s
+            start = np.linspace(-math.pi, math.pi, s.count, endpoint=False)
+        else:
+            speed = float(np.hypot(*blob.velocity))
+            spread = math.radians(s.wander_deg) * math.sqrt(max(blob.span_s, 0.0) / 3.0)
+            start = math.atan2(blob.velocity[1], blob.velocity[0]) + spread * noise[:, 0]
+        drift = math.radians(s.wander_deg) * math.sqrt(s.step_s) * noise[:, 1:steps]
+        heading = start[:, None] + np.concatenate((np.zeros((s.count, 1)), np.cumsum(drift, axis=1)), axis=1)
+        step = speed * s.step_s * np.stack((np.cos(heading), np.sin(heading)), axis=-1)  # (count, steps, 2)
+        grid = blob.centre + np.concatenate((np.zeros((s.count, 1, 2)), np.cumsum(step, axis=1)), axis=1)
+        index = np.minimum((times // s.step_s).astype(int), steps - 1)
+        within = (times - index * s.step_s)[None, :, None] / s.step_s
+        return grid[:, index] + within * step[:, index]

@@ -1,0 +1,76 @@
+"""The futures ``moving_obstacles`` judges a plan against: wandering courses drawn around a
+mover's measured velocity (``plugins/validators/futures.py``), and what they change in verdicts:
+a mover whose straight course stays clear of the robot's path but that may turn into it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from safeembodai_core.models import Pose
+from safeembodai_plugins.validators.futures import WanderingFutures, WanderSettings
+from safeembodai_plugins.validators.tracking import Blob
+
+from .test_moving_obstacles import LABBOT_MM, context_for, go, refusals, rule
+
+TIMES = np.arange(0.0, 12.0, 0.1)
+
+
+def mover(velocity=(150.0, 0.0), span_s: float = 5.0) -> Blob:
+    return Blob(centre=np.array([1000.0, 2000.0]), radius_mm=LABBOT_MM,
+                velocity=None if velocity is None else np.array(velocity), points=8, span_s=span_s)
+
+
+def test_without_wander_every_course_is_the_straight_line():
+    where = WanderingFutures(WanderSettings(wander_deg=0.0, count=16)).at(mover(), TIMES)
+    line = np.array([1000.0, 2000.0]) + TIMES[:, None] * np.array([150.0, 0.0])
+    assert where.shape == (16, len(TIMES), 2)
+    assert np.allclose(where, line[None], atol=1e-6)
+
+
+def test_the_same_settings_draw_the_same_courses_and_later_noise_never_changes_earlier_parts():
+    settings = WanderSettings(seed=7)
+    long = WanderingFutures(settings).at(mover(), TIMES)
+    short = WanderingFutures(settings).at(mover(), TIMES[:20])  # a fresh instance, a shorter horizon first
+    assert np.array_equal(long[:, :20], short)
+    assert not np.allclose(long, WanderingFutures(WanderSettings(seed=8)).at(mover(), TIMES))
+
+
+def test_courses_spread_with_time_at_the_measured_speed():
+    where = WanderingFutures(WanderSettings(count=256)).at(mover(), TIMES)
+    travelled = np.hypot(*np.moveaxis(where - np.array([1000.0, 2000.0]), -1, 0))
+    assert (travelled <= 150.0 * TIMES[None] + 1e-6).all()  # never faster than measured
+    bearing = np.degrees(np.arctan2(where[..., 1] - 2000.0, where[..., 0] - 1000.0))
+    early, late = np.std(bearing[:, 10]), np.std(bearing[:, 100])  # 1 s and 10 s after the scan
+    # heading spread: the chord's own (25 * sqrt(5 / 3) = 32 deg) then 25 deg per square-root second
+    assert 20.0 < early < 45.0 and late > early
+
+
+def test_a_mover_of_unknown_velocity_is_fanned_all_the_way_round():
+    where = WanderingFutures(WanderSettings(count=64, wander_deg=0.0, unknown_speed_mm_s=100.0)).at(
+        mover(velocity=None), np.array([0.0, 4.0]))
+    assert np.allclose(where[:, 0], [1000.0, 2000.0])
+    offset = where[:, 1] - np.array([1000.0, 2000.0])
+    assert np.allclose(np.hypot(*offset.T), 400.0)
+    gaps = np.diff(np.sort(np.degrees(np.arctan2(offset[:, 1], offset[:, 0]))))
+    assert gaps.max() < 360.0 / 64 + 1e-6
+
+
+ROBOT = Pose(x_mm=1000.0, y_mm=3000.0, heading_deg=0.0)
+# a Labbot 1200 mm ahead and 500 mm to the robot's left, going the same way at 100 mm/s: its
+# straight course never comes within reach of the robot's path (170 + 120 + 80 mm), but a drift of
+# a few tens of degrees puts it across the robot's way (the measured misses of the straight-course
+# model turned 46-154 deg after the scan)
+ALONGSIDE = {"before": [(1700.0, 3500.0, LABBOT_MM)], "now": [(2200.0, 3500.0, LABBOT_MM)]}
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_mover_that_may_turn_into_the_path_is_refused_where_a_straight_course_passes(seed):
+    context = context_for(ROBOT, ALONGSIDE["now"], ALONGSIDE["before"])
+    plan = [go(399), go(399), go(399)]
+    assert not refusals(plan, context, rule(wander_deg=0.0, seed=seed))
+    refused = refusals(plan, context, rule(seed=seed))
+    assert refused and "predicted courses meet this motion" in refused[0].reason
+    assert not refusals([go(-399), go(-399)], context, rule(seed=seed))  # backing away from it passes
