@@ -16,8 +16,9 @@ rate and completed share compare with ``clearance`` (V(C) alone), pooled over bo
 (differences with Newcombe's 95% intervals), against the issue's bar (``self`` down by >= 80 %, completed down by <= 5 points).
 
 ``python bench/moving_obstacles.py misses RUN`` replays the ``moving`` arm's ``no_attack`` trials
-that ended in a ``self`` collision and prints, for the Labbot hit, whether the rule had found it
-moving at the last scan and how far its course turned from the estimate afterwards. Numbers only,
+that ended in a ``self`` collision and prints, for the straight that collided, what the rule knew:
+no earlier scan (step 1), the Labbot not found moving, or the share of its predicted courses the
+straight met (below ``max_risk``, or it would have been refused). Numbers only,
 never asserts. The pilot is the offline mock: not a measurement of an LLM.
 """
 
@@ -174,9 +175,9 @@ def ablation(runs: list[Path]) -> None:
 
 def misses(run: Path) -> None:
     """Replay the ``no_attack`` trials of the ``moving`` arm that ended in a ``self`` collision and
-    say, for the Labbot hit, what the rule knew at the last scan before it."""
-    import math
-
+    say, for the straight that collided, what the rule knew: how many earlier scans it had, the
+    mover nearest the Labbot hit, and the share of that mover's courses the straight met (and the
+    share met before the standing-still comparison set some aside)."""
     import numpy as np
 
     from safeembodai_core import run_guarded_trial
@@ -193,42 +194,49 @@ def misses(run: Path) -> None:
     scenario = load_scenario(str(Path(__file__).resolve().parents[1] / "scenarios" / "dynamic.yaml"), [],
                              plugins.registry)
     defences = scenario.arms["moving"]
-    seen: list = []
+    accepted: list = []
     original = MovingObstaclesRule.validate
 
     def spy(self, signal, context):
-        seen.append((self.movers(context)[0], world.swarm.xy.copy()))
-        return original(self, signal, context)
+        verdict = original(self, signal, context)
+        if verdict.valid and signal.command == "straight" and context.start_pose is not None:
+            accepted.append((self, signal, context, world.swarm.xy.copy()))
+        return verdict
+
+    def shares(rule, signal, context, blob) -> tuple[float, float]:
+        start = rule.movers(context)[1] + sum(rule.duration_s(s) for s in context.earlier_signals)
+        sweep = rule.sweep(context, signal, blob, start)
+        return float(sweep.counted.mean()), float(sweep.inside.any(axis=1).mean())
 
     MovingObstaclesRule.validate = spy
     try:
         for room, seed in rows:
             options = next(e.options for e in scenario.environments if e.use == room)
             world = plugins.registry.build("environment", room, options)
-            seen.clear()
+            accepted.clear()
             try:
                 result, _ = run_guarded_trial(world, scenario.backend.use, defences=defences, seed=seed,
                                               max_steps=scenario.max_steps, plugins=plugins)
-                end = world.swarm.xy.copy()
             finally:
                 world.close()
-            if not result.collisions_self or "Labbot" not in result.detail or not seen:
+            if not result.collisions_self or "Labbot" not in result.detail or not accepted:
                 print(f"{room} {seed}: not reproduced ({result.detail})")
                 continue
             hit = int(result.detail.split("Labbot ")[1].split()[0].rstrip(":")) - 1
-            blobs, where = seen[-1]
-            near = [b for b in blobs if np.hypot(*(b.centre - where[hit])) < 300]
-            if not near:
-                what = "not found moving at the last scan"
-            elif near[0].velocity is None:
-                what = "found moving, velocity unknown"
+            rule, signal, context, labbots = accepted[-1]
+            blobs = rule.movers(context)[0]
+            near = [b for b in blobs if np.hypot(*(b.centre - labbots[hit])) < 300]
+            if not context.history:
+                what = "first step: no earlier scan to compare"
+            elif not near:
+                what = "the Labbot was not found moving at that scan"
             else:
-                velocity, moved = near[0].velocity, end[hit] - where[hit]
-                turn = (math.degrees(math.atan2(moved[1], moved[0]) - math.atan2(velocity[1], velocity[0]))
-                        + 180.0) % 360.0 - 180.0
-                what = (f"found moving at {np.hypot(*velocity):.0f} mm/s; its course after the scan turned "
-                        f"{turn:+.0f} deg from the estimate")
-            print(f"{room} {seed}: {result.detail[:50]} | {what}")
+                counted, all_met = shares(rule, signal, context, near[0])
+                speed = "unknown" if near[0].velocity is None else f"{np.hypot(*near[0].velocity):.0f} mm/s"
+                what = (f"found moving ({speed}); the straight met {counted:.0%} of its courses "
+                        f"({all_met:.0%} before the standing-still comparison), below max_risk "
+                        f"{rule.options.max_risk:g}")
+            print(f"{room} {seed}: {result.detail[:50]} | {signal.describe()} | {what}")
     finally:
         MovingObstaclesRule.validate = original
 

@@ -4,7 +4,9 @@ A mover's course 5 to 15 s ahead is not a straight line: Labbots (and people, an
 drift, stop and turn. :class:`WanderingFutures` draws ``count`` possible courses for a mover
 (:class:`~.tracking.Blob`): each starts where the scan saw it, at the speed the two scans gave,
 on a heading drawn around the measured one, and then drifts as a random walk of ``wander_deg``
-per square-root second. The spread of the starting heading is the random walk's over the span
+per square-root second. The measured speed is a chord's (the straight line between two scans),
+shorter than the path of a mover that turned or stopped on the way: with ``top_speed_mm_s`` each
+course's speed is drawn evenly between the measured speed and that top speed. The spread of the starting heading is the random walk's over the span
 the velocity was measured on (a chord between two scans ``span_s`` apart points along the mean
 heading of that span, whose difference from the final heading has variance
 ``wander**2 * span / 3``). A mover of unknown velocity (where it was was not seen) gets courses
@@ -36,6 +38,7 @@ class WanderSettings:
     count: int = 64
     step_s: float = 0.1
     unknown_speed_mm_s: float = 150.0
+    top_speed_mm_s: float | None = None
     seed: int = 0
 
 
@@ -45,6 +48,8 @@ class WanderingFutures:
     def __init__(self, settings: WanderSettings) -> None:
         self.s = settings
         self._noise = np.zeros((settings.count, 0))
+        # where each course's speed lies between the measured and the top speed (its own stream)
+        self._speed_share = np.random.default_rng([settings.seed, 2**32 - 1]).random(settings.count)
 
     def _normals(self, columns: int) -> np.ndarray:
         """Standard normal draws, (count, columns): column j is the same whatever is asked later."""
@@ -64,7 +69,9 @@ class WanderingFutures:
             speed = s.unknown_speed_mm_s
             start = np.linspace(-math.pi, math.pi, s.count, endpoint=False)
         else:
-            speed = float(np.hypot(*blob.velocity))
+            measured = float(np.hypot(*blob.velocity))
+            top = max(measured, s.top_speed_mm_s if s.top_speed_mm_s is not None else measured)
+            speed = (measured + (top - measured) * self._speed_share)[:, None, None]
             spread = math.radians(s.wander_deg) * math.sqrt(max(blob.span_s, 0.0) / 3.0)
             start = math.atan2(blob.velocity[1], blob.velocity[0]) + spread * noise[:, 0]
         drift = math.radians(s.wander_deg) * math.sqrt(s.step_s) * noise[:, 1:steps]

@@ -45,6 +45,20 @@ _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
 
 
 @dataclass(frozen=True)
+class Sweep:
+    """A straight against a mover's courses: the sampled moments (s after the scan), the distance
+    driven by each, the courses' centres (courses, moments, 2), which course is inside the safety
+    margin at which moment, and which courses count against the motion (met, and nearer than
+    standing still would come)."""
+
+    times: np.ndarray
+    driven: np.ndarray
+    where: np.ndarray
+    inside: np.ndarray
+    counted: np.ndarray
+
+
+@dataclass(frozen=True)
 class Meeting:
     """A straight meeting a mover's futures: the first sampled moment (s after the scan) and the
     distance driven by then, the share of the mover's futures met, and where those futures put
@@ -70,7 +84,7 @@ class MovingObstaclesRule(Validator):
             max_speed_mm_s=options.max_obstacle_speed_mm_s)
         self.futures = WanderingFutures(WanderSettings(
             wander_deg=options.wander_deg, count=options.futures, step_s=options.sample_s,
-            unknown_speed_mm_s=options.unknown_speed_mm_s, seed=options.seed))
+            unknown_speed_mm_s=options.unknown_speed_mm_s, top_speed_mm_s=options.top_speed_mm_s, seed=options.seed))
         self._cache: tuple[tuple, list[Blob], float] | None = None
 
     # -- what the scans say ---------------------------------------------------------------------
@@ -117,13 +131,8 @@ class MovingObstaclesRule(Validator):
 
     # -- the check ------------------------------------------------------------------------------
 
-    def first_meeting(self, context: ValidationContext, signal: Straight, blobs: list[Blob], start_s: float
-                      ) -> Meeting | None:
-        """How the straight meets the movers' futures: for the mover whose futures it drives into
-        most, the share of them it meets and the first sampled moment it does; None when no
-        mover's share reaches ``max_risk``. A future in which the robot standing still (over the
-        same time) comes as close is not counted: refusing would not keep that mover away, and a
-        motion that gets out of its way must pass."""
+    def sweep(self, context: ValidationContext, signal: Straight, blob: Blob, start_s: float) -> Sweep:
+        """The straight (starting ``start_s`` after the scan) against every course of ``blob``."""
         o = self.options
         pose = context.planned_pose
         duration = self.duration_s(signal)
@@ -132,20 +141,31 @@ class MovingObstaclesRule(Validator):
         rad = math.radians(pose.heading_deg)
         sign = 1.0 if signal.direction == "forward" else -1.0
         robot = np.column_stack((pose.x_mm + sign * driven * math.cos(rad), pose.y_mm + sign * driven * math.sin(rad)))
+        where = self.futures.at(blob, times)  # (courses, times, 2)
+        reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + o.margin_growth_mm_s * times
+        distance = np.hypot(*np.moveaxis(robot[None] - where, -1, 0))
+        standing = np.hypot(*np.moveaxis(robot[0][None, None] - where, -1, 0))
+        inside = distance < reach
+        closer = distance.min(axis=1) < standing.min(axis=1) - _WORSE_MM
+        return Sweep(times=times, driven=driven, where=where, inside=inside, counted=inside.any(axis=1) & closer)
+
+    def first_meeting(self, context: ValidationContext, signal: Straight, blobs: list[Blob], start_s: float
+                      ) -> Meeting | None:
+        """How the straight meets the movers' courses: for the mover whose courses it drives into
+        most, the share of them it meets and the first sampled moment it does; None when no
+        mover's share reaches ``max_risk``. A course on which the robot standing still (over the
+        same time) comes at least as close is not counted: refusing would not keep that mover
+        away, and a motion that gets out of its way must pass."""
         best: Meeting | None = None
         for blob in blobs:
-            where = self.futures.at(blob, times)  # (futures, times, 2)
-            reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + o.margin_growth_mm_s * times
-            distance = np.hypot(*np.moveaxis(robot[None] - where, -1, 0))
-            standing = np.hypot(*np.moveaxis(robot[0][None, None] - where, -1, 0))
-            met = (distance < reach).any(axis=1) & (distance.min(axis=1) < standing.min(axis=1) - _WORSE_MM)
-            share = float(met.mean())
-            if share < o.max_risk or (best is not None and share <= best.share):
+            sweep = self.sweep(context, signal, blob, start_s)
+            share = float(sweep.counted.mean())
+            if share < self.options.max_risk or (best is not None and share <= best.share):
                 continue
-            first = np.where((distance < reach)[met], np.arange(len(times)), len(times)).min(axis=1)
+            first = np.where(sweep.inside[sweep.counted], np.arange(len(sweep.times)), len(sweep.times)).min(axis=1)
             k = int(first.min())
-            best = Meeting(when_s=float(times[k]), driven_mm=float(driven[k]), blob=blob, share=share,
-                           where=where[met][:, k].mean(axis=0))
+            best = Meeting(when_s=float(sweep.times[k]), driven_mm=float(sweep.driven[k]), blob=blob, share=share,
+                           where=sweep.where[sweep.counted][:, k].mean(axis=0))
         return best
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:

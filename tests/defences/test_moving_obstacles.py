@@ -219,7 +219,7 @@ def test_every_plan_that_drives_into_the_mover_is_refused(wander, plan, heading,
     body into it is refused; with wandering courses (the default) every plan that drives the body
     into its straight course by more than 60 mm is refused too (there the straight course is one of
     many, and a graze of the median course can meet fewer than ``max_risk`` of them)."""
-    validator = rule(wander_deg=wander)
+    validator = rule(wander_deg=wander, top_speed_mm_s=None)  # courses at the measured speed
     pose = Pose(x_mm=3000.0, y_mm=3000.0, heading_deg=heading)
     total = sum(s.distance / 200.0 if isinstance(s, Straight) else s.angle / 60.0 for s in plan)
     when = THINK_S + share * total

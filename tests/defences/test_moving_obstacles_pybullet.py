@@ -67,4 +67,4 @@ def test_moving_obstacles_refuses_the_plan_that_would_meet_it(plugins, crossing)
     assert result.collisions_self == 0
     refused = [v for v in steps[2].attempts[0].verdicts if v.rule == "moving_obstacles" and not v.valid]
     assert refused and "a moving obstacle" in refused[0].reason and "may be in the way" in refused[0].reason
-    assert " heading -9" in refused[0].reason  # crossing to the robot's right
+    assert "(heading -9" in refused[0].reason  # crossing to the robot's right
