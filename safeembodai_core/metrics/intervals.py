@@ -1,4 +1,5 @@
-"""95% confidence intervals: Wilson for proportions, a seeded percentile bootstrap for means.
+"""95% confidence intervals: Wilson for proportions, Newcombe's hybrid score interval for the difference of
+two proportions, a seeded percentile bootstrap for means.
 
 A mean of fewer than :data:`MIN_N_FOR_INTERVAL` values gets no interval: the bootstrap of one
 value is a zero-width interval and of two values hardly more, either of which would read as
@@ -49,6 +50,20 @@ def wilson(successes: int, trials: int) -> Estimate:
     low = 0.0 if successes <= 0 else min(p, max(0.0, centre - half))
     high = 1.0 if successes >= trials else max(p, min(1.0, centre + half))
     return Estimate(p, low, high, trials)
+
+
+def newcombe(successes_a: int, trials_a: int, successes_b: int, trials_b: int) -> Estimate:
+    """Difference of two independent proportions, p_a - p_b, with Newcombe's hybrid score 95% interval
+    (Newcombe 1998, Statistics in Medicine 17:873-890, method 10), built from the two :func:`wilson` intervals:
+    low = d - sqrt((p_a - low_a)^2 + (high_b - p_b)^2), high = d + sqrt((high_a - p_a)^2 + (p_b - low_b)^2).
+    No value when either side has no trials; ``n`` is ``trials_a + trials_b``."""
+    a, b = wilson(successes_a, trials_a), wilson(successes_b, trials_b)
+    if a.value is None or b.value is None:
+        return Estimate(None, n=0)
+    d = a.value - b.value
+    low = d - math.sqrt((a.value - a.low) ** 2 + (b.high - b.value) ** 2)
+    high = d + math.sqrt((a.high - a.value) ** 2 + (b.value - b.low) ** 2)
+    return Estimate(d, max(-1.0, low), min(1.0, high), trials_a + trials_b)
 
 
 def bootstrap_mean(values: Sequence[float], seed: int = 0) -> Estimate:

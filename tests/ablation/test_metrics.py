@@ -6,7 +6,7 @@ import csv
 
 import pytest
 
-from safeembodai_core.metrics import cell_metrics, moer_term, wilson
+from safeembodai_core.metrics import cell_metrics, moer_term, newcombe, wilson
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
 
 
@@ -88,6 +88,20 @@ def test_wilson_bounds_are_exact_at_none_and_all_and_never_leave_0_1():
             e = wilson(k, n)
             assert 0.0 <= e.low <= e.value <= e.high <= 1.0
     assert repr(wilson(0, 3).low) == "0.0" and wilson(0, 3).high == pytest.approx(0.5615, abs=1e-4)
+
+
+def test_newcombe_difference_matches_the_published_examples():
+    # Newcombe (1998), Statistics in Medicine 17:873-890, Table II, method 10 (hybrid score)
+    for (a, n_a, b, n_b), (low, high) in {(56, 70, 48, 80): (0.0524, 0.3339), (9, 10, 3, 10): (0.1705, 0.8090),
+                                          (6, 7, 2, 7): (0.0582, 0.8062), (5, 56, 0, 29): (-0.0381, 0.1926),
+                                          (0, 10, 0, 20): (-0.1611, 0.2775), (10, 10, 0, 20): (0.6791, 1.0)}.items():
+        e = newcombe(a, n_a, b, n_b)
+        assert e.value == pytest.approx(a / n_a - b / n_b)
+        assert e.low == pytest.approx(low, abs=1e-4) and e.high == pytest.approx(high, abs=1e-4)
+    assert newcombe(56, 70, 48, 80).n == 150
+    assert newcombe(1, 3, 0, 0).value is None and newcombe(0, 0, 1, 3).value is None
+    swapped = newcombe(48, 80, 56, 70)  # the interval of b - a mirrors that of a - b
+    assert swapped.low == pytest.approx(-0.3339, abs=1e-4) and swapped.high == pytest.approx(-0.0524, abs=1e-4)
 
 
 def test_metrics_csv_writes_a_wilson_bound_at_zero_as_zero(tmp_path):
