@@ -1,12 +1,13 @@
 """A run's cells as the report and the terminal summary show them: metrics scored with the
-scenario's own ``metrics`` settings, and what ended each ``error`` trial."""
+scenario's own ``metrics`` settings, what ended each ``error`` trial, and how many trials had a
+collision of each attribution (``self``, ``struck``) against the scenario's first arm."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 from ..ablation.error_kinds import error_kind
-from ..metrics import CellMetrics, cell_metrics, group_by_cell
+from ..metrics import CellMetrics, Estimate, cell_metrics, group_by_cell, newcombe, wilson
 from ..models import TrialResult
 from ..scenario import Scenario
 
@@ -53,3 +54,47 @@ def scenario_cells(scenario: Scenario, results: list[TrialResult]) -> list[Cell]
                                attacked=attacked(scenario, condition))
         cells.append(Cell(metrics, cell, kinds))
     return cells
+
+
+@dataclass(frozen=True)
+class CollisionRates:
+    """How many of a cell's scored trials had at least one ``self`` / ``struck`` collision, and the cell's
+    self-collision rate minus that of ``reference`` (the scenario's first arm) in the same environment and
+    condition; ``self_difference`` is None for the reference arm's own cell."""
+
+    trials: int
+    self_trials: int
+    struck_trials: int
+    reference: str
+    self_difference: Estimate | None
+
+    @property
+    def self_rate(self) -> Estimate:
+        return wilson(self.self_trials, self.trials)
+
+    @property
+    def struck_rate(self) -> Estimate:
+        return wilson(self.struck_trials, self.trials)
+
+
+def collision_rates(scenario: Scenario, cells: list[Cell]) -> list[CollisionRates]:
+    """One :class:`CollisionRates` per cell of ``cells``, in the same order. A trial counts when its
+    ``collisions_self`` (``collisions_struck``) is above 0; the difference to the reference arm carries
+    Newcombe's hybrid score interval (n/a when the reference arm has no scored trial in that environment
+    and condition)."""
+    reference = next(iter(scenario.arms))
+    counts: dict[tuple[str, str, str], tuple[int, int, int]] = {}
+    for cell in cells:
+        m, scored = cell.metrics, cell.scored
+        own, struck = sum(r.collisions_self > 0 for r in scored), sum(r.collisions_struck > 0 for r in scored)
+        counts[(m.environment, m.arm, m.condition)] = (len(scored), own, struck)
+    rates = []
+    for cell in cells:
+        m = cell.metrics
+        trials, own, struck = counts[(m.environment, m.arm, m.condition)]
+        difference = None
+        if m.arm != reference:
+            base_trials, base_own, _ = counts.get((m.environment, reference, m.condition), (0, 0, 0))
+            difference = newcombe(own, trials, base_own, base_trials)
+        rates.append(CollisionRates(trials, own, struck, reference, difference))
+    return rates

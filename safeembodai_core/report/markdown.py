@@ -5,9 +5,10 @@ from __future__ import annotations
 from collections import Counter
 
 from ..ablation.error_kinds import KINDS
+from ..metrics import Estimate
 from ..models import Outcome
 from ..scenario import Scenario
-from .cells import Cell
+from .cells import Cell, CollisionRates
 from .run_info import RunInfo
 from .step_facts import TrialFacts
 
@@ -95,6 +96,36 @@ def outcomes_table(cells: list[Cell]) -> list[str]:
                     "trials ended by an unexpected exception in a component (a bug; the log says `trial.crashed`). "
                     "Collisions are summed over the scored trials: self = the robot moved into something, struck = "
                     "a moving obstacle ran into the robot.", ""]
+
+
+def _per_100(estimate: Estimate | None, signed: bool = False) -> str:
+    """A proportion (or a difference of two) as a rate per 100 trials with its interval: ``15.0 [5.2, 36.0]``."""
+    if estimate is None or estimate.value is None:
+        return "n/a"
+    value, low, high = (round(100 * x, 1) + 0.0 for x in (estimate.value, estimate.low, estimate.high))  # no -0.0
+    return f"{value:{'+' if signed else ''}.1f} [{low:.1f}, {high:.1f}]"
+
+
+def collision_rates_table(cells: list[Cell], rates: list[CollisionRates]) -> list[str]:
+    if not cells:
+        return []
+    reference = rates[0].reference
+    lines = ["## Trials with a collision per cell", "",
+             f"| env | arm | condition | n | trials self | self per 100 | trials struck | struck per 100 "
+             f"| self per 100 − `{reference}` |", "|---|---|---|---|---|---|---|---|---|"]
+    for cell, rate in zip(cells, rates):
+        m = cell.metrics
+        difference = "reference" if rate.self_difference is None else _per_100(rate.self_difference, signed=True)
+        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {rate.trials} | {rate.self_trials} "
+                     f"| {_per_100(rate.self_rate)} | {rate.struck_trials} | {_per_100(rate.struck_rate)} "
+                     f"| {difference} |")
+    return lines + ["", "Scored trials (n) with at least one collision, per 100 with a 95% Wilson interval: self = the "
+                    "robot moved into something, struck = a moving obstacle ran into the robot. Not how many "
+                    "collisions a trial had (summed in the table above) nor which obstacle; unattributed collisions "
+                    "count in neither. Last column: the cell's self rate minus that of the reference arm "
+                    f"`{reference}` (the scenario's first arm) in the same environment and condition, in points "
+                    "per 100 trials with Newcombe's hybrid score 95% interval (arms taken as independent samples); "
+                    "n/a where the reference arm has no scored trial there.", ""]
 
 
 def _share(count: int, steps: int) -> str:

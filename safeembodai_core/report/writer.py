@@ -18,7 +18,7 @@ from ..models import TrialResult
 from ..runner import trajectory_file
 from ..scenario import Scenario
 from . import markdown, step_facts
-from .cells import Cell, scenario_cells
+from .cells import Cell, CollisionRates, collision_rates, scenario_cells
 from .figures import draw_figures
 from .paper import comparison_rows
 from .run_info import run_info
@@ -27,7 +27,7 @@ ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", 
              "tokens", "distance_mm", "collisions", "interventions", "retries")
 
 
-def _row(cell: Cell, facts: dict[str, step_facts.TrialFacts] | None) -> dict[str, object]:
+def _row(cell: Cell, rates: CollisionRates, facts: dict[str, step_facts.TrialFacts] | None) -> dict[str, object]:
     m, scored = cell.metrics, cell.scored
     steps = sum(r.steps for r in scored)
     row: dict[str, object] = {"environment": m.environment, "arm": m.arm, "condition": m.condition,
@@ -41,6 +41,12 @@ def _row(cell: Cell, facts: dict[str, step_facts.TrialFacts] | None) -> dict[str
             estimate.value, estimate.low, estimate.high, estimate.n)
     row["collisions_self"] = sum(r.collisions_self for r in scored)
     row["collisions_struck"] = sum(r.collisions_struck for r in scored)
+    row["trials_collided_self"], row["trials_collided_struck"] = rates.self_trials, rates.struck_trials
+    row["self_collision_reference_arm"] = rates.reference
+    for name, estimate in (("self_collision_rate", rates.self_rate), ("struck_collision_rate", rates.struck_rate),
+                           ("self_collision_rate_diff", rates.self_difference)):
+        if estimate is not None:
+            row[name], row[f"{name}_low"], row[f"{name}_high"] = estimate.value, estimate.low, estimate.high
     row["steps_total"], row["attacked_steps"] = steps, sum(r.attacked_steps for r in scored)
     row["attack_rate"] = row["attacked_steps"] / steps if steps else None
     if facts is not None:
@@ -75,7 +81,8 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     info = run_info(scenario, folder, plugins)
     cells = scenario_cells(scenario, results)
     facts = _facts(folder, scenario, results, store)
-    rows = [_row(cell, facts) for cell in cells]
+    rates = collision_rates(scenario, cells)
+    rows = [_row(cell, rate, facts) for cell, rate in zip(cells, rates)]
     (folder / "metrics.json").write_text(json.dumps({
         "scenario": scenario.name, "run": info.as_dict(), "cells": rows,
         "trials": [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]}, indent=2), encoding="utf-8")
@@ -87,6 +94,7 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     metrics = [cell.metrics for cell in cells]
     lines = markdown.header(scenario, info, len(results))
     lines += markdown.metrics_table(cells) + markdown.outcomes_table(cells)
+    lines += markdown.collision_rates_table(cells, rates)
     lines += markdown.defences_table(cells, facts, scenario.state.use)
     lines += [markdown.GLOSSARY, ""]
     figures = draw_figures(metrics, folder / "figures", note=info.simulated) if metrics else []
