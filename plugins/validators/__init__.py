@@ -122,9 +122,14 @@ class MovingObstaclesOptions(BaseModel):
     wander_deg: float = Field(25.0, ge=0, le=180, allow_inf_nan=False, description=(
         "a mover's heading drifts as a random walk of this many degrees per square-root second "
         "(0: straight courses; pybullet rooms' Labbots: 25)"))
-    top_speed_mm_s: float | None = Field(150.0, ge=0, le=5000, allow_inf_nan=False, description=(
+    top_speed_mm_s: float | None = Field(None, ge=0, le=5000, allow_inf_nan=False, description=(
         "a mover's courses run at speeds drawn between its measured (chord) speed and this; "
         "null: the measured speed (pybullet rooms' Labbots cruise at 150)"))
+    movers_yield_mm: float = Field(0.0, ge=0, le=5000, allow_inf_nan=False, description=(
+        "movers stop for the robot once its body is this close to their rim, ahead of them "
+        "(0: movers never yield; the rooms' sensing Labbots: 300)"))
+    movers_yield_deg: float = Field(60.0, ge=0, le=180, allow_inf_nan=False, description=(
+        "how far off its heading a mover sees the robot to yield (the rooms' Labbots: sensors at 0, +-30, +-60 deg)"))
     futures: int = Field(64, ge=1, le=4096, description="possible courses drawn per mover")
     max_risk: float = Field(0.1, gt=0, le=1, allow_inf_nan=False, description=(
         "refuse a straight that meets at least this share of a mover's courses"))

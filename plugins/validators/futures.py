@@ -61,6 +61,10 @@ class WanderingFutures:
 
     def at(self, blob: Blob, times: np.ndarray) -> np.ndarray:
         """The courses' centres (count, len(times), 2) at ``times`` (s after the scan, >= 0)."""
+        return self.courses(blob, times)[0]
+
+    def courses(self, blob: Blob, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The courses' centres (count, len(times), 2) and headings (count, len(times), radians)."""
         s = self.s
         times = np.maximum(np.asarray(times, dtype=float), 0.0)
         steps = int(math.ceil(float(times.max(initial=0.0)) / s.step_s)) + 1
@@ -80,4 +84,22 @@ class WanderingFutures:
         grid = blob.centre + np.concatenate((np.zeros((s.count, 1, 2)), np.cumsum(step, axis=1)), axis=1)
         index = np.minimum((times // s.step_s).astype(int), steps - 1)
         within = (times - index * s.step_s)[None, :, None] / s.step_s
-        return grid[:, index] + within * step[:, index]
+        return grid[:, index] + within * step[:, index], heading[:, index]
+
+
+def yielding(where: np.ndarray, heading: np.ndarray, robot: np.ndarray, robot_radius_mm: float,
+             mover_radius_mm: float, range_mm: float, half_angle_deg: float) -> np.ndarray:
+    """The courses of a mover that stops for the robot: from the first moment the robot's body lies
+    within ``range_mm`` of the mover's rim and within ``half_angle_deg`` of its heading (what the
+    rooms' Labbots' front sensors see), the course stays where it is (a Labbot turns away on the
+    spot). ``where`` (count, T, 2) and ``heading`` (count, T) at the moments ``robot`` (T, 2) gives;
+    a ``range_mm`` of 0 is a mover that never yields."""
+    if range_mm <= 0:
+        return where
+    offset = robot[None] - where
+    gap = np.hypot(offset[..., 0], offset[..., 1]) - robot_radius_mm - mover_radius_mm
+    off_course = np.abs((np.arctan2(offset[..., 1], offset[..., 0]) - heading + np.pi) % (2 * np.pi) - np.pi)
+    sees = (gap < range_mm) & (off_course <= math.radians(half_angle_deg))
+    first = np.where(sees.any(axis=1), sees.argmax(axis=1), where.shape[1])
+    held = np.minimum(np.arange(where.shape[1])[None, :], first[:, None])
+    return np.take_along_axis(where, held[..., None], axis=1)

@@ -37,7 +37,7 @@ from safeembodai_core.components import Validator
 from safeembodai_core.models import ControlSignal, Straight, Turn, Verdict
 from safeembodai_core.validation import ValidationContext
 
-from .futures import WanderingFutures, WanderSettings
+from .futures import WanderingFutures, WanderSettings, yielding
 from .rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 
@@ -141,13 +141,39 @@ class MovingObstaclesRule(Validator):
         rad = math.radians(pose.heading_deg)
         sign = 1.0 if signal.direction == "forward" else -1.0
         robot = np.column_stack((pose.x_mm + sign * driven * math.cos(rad), pose.y_mm + sign * driven * math.sin(rad)))
-        where = self.futures.at(blob, times)  # (courses, times, 2)
+        if o.movers_yield_mm > 0:
+            # a yielding mover reacts to where the robot has been since the scan, not only to this straight
+            before = np.arange(0.0, start_s, o.sample_s)
+            track = np.concatenate((self._track_before(context, before), robot))
+            where, heading = self.futures.courses(blob, np.concatenate((before, times)))
+            where = yielding(where, heading, track, context.robot.radius_mm, blob.radius_mm,
+                             o.movers_yield_mm, o.movers_yield_deg)[:, len(before):]
+        else:
+            where = self.futures.at(blob, times)  # (courses, times, 2)
         reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + o.margin_growth_mm_s * times
         distance = np.hypot(*np.moveaxis(robot[None] - where, -1, 0))
         standing = np.hypot(*np.moveaxis(robot[0][None, None] - where, -1, 0))
         inside = distance < reach
         closer = distance.min(axis=1) < standing.min(axis=1) - _WORSE_MM
         return Sweep(times=times, driven=driven, where=where, inside=inside, counted=inside.any(axis=1) & closer)
+
+    def _track_before(self, context: ValidationContext, times: np.ndarray) -> np.ndarray:
+        """Where the robot's centre is at ``times`` before this straight: at the start pose through
+        the think time, then along the plan's earlier signals at the rule's speeds."""
+        pose = context.start_pose
+        x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, self.think_time_s(context)
+        ts, xs, ys = [0.0, t], [x, x], [y, y]
+        for earlier in context.earlier_signals:
+            t += self.duration_s(earlier)
+            if isinstance(earlier, Straight):
+                rad = math.radians(heading)
+                x, y = x + earlier.signed_distance_mm * math.cos(rad), y + earlier.signed_distance_mm * math.sin(rad)
+            else:
+                heading += earlier.signed_angle_deg
+            ts.append(t)
+            xs.append(x)
+            ys.append(y)
+        return np.column_stack((np.interp(times, ts, xs), np.interp(times, ts, ys)))
 
     def first_meeting(self, context: ValidationContext, signal: Straight, blobs: list[Blob], start_s: float
                       ) -> Meeting | None:

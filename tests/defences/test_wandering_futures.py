@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from safeembodai_core.models import Pose
-from safeembodai_plugins.validators.futures import WanderingFutures, WanderSettings
+from safeembodai_plugins.validators.futures import WanderingFutures, WanderSettings, yielding
 from safeembodai_plugins.validators.tracking import Blob
 
 from .test_moving_obstacles import LABBOT_MM, context_for, go, refusals, rule
@@ -74,3 +74,32 @@ def test_a_mover_that_may_turn_into_the_path_is_refused_where_a_straight_course_
     refused = refusals(plan, context, rule(seed=seed, top_speed_mm_s=None))  # courses at its measured speed
     assert refused and "predicted courses meet this motion" in refused[0].reason
     assert not refusals([go(-399), go(-399)], context, rule(seed=seed))  # backing away from it passes
+
+
+def test_a_yielding_mover_stops_where_it_first_sees_the_robot_ahead():
+    """Two courses at 150 mm/s: one heading straight at a robot standing 1 m away, one passing it
+    with its back turned. With ``movers_yield_mm`` 300 the first stops once the robot's body is
+    300 mm from its rim (rim gap = distance - 170 - 120), the second never sees it."""
+    times = np.arange(0.0, 8.0, 0.1)
+    towards = np.column_stack((1000.0 + 150.0 * times, np.full_like(times, 2000.0)))
+    away = np.column_stack((1000.0 - 150.0 * times, np.full_like(times, 2200.0)))
+    where = np.stack((towards, away))
+    heading = np.stack((np.zeros_like(times), np.full_like(times, math.pi)))
+    robot = np.tile([2000.0, 2000.0], (len(times), 1))
+    held = yielding(where, heading, robot, 170.0, 120.0, 300.0, 60.0)
+    stop = np.flatnonzero(1000.0 - 150.0 * times - 290.0 < 300.0)[0]
+    assert np.allclose(held[0, :stop + 1], towards[:stop + 1])
+    assert np.allclose(held[0, stop:], towards[stop])  # held where it saw the robot
+    assert np.allclose(held[1], away)
+    assert np.array_equal(yielding(where, heading, robot, 170.0, 120.0, 0.0, 60.0), where)  # 0: never yields
+
+
+def test_yielding_movers_are_judged_on_where_the_robot_will_be():
+    """A Labbot coming head-on along the robot's line: a yielding mover stops short of the waiting
+    robot, so a straight that drives at it is still refused (the robot would run into it), while a
+    straight backing away passes."""
+    before, now = [(3550.0, 3000.0, LABBOT_MM)], [(2800.0, 3000.0, LABBOT_MM)]
+    context = context_for(ROBOT, now, before)
+    for options in ({}, {"movers_yield_mm": 300.0}):
+        assert refusals([go(399), go(399)], context, rule(**options)), options
+        assert not refusals([go(-399)], context, rule(**options)), options
