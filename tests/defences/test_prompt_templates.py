@@ -4,6 +4,7 @@ token budget of a step holds."""
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import tomllib
 from pathlib import Path
@@ -170,8 +171,15 @@ def test_the_response_outline_follows_the_scenarios_limits(plugins):
     """The outline's example numbers lie inside the step's limits (a copied example stays valid)."""
     from safeembodai_core.models import ControlLimits
     from safeembodai_core.models.response import schema_outline
+    from safeembodai_plugins.prompting.builder import OUTLINE_EXAMPLES, outline_rng
+
+    def outline(req, limits=ControlLimits()):
+        return schema_outline(limits, OUTLINE_EXAMPLES, outline_rng(req))
 
     small = ControlLimits(max_distance_mm=100, max_angle_deg=20)
     prompt = build(plugins).build(request(limits=small))
-    assert schema_outline(small) in prompt.system and schema_outline() not in prompt.system
-    assert schema_outline() in build(plugins).build(request()).system
+    assert outline(request(limits=small), small) in prompt.system
+    assert outline(request(limits=small)) not in prompt.system
+    shown = json.loads(outline(request(limits=small), small))["control"]
+    assert all(0 < e.get("distance", e.get("angle")) < (100 if "distance" in e else 20) for e in shown)
+    assert outline(request()) in build(plugins).build(request()).system
