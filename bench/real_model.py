@@ -213,8 +213,13 @@ def _spread(values: list[float]) -> str:
 
 
 def outline_variants(variants: list[str], prompts: int, seed: int, model_name: str = "smollm2-135m-instruct",
-                     threads: int = 2, json_mode: str | None = None) -> dict[str, dict]:
-    """Per outline variant: valid answers, copied example values, spread, and scene-following signals."""
+                     threads: int = 2, json_mode: str | None = None,
+                     max_tokens: int | None = None) -> dict[str, dict]:
+    """Per outline variant: valid answers, copied example values, spread, and scene-following signals.
+
+    ``json_mode``/``max_tokens`` None: the backend's defaults. Without a grammar (``json_object``)
+    a small model can write on to ``max_tokens``: give a smaller one there to keep the run short.
+    """
     import numpy as np
     from safeembodai_plugins.prompting import JinjaPromptOptions
     from safeembodai_plugins.prompting.builder import JinjaPromptBuilder, outline_rng
@@ -229,6 +234,7 @@ def outline_variants(variants: list[str], prompts: int, seed: int, model_name: s
     results: dict[str, dict] = {}
     with tempfile.TemporaryDirectory() as scratch, llama_server(model, Path(scratch), threads) as url:
         options = backend_options(model, url) | ({"json_mode": json_mode} if json_mode else {})
+        options |= {"max_tokens": max_tokens} if max_tokens else {}
         backend = plugins.registry.build("llm_backend", "local", options)
         for variant in variants:
             builder = JinjaPromptBuilder(JinjaPromptOptions(), outline_examples=variant)
@@ -399,6 +405,7 @@ def main(argv: list[str] | None = None) -> int:
     out.add_argument("--prompts", type=int, default=24)
     out.add_argument("--seed", type=int, default=0)
     out.add_argument("--json-mode", choices=["json_schema_enum", "json_object", "none"], default=None)
+    out.add_argument("--max-tokens", type=int, default=None, help="default: the local backend's")
     abl = commands.add_parser("ablate", help="OF and SO, both arms, both conditions, with one model")
     abl.add_argument("--model", default="smollm2-135m-instruct", choices=list(MODELS))
     abl.add_argument("--trials", type=int, default=2)
@@ -414,7 +421,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "compare":
         print(json.dumps(compare(args.models, args.prompts, args.seed, args.json_mode, args.threads), indent=2))
     elif args.command == "outline":
-        results = outline_variants(args.variants, args.prompts, args.seed, args.model, args.threads, args.json_mode)
+        results = outline_variants(args.variants, args.prompts, args.seed, args.model, args.threads, args.json_mode,
+                                   args.max_tokens)
         print(f"{json.dumps(results, indent=2)}\n\n{outline_table(results)}")
     elif args.command == "ablate":
         folder = ablate(args.model, args.trials, args.steps, args.out, args.threads)
