@@ -44,6 +44,8 @@ class MockOptions(BaseModel):
     bearing_mirror_p: float = Field(0.25, **_P, description="confuses left and right when turning to the can")
     recall_target_p: float = Field(0.9, **_P, description="with R_{i-1}: turns back to a can seen last step")
     search_turn_deg: float = Field(60.0, gt=0.0, lt=180.0, description="typical search turn")
+    wait_turn_deg: float = Field(5.0, gt=0.0, lt=180.0, description=(
+        "turn in place when a refusal asks to wait for a mover to pass and no straight is left"))
     search_left_p: float = Field(0.5, **_P, description="searches to the left when nothing says which way")
     explore_forward_p: float = Field(0.3, **_P, description="searches by driving into open space instead of turning")
     approach_stop_mm: float = Field(300.0, ge=0.0, description="aims to stop this far from the can's surface")

@@ -220,5 +220,8 @@ class MockPolicy:
                 signal = {**signal, "distance": float(round((hint - 20) / 10) * 10),
                           "justification": signal["justification"] + " (shortened after the refusal)"}
             kept.append(signal)
+        if not kept and r.asked_to_wait:  # a mover in the way: wait in place, keep facing the task
+            kept = [_turn(self.o.wait_turn_deg, bool(u[8] < 0.5), "wait for the moving obstacle to pass",
+                          r.max_angle_deg)]
         plan.signals = kept or [_turn(self.o.search_turn_deg, bool(u[8] < 0.5), "turn away from the blocked path",
                                       r.max_angle_deg)]

@@ -41,6 +41,7 @@ _LIMIT_DISTANCE = re.compile(r"0 < distance < (\d+(?:\.\d+)?) mm")
 _LIMIT_ANGLE = re.compile(r"0 < angle < (\d+(?:\.\d+)?) degrees")
 _LIMIT_SIGNALS = re.compile(r"[Aa]t most (\d+) (?:control signals|per answer)")
 _SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
+_WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,11 @@ class PromptReading:
             return math.nan
         index = int(round((bearing_deg % 360.0) / 45.0)) % len(SECTORS)
         return self.clearance[SECTORS[index]]
+
+    @property
+    def asked_to_wait(self) -> bool:
+        """Did a refusal of an earlier attempt ask to wait for something moving to pass?"""
+        return any(_WAIT in failure for failure in self.failures)
 
     @property
     def safe_distance_hint_mm(self) -> float | None:

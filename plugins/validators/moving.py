@@ -1,27 +1,29 @@
-"""``moving_obstacles``: refuse a motion that will meet a mover where it is predicted to be.
+"""``moving_obstacles``: refuse a motion that drives into where a mover may be by then.
 
 The rule compares the step's scan with the latest earlier scan of the trial
 (``ValidationContext.history``), both in the room frame, to find the returns that moved
 (:mod:`.tracking`) and their velocities. The robot's motion is timed with the rule's own model:
 nothing moves for the think time after the scan (the LLM deciding), then the plan's signals run
 one after the other, straights at ``robot_speed_mm_s`` and turns at ``robot_turn_rate_deg_s``.
-Every mover is predicted on a straight line at its estimated velocity from where the scan saw
-it. A ``straight`` is refused when, at any moment of it (sampled every ``sample_s``), the robot's
-body comes within ``margin_mm + margin_growth_mm_s * t`` of a mover's predicted disc, t being
-the time since the scan: predictions further ahead are trusted less.
+Every mover gets ``futures`` possible courses (:mod:`.futures`): wandering around its measured
+velocity (``wander_deg`` per square-root second; 0 gives the straight course), optionally
+stopping for the robot ahead (``movers_yield_mm``). A ``straight`` is refused when at least
+``max_risk`` of one mover's courses come, at some moment of it (sampled every ``sample_s``),
+within ``margin_mm + margin_growth_mm_s * t`` of the robot's body, t being the time since the
+scan, and the motion brings the body nearer to them than standing still would.
 
 What the rule assumes:
 
 * a return seen once -- on step 1, in a static scene, or where the earlier scan could not see
   (occluded, out of range) -- is static: this rule never refuses because of it (other rules
   judge where things are now);
-* a mover whose earlier position was not seen (it came out of a shadow) has unknown velocity: it
-  may move ``unknown_speed_mm_s`` in any direction, so its disc grows with time;
-* a mover keeps its velocity; one that turns or stops after the scan is where the margin's
-  growth may or may not cover it (``docs/defences.md``);
+* a mover whose earlier position was not seen (it came out of a shadow) has unknown velocity: its
+  courses fan out all the way round at ``unknown_speed_mm_s``;
+* a mover wanders as a random walk; one that turns on the spot at a wall, or behaves otherwise,
+  is covered only as far as the courses' spread covers it (``docs/defences.md``);
 * a turn in place is always accepted: the body does not leave its circle, so refusing it keeps
   no mover away (the straights that follow are judged at the times they will run); likewise a
-  straight that meets a mover is refused only if it brings the body nearer to it than standing
+  course counts against a straight only if the motion brings the body nearer to it than standing
   still for the same time would (least distance over the motion): a mover bound to reach the
   robot where it waits is the mover's doing (``struck``), and stepping out of its way must pass.
 """
@@ -60,15 +62,13 @@ class Sweep:
 
 @dataclass(frozen=True)
 class Meeting:
-    """A straight meeting a mover's futures: the first sampled moment (s after the scan) and the
-    distance driven by then, the share of the mover's futures met, and where those futures put
-    the mover then (their mean centre, room frame)."""
+    """A straight meeting a mover's courses: the first sampled moment one counts (s after the
+    scan), the distance driven by then, and the share of the mover's courses that count."""
 
     when_s: float
     driven_mm: float
     blob: Blob
     share: float
-    where: np.ndarray
 
 
 class MovingObstaclesRule(Validator):
@@ -190,8 +190,7 @@ class MovingObstaclesRule(Validator):
                 continue
             first = np.where(sweep.inside[sweep.counted], np.arange(len(sweep.times)), len(sweep.times)).min(axis=1)
             k = int(first.min())
-            best = Meeting(when_s=float(sweep.times[k]), driven_mm=float(sweep.driven[k]), blob=blob, share=share,
-                           where=sweep.where[sweep.counted][:, k].mean(axis=0))
+            best = Meeting(when_s=float(sweep.times[k]), driven_mm=float(sweep.driven[k]), blob=blob, share=share)
         return best
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
@@ -236,7 +235,8 @@ class MovingObstaclesRule(Validator):
         if safe >= 1:
             advice = f"going {direction}, at most {safe} mm is safe"
         else:
-            advice = f"no {direction} motion is safe now (at most 0 mm is safe): turn in place and let it pass"
+            advice = (f"no {direction} motion is safe now (at most 0 mm is safe): wait for it to pass (turn in place "
+                      f"a few degrees)")
         # the advice comes before the details: prompts cut long reasons (max_failure_chars)
         return (f"{signal.describe()}: a moving obstacle {now_d:.0f} mm away at {now_b:.0f} deg may be in the way; "
                 f"{advice}. It moves ({motion}); {meeting.share:.0%} of its {o.futures} predicted courses meet this "

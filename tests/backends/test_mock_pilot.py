@@ -155,6 +155,26 @@ def test_a_refusal_with_a_safe_distance_shortens_the_next_plan(built_plugins):
     assert all(s.distance <= 130 for s in retry.control if s.command == "straight")
 
 
+def test_a_refusal_asking_to_wait_for_a_mover_turns_a_few_degrees_not_away(built_plugins):
+    """When no straight is left and the refusal asks to wait for a mover (moving_obstacles), the
+    pilot waits with a ``wait_turn_deg`` turn in place; a static blockage still turns it away."""
+    _, observation = flatland_observation(built_plugins, seed=3, turn_to_can=0.0)
+    mock = _mock(built_plugins, feedback_compliance_p=1.0, wait_turn_deg=5.0, angle_error_sd_deg=0.0)
+    first = parse_response(mock.complete(make_prompt(built_plugins, observation), np.random.default_rng(0)).text)
+    assert {s.command for s in first.control} == {"straight"}  # straights only: refused, none is left
+    mover = ("attempt 1 (refused plan: straight forward 390 mm): moving_obstacles: straight forward 390 mm: a "
+             "moving obstacle 600 mm away at 40 deg may be in the way; no forward motion is safe now (at most 0 mm "
+             "is safe): wait for it to pass (turn in place a few degrees)")
+    wall = ("attempt 1 (refused plan: straight forward 390 mm): lidar_clearance: straight forward 390 mm: "
+            "obstacle 300 mm away at 0 deg; at most 0 mm is safe in that direction")
+    waited = parse_response(mock.complete(make_prompt(built_plugins, observation, failures=[mover]),
+                                          np.random.default_rng(0)).text)
+    assert [(s.command, s.angle) for s in waited.control] == [("turn", 5.0)]
+    away = parse_response(mock.complete(make_prompt(built_plugins, observation, failures=[wall]),
+                                        np.random.default_rng(0)).text)
+    assert [(s.command, s.angle) for s in away.control] == [("turn", 60.0)]
+
+
 def test_limit_violations_fail_parsing_with_the_limit_named(built_plugins):
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
     text = _mock(built_plugins, limit_violation_p=1.0).complete(make_prompt(built_plugins, observation),
