@@ -20,6 +20,7 @@ Components may be given as objects or as registered names (with options). See ``
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Sequence
 
@@ -45,7 +46,7 @@ from .models import (
 from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
-from .validation import ValidationContext, validate_plan
+from .validation import PastScan, ValidationContext, validate_plan
 
 _SIGNALS = TypeAdapter(list[ControlSignal])
 
@@ -92,6 +93,10 @@ def _components(plugins: Plugins, kind: str, items: Iterable[Any], seed: int = 0
     return built
 
 
+#: how many earlier scans a :class:`Guard` keeps for rules about motion
+HISTORY_SCANS = 16
+
+
 class Guard:
     """Validates robot commands with registered safety rules (see the module docstring)."""
 
@@ -107,29 +112,45 @@ class Guard:
         self.rules = _components(self.plugins, "validator", rules)
         self.robot = robot
         self.limits = limits
+        #: earlier scans given with a pose and a time (oldest first), for rules about motion
+        self.history: deque[PastScan] = deque(maxlen=HISTORY_SCANS)
 
-    def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any) -> ValidationContext:
+    def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any, time_s: float | None) -> ValidationContext:
         scan = None
         if lidar_mm is not None:
             scan = lidar_mm if isinstance(lidar_mm, LidarScan) else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm)
-        return ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=_pose(pose))
+        start = _pose(pose)
+        if time_s is not None and not math.isfinite(time_s):
+            raise ValueError(f"time_s must be a finite number of seconds, got {time_s!r}")
+        context = ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=start,
+                                    sim_time_s=time_s, history=tuple(p for p in self.history
+                                                                      if time_s is not None and p.sim_time_s < time_s))
+        if scan is not None and start is not None and time_s is not None and (
+                not self.history or time_s > self.history[-1].sim_time_s):
+            self.history.append(PastScan(scan, start, float(time_s)))
+        return context
 
     def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
-              pose: Any = None) -> GuardReport:
+              pose: Any = None, time_s: float | None = None) -> GuardReport:
         """Validate ``commands`` (dicts as the LLM writes them, or signal models) in order.
 
         ``lidar_mm``: ranges in mm, beam k at k*360/N degrees counter-clockwise from the heading
         (``inf`` = no return, ``nan`` = no reading), or a :class:`LidarScan`. ``pose``: where the
         robot is in your map's frame -- a :class:`~safeembodai_core.models.Pose` or
         ``(x_mm, y_mm, heading_deg)`` -- for rules about places (``context.start_pose``); None if
-        unknown. Commands that do not even parse get a ``schema`` verdict and are not judged further.
+        unknown. ``time_s``: your robot's clock (seconds) when the scan was taken; with ``pose`` and
+        ``lidar_mm`` it lets the guard keep the scan, so later checks give rules about motion
+        (``moving_obstacles``) the earlier scans as ``context.history`` (the last
+        ``HISTORY_SCANS``; a scan is kept once per time, so a re-check of the same reading adds
+        nothing). Commands that do not even parse get a ``schema`` verdict and are not judged further.
         """
+        context = self._context(lidar_mm, max_range_mm, pose, time_s)  # kept even if the commands do not parse
         try:
             signals = _SIGNALS.validate_python(list(commands), context={"limits": self.limits})
         except ValidationError as error:
             reason = describe_schema_error(error, most=5)  # keys and tags the LLM wrote come back quoted
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=reason)])
-        verdicts = validate_plan(signals, self._context(lidar_mm, max_range_mm, pose), self.rules)
+        verdicts = validate_plan(signals, context, self.rules)
         return GuardReport(signals=signals, verdicts=verdicts)
 
     def check_answer(
@@ -140,6 +161,7 @@ class Guard:
         lidar_mm: Any = None,
         max_range_mm: float = 10_000.0,
         pose: Any = None,
+        time_s: float | None = None,
     ) -> GuardReport:
         """Parse an LLM's raw answer (untrusted) and validate its control signals.
 
@@ -147,14 +169,15 @@ class Guard:
         duplicate keys, several JSON objects, huge numbers and the like give a ``schema`` verdict.
         Pass the provider's ``finish_reason`` when you have it: an answer that did not end with a
         normal stop (``"length"``, ``"content_filter"``, ...) is refused the same way. ``lidar_mm``,
-        ``max_range_mm`` and ``pose`` are as for :meth:`check`.
+        ``max_range_mm``, ``pose`` and ``time_s`` are as for :meth:`check`.
         """
         try:
             response = parse_response(text, self.limits, finish_reason=finish_reason)
         except ResponseParseError as error:
+            self._context(lidar_mm, max_range_mm, pose, time_s)  # the scan is kept for later checks all the same
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))])
         report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm,
-                            pose=pose)
+                            pose=pose, time_s=time_s)
         report.response = response
         return report
 

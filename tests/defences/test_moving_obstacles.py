@@ -237,3 +237,26 @@ def test_every_plan_that_drives_into_the_mover_is_refused(wander, plan, heading,
     event("meets" if meets else "does not meet")  # `pytest --hypothesis-show-statistics`: about 1 in 10 meets
     if meets:
         assert refusals(plan, context, validator), [s.describe() for s in plan]
+
+
+def test_a_guard_given_times_keeps_its_scans_for_moving_obstacles():
+    """A library user's ``Guard``: checks with ``pose`` and ``time_s`` keep their scans, so the
+    second check sees the Labbot move and refuses the plan that crosses its course; without times
+    (or with the same reading re-checked) there is nothing to compare and the plan passes."""
+    from safeembodai_core import Guard
+
+    rules = ["command_limits", {"use": "moving_obstacles", "options": {"think_time_s": THINK_S}}]
+    plan = [{"command": "straight", "direction": "forward", "distance": 399}] * 5
+    before, now = scan_from(ROBOT, CROSSING["before"]), scan_from(ROBOT, CROSSING["now"])
+    guard = Guard(rules)
+    assert guard.check(plan[:1], lidar_mm=before, pose=ROBOT, time_s=10.0).valid
+    refused = guard.check(plan, lidar_mm=now, pose=ROBOT, time_s=15.0)
+    assert not refused.valid and "moving_obstacles" in {v.rule for v in refused.verdicts if not v.valid}
+    assert len(guard.history) == 2
+    assert not guard.check(plan, lidar_mm=now, pose=ROBOT, time_s=15.0).valid  # same reading: same verdict
+    assert len(guard.history) == 2
+    untimed = Guard(rules)
+    untimed.check(plan[:1], lidar_mm=before, pose=ROBOT)
+    assert untimed.check(plan, lidar_mm=now, pose=ROBOT).valid and not untimed.history
+    with pytest.raises(ValueError, match="time_s"):
+        Guard(rules).check(plan, lidar_mm=now, pose=ROBOT, time_s=float("nan"))
