@@ -13,10 +13,10 @@
   ``straight`` (its width plus a margin) must hold no LiDAR point, so an obstacle just outside
   ±r but inside the robot's width is caught; a ``turn`` must not sweep the body's circle over one.
 * ``moving_obstacles`` -- beyond the paper: returns that moved between the trial's last two scans
-  (both in the room frame) are movers with a velocity; a ``straight`` whose body will come
-  within a margin (growing with prediction time) of a mover's predicted position, at any moment
-  of its execution after the think time, is refused. It judges movers only: pair it with
-  ``lidar_clearance`` or ``footprint_sweep``.
+  (both in the room frame) are movers with a velocity; each gets possible courses wandering
+  around it, and a ``straight`` whose body comes within a margin of at least ``max_risk`` of one
+  mover's courses, at some moment of its execution after the think time, is refused. It judges
+  movers only: pair it with ``lidar_clearance`` or ``footprint_sweep``.
 
 Every rule judges the signal from the *planned* pose (earlier signals of the same answer already
 applied). A scan that is malformed (wrong shape, wrong beam count) is refused with a reason
@@ -180,4 +180,4 @@ def register_validators(register):
     register("footprint_sweep", _sweep, options=FootprintSweepOptions,
              description="the rectangle the body sweeps (width + margin) holds no LiDAR point")
     register("moving_obstacles", _moving, options=MovingObstaclesOptions,
-             description="refuses straights that will meet a mover predicted from the last two scans")
+             description="refuses straights that drive into enough of a mover's possible courses (from the last two scans)")
