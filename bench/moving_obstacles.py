@@ -37,8 +37,14 @@ from collections import Counter
 from pathlib import Path
 
 
-#: the options of the ``moving`` arm of scenarios/dynamic.yaml
-MOVING_OPTIONS = {"think_time_s": 5, "movers_yield_mm": 300, "movers_yield_deg": 60}
+def _moving_options(plugins) -> dict:
+    """The options ``moving_obstacles`` has in the ``moving`` arm of scenarios/dynamic.yaml."""
+    from safeembodai_core.scenario import load_scenario
+
+    scenario = load_scenario(str(Path(__file__).resolve().parents[1] / "scenarios" / "dynamic.yaml"), [],
+                             plugins.registry)
+    rule = next(v for v in scenario.arms["moving"].validators if getattr(v, "use", v) == "moving_obstacles")
+    return dict(rule.options)
 
 
 def micro(repeats: int) -> None:
@@ -60,7 +66,7 @@ def micro(repeats: int) -> None:
     later = context.advanced(go).advanced(go)
     rules = {name: plugins.registry.build("validator", name, options)
              for name, options in (("lidar_clearance", {}), ("footprint_sweep", {}),
-                                   ("moving_obstacles", MOVING_OPTIONS))}
+                                   ("moving_obstacles", _moving_options(plugins)))}
     mover = rules["moving_obstacles"]
     print(f"DO seed 3, {second.lidar.beam_count} beams, movers found: {len(mover.movers(context)[0])}; "
           f"median / p90 microseconds per validate(), {repeats} repeats")

@@ -120,14 +120,24 @@ class Guard:
         if lidar_mm is not None:
             scan = lidar_mm if isinstance(lidar_mm, LidarScan) else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm)
         start = _pose(pose)
-        if time_s is not None and not math.isfinite(time_s):
-            raise ValueError(f"time_s must be a finite number of seconds, got {time_s!r}")
+        if time_s is not None:
+            try:
+                time_s = float(time_s)
+            except (TypeError, ValueError):
+                raise ValueError(f"time_s must be a number of seconds, got {time_s!r}") from None
+            if not math.isfinite(time_s):
+                raise ValueError(f"time_s must be a finite number of seconds, got {time_s!r}")
+            if self.history and time_s < self.history[-1].sim_time_s:
+                self.history.clear()  # the clock went back: a new episode, earlier scans say nothing
         context = ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=start,
                                     sim_time_s=time_s, history=tuple(p for p in self.history
                                                                       if time_s is not None and p.sim_time_s < time_s))
         if scan is not None and start is not None and time_s is not None and (
                 not self.history or time_s > self.history[-1].sim_time_s):
-            self.history.append(PastScan(scan, start, float(time_s)))
+            # a copy: a caller that refills one buffer must not rewrite the scans kept
+            kept = LidarScan(np.array(scan.ranges_mm, dtype=float, copy=True), scan.max_range_mm)
+            kept.ranges_mm.flags.writeable = False
+            self.history.append(PastScan(kept, start, time_s))
         return context
 
     def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
@@ -139,10 +149,11 @@ class Guard:
         robot is in your map's frame -- a :class:`~safeembodai_core.models.Pose` or
         ``(x_mm, y_mm, heading_deg)`` -- for rules about places (``context.start_pose``); None if
         unknown. ``time_s``: your robot's clock (seconds) when the scan was taken; with ``pose`` and
-        ``lidar_mm`` it lets the guard keep the scan, so later checks give rules about motion
-        (``moving_obstacles``) the earlier scans as ``context.history`` (the last
+        ``lidar_mm`` it lets the guard keep a copy of the scan, so later checks give rules about
+        motion (``moving_obstacles``) the earlier scans as ``context.history`` (the last
         ``HISTORY_SCANS``; a scan is kept once per time, so a re-check of the same reading adds
-        nothing). Commands that do not even parse get a ``schema`` verdict and are not judged further.
+        nothing; a time earlier than the last kept one starts a new history, as after a new
+        episode). One guard per robot; it is not meant to be shared between threads. Commands that do not even parse get a ``schema`` verdict and are not judged further.
         """
         context = self._context(lidar_mm, max_range_mm, pose, time_s)  # kept even if the commands do not parse
         try:

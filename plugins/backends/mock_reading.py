@@ -42,6 +42,7 @@ _LIMIT_ANGLE = re.compile(r"0 < angle < (\d+(?:\.\d+)?) degrees")
 _LIMIT_SIGNALS = re.compile(r"[Aa]t most (\d+) (?:control signals|per answer)")
 _SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
 _WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
+_ATTEMPT = re.compile(r"attempt (\d+)\b")
 
 
 @dataclass(frozen=True)
@@ -116,8 +117,10 @@ class PromptReading:
 
     @property
     def asked_to_wait(self) -> bool:
-        """Did a refusal of an earlier attempt ask to wait for something moving to pass?"""
-        return any(_WAIT in failure for failure in self.failures)
+        """Did the refusal of the latest attempt ask to wait for something moving to pass?"""
+        attempt = {failure: int(m.group(1)) for failure in self.failures if (m := _ATTEMPT.match(failure))}
+        latest = max(attempt.values(), default=None)
+        return any(_WAIT in failure for failure in self.failures if attempt.get(failure, latest) == latest)
 
     @property
     def safe_distance_hint_mm(self) -> float | None:

@@ -130,6 +130,8 @@ class MovingObstaclesOptions(BaseModel):
         "(0: movers never yield; the rooms' sensing Labbots: 300)"))
     movers_yield_deg: float = Field(60.0, ge=0, le=180, allow_inf_nan=False, description=(
         "how far off its heading a mover sees the robot to yield (the rooms' Labbots: sensors at 0, +-30, +-60 deg)"))
+    max_scan_gap_s: float = Field(30.0, gt=0, le=600, allow_inf_nan=False, description=(
+        "an earlier scan older than this says nothing about motion now: it is not compared"))
     futures: int = Field(64, ge=1, le=4096, description="possible courses drawn per mover")
     max_risk: float = Field(0.1, gt=0, le=1, allow_inf_nan=False, description=(
         "refuse a straight that meets at least this share of a mover's courses"))

@@ -6,16 +6,20 @@ drift, stop and turn. :class:`WanderingFutures` draws ``count`` possible courses
 on a heading drawn around the measured one, and then drifts as a random walk of ``wander_deg``
 per square-root second. The measured speed is a chord's (the straight line between two scans),
 shorter than the path of a mover that turned or stopped on the way: with ``top_speed_mm_s`` each
-course's speed is drawn evenly between the measured speed and that top speed. The spread of the starting heading is the random walk's over the span
-the velocity was measured on (a chord between two scans ``span_s`` apart points along the mean
-heading of that span, whose difference from the final heading has variance
-``wander**2 * span / 3``). A mover of unknown velocity (where it was was not seen) gets courses
+course's speed is drawn evenly between the measured speed and that top speed (a chord shorter
+than ``still_mm`` then gives no direction: its courses are fanned like an unknown velocity's).
+The spread of the starting heading is the random walk's over the span the velocity was measured
+on (a chord between two scans ``span_s`` apart points along the mean heading of that span, whose
+difference from the final heading has variance ``wander**2 * span / 3``). A mover of unknown velocity (where it was was not seen) gets courses
 fanned evenly all the way round at ``unknown_speed_mm_s``.
 
-With ``wander_deg`` 0 every course of a mover with a velocity is the straight line at that
-velocity: the straight-course prediction. The draws are fixed by ``seed`` (the same check gives
-the same verdict, whatever was checked before), and the noise of later times never changes the
-courses' earlier parts, so a shorter motion is judged on the same futures as a longer one.
+Course 0 is always the measured course itself (no wander, the measured speed), so even one
+course is the straight-course prediction; with ``wander_deg`` 0 (and no top speed) every course
+of a mover with a velocity is that straight line. All movers share the same draws (their
+courses wander alike); the share judged is per mover, so that does not matter. The draws are
+fixed by ``seed`` (the same check gives the same verdict, whatever was checked before), and the
+noise of later times never changes the courses' earlier parts, so a shorter motion is judged on
+the same futures as a longer one.
 Courses pass through walls (the rule does not map the room): one that would turn at a wall is
 predicted beyond it, away from the robot -- a failure mode ``docs/defences.md`` lists.
 """
@@ -39,6 +43,7 @@ class WanderSettings:
     step_s: float = 0.1
     unknown_speed_mm_s: float = 150.0
     top_speed_mm_s: float | None = None
+    still_mm: float = 100.0  # with a top speed: a chord shorter than this gives no direction
     seed: int = 0
 
 
@@ -50,13 +55,17 @@ class WanderingFutures:
         self._noise = np.zeros((settings.count, 0))
         # where each course's speed lies between the measured and the top speed (its own stream)
         self._speed_share = np.random.default_rng([settings.seed, 2**32 - 1]).random(settings.count)
+        self._speed_share[0] = 0.0
 
     def _normals(self, columns: int) -> np.ndarray:
         """Standard normal draws, (count, columns): column j is the same whatever is asked later."""
-        while self._noise.shape[1] < columns:
-            chunk = self._noise.shape[1] // _CHUNK
-            extra = np.random.default_rng([self.s.seed, chunk]).standard_normal((self.s.count, _CHUNK))
-            self._noise = np.concatenate((self._noise, extra), axis=1)
+        have = self._noise.shape[1] // _CHUNK
+        need = -(-columns // _CHUNK)
+        if need > have:
+            extra = [np.random.default_rng([self.s.seed, chunk]).standard_normal((self.s.count, _CHUNK))
+                     for chunk in range(have, need)]
+            self._noise = np.concatenate([self._noise, *extra], axis=1)
+            self._noise[0] = 0.0  # course 0 is the measured course: no wander, the measured speed
         return self._noise[:, :columns]
 
     def at(self, blob: Blob, times: np.ndarray) -> np.ndarray:
@@ -69,11 +78,12 @@ class WanderingFutures:
         times = np.maximum(np.asarray(times, dtype=float), 0.0)
         steps = int(math.ceil(float(times.max(initial=0.0)) / s.step_s)) + 1
         noise = self._normals(steps + 1)
-        if blob.velocity is None:
-            speed = s.unknown_speed_mm_s
+        measured = 0.0 if blob.velocity is None else float(np.hypot(*blob.velocity))
+        if blob.velocity is None or (s.top_speed_mm_s is not None and measured * blob.span_s < s.still_mm):
+            # no velocity, or a chord too short to give a direction: courses fanned all the way round
+            speed = s.unknown_speed_mm_s if blob.velocity is None else max(measured, s.top_speed_mm_s)
             start = np.linspace(-math.pi, math.pi, s.count, endpoint=False)
         else:
-            measured = float(np.hypot(*blob.velocity))
             top = max(measured, s.top_speed_mm_s if s.top_speed_mm_s is not None else measured)
             speed = (measured + (top - measured) * self._speed_share)[:, None, None]
             spread = math.radians(s.wander_deg) * math.sqrt(max(blob.span_s, 0.0) / 3.0)

@@ -84,26 +84,30 @@ class MovingObstaclesRule(Validator):
             max_speed_mm_s=options.max_obstacle_speed_mm_s)
         self.futures = WanderingFutures(WanderSettings(
             wander_deg=options.wander_deg, count=options.futures, step_s=options.sample_s,
-            unknown_speed_mm_s=options.unknown_speed_mm_s, top_speed_mm_s=options.top_speed_mm_s, seed=options.seed))
-        self._cache: tuple[tuple, list[Blob], float] | None = None
+            unknown_speed_mm_s=options.unknown_speed_mm_s, top_speed_mm_s=options.top_speed_mm_s,
+            still_mm=options.static_tolerance_mm, seed=options.seed))
+        self._cache: tuple | None = None
 
     # -- what the scans say ---------------------------------------------------------------------
 
     def movers(self, context: ValidationContext) -> tuple[list[Blob], float]:
         """The movers of the context's scan, and the think time the rule assumes (s)."""
-        key = (id(context.scan), id(context.history[-1].scan) if context.history else 0, context.start_pose,
-               context.sim_time_s)
-        if self._cache is not None and self._cache[0] == key:
-            return self._cache[1], self._cache[2]
+        latest = context.history[-1].scan if context.history else None
+        cached = self._cache
+        # the scans themselves, compared by identity and held by the cache (an id could be reused)
+        if (cached is not None and cached[0] is context.scan and cached[1] is latest
+                and cached[2] == (context.start_pose, context.sim_time_s)):
+            return cached[3], cached[4]
         blobs: list[Blob] = []
         usable = [past for past in context.history
-                  if context.sim_time_s is not None and past.sim_time_s < context.sim_time_s]
+                  if context.sim_time_s is not None
+                  and 0 < context.sim_time_s - past.sim_time_s <= self.options.max_scan_gap_s]
         if usable and context.start_pose is not None:
             past = usable[-1]
             blobs = find_movers(context.scan, context.start_pose, context.sim_time_s,
                                 past.scan, past.pose, past.sim_time_s, self.tracking)
         think = self.think_time_s(context)
-        self._cache = (key, blobs, think)
+        self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s), blobs, think)
         return blobs, think
 
     def think_time_s(self, context: ValidationContext) -> float:
@@ -120,7 +124,7 @@ class MovingObstaclesRule(Validator):
         for (a, ta), (b, tb) in zip(chain, chain[1:]):
             turned = abs((b.heading_deg - a.heading_deg + 180.0) % 360.0 - 180.0)
             need = math.hypot(b.x_mm - a.x_mm, b.y_mm - a.y_mm) / o.robot_speed_mm_s + turned / o.robot_turn_rate_deg_s
-            if tb > ta:
+            if 0 < tb - ta <= o.max_scan_gap_s:
                 bounds.append(tb - ta - need)
         return max(0.0, min(bounds)) if bounds else 0.0
 
@@ -142,20 +146,25 @@ class MovingObstaclesRule(Validator):
         sign = 1.0 if signal.direction == "forward" else -1.0
         robot = np.column_stack((pose.x_mm + sign * driven * math.cos(rad), pose.y_mm + sign * driven * math.sin(rad)))
         if o.movers_yield_mm > 0:
-            # a yielding mover reacts to where the robot has been since the scan, not only to this straight
+            # a yielding mover reacts to where the robot has been since the scan, not only to this
+            # straight; standing still, the robot would be seen elsewhere, so those courses differ
             before = np.arange(0.0, start_s, o.sample_s)
-            track = np.concatenate((self._track_before(context, before), robot))
+            track = self._track_before(context, before)
             where, heading = self.futures.courses(blob, np.concatenate((before, times)))
-            where = yielding(where, heading, track, context.robot.radius_mm, blob.radius_mm,
-                             o.movers_yield_mm, o.movers_yield_deg)[:, len(before):]
+
+            def held(robot_track: np.ndarray) -> np.ndarray:
+                return yielding(where, heading, np.concatenate((track, robot_track)), context.robot.radius_mm,
+                                blob.radius_mm, o.movers_yield_mm, o.movers_yield_deg)[:, len(before):]
+
+            moving, still = held(robot), held(np.repeat(robot[:1], len(times), axis=0))
         else:
-            where = self.futures.at(blob, times)  # (courses, times, 2)
+            moving = still = self.futures.at(blob, times)  # (courses, times, 2)
         reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + o.margin_growth_mm_s * times
-        distance = np.hypot(*np.moveaxis(robot[None] - where, -1, 0))
-        standing = np.hypot(*np.moveaxis(robot[0][None, None] - where, -1, 0))
+        distance = np.hypot(*np.moveaxis(robot[None] - moving, -1, 0))
+        standing = np.hypot(*np.moveaxis(robot[0][None, None] - still, -1, 0))
         inside = distance < reach
         closer = distance.min(axis=1) < standing.min(axis=1) - _WORSE_MM
-        return Sweep(times=times, driven=driven, where=where, inside=inside, counted=inside.any(axis=1) & closer)
+        return Sweep(times=times, driven=driven, where=moving, inside=inside, counted=inside.any(axis=1) & closer)
 
     def _track_before(self, context: ValidationContext, times: np.ndarray) -> np.ndarray:
         """Where the robot's centre is at ``times`` before this straight: at the start pose through

@@ -216,3 +216,17 @@ def test_litellm_token_counting_matches_the_gpt4o_tokenizer(built_plugins):
                                                                   count_response_tokens=True)
     without_images = litellm.token_counter(model="gpt-4o", messages=chat_messages(prompt, send_images=False))
     assert expected - without_images == 2 * 85
+
+
+def test_only_the_latest_refusal_asking_to_wait_makes_the_pilot_wait(built_plugins):
+    """A wait asked on attempt 1 and a wall on attempt 2: the pilot turns away, as from a wall."""
+    from safeembodai_plugins.backends.mock_reading import PromptReading
+
+    wait = "attempt 1 (refused plan: x): moving_obstacles: ... wait for it to pass (turn in place a few degrees)"
+    wall = "attempt 2 (refused plan: y): lidar_clearance: ... at most 0 mm is safe in that direction"
+    def reading(*failures: str) -> PromptReading:
+        return PromptReading(instruction=None, has_prefix=False, failures=list(failures))
+
+    assert reading(wait).asked_to_wait
+    assert reading(wait, wall).asked_to_wait is False
+    assert reading(wait, wall.replace("attempt 2", "attempt 1")).asked_to_wait

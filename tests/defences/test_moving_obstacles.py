@@ -260,3 +260,31 @@ def test_a_guard_given_times_keeps_its_scans_for_moving_obstacles():
     assert untimed.check(plan, lidar_mm=now, pose=ROBOT).valid and not untimed.history
     with pytest.raises(ValueError, match="time_s"):
         Guard(rules).check(plan, lidar_mm=now, pose=ROBOT, time_s=float("nan"))
+
+
+def test_a_guard_copes_with_a_refilled_buffer_a_clock_reset_and_a_time_as_text():
+    """Scans are copied when kept (a driver refilling one buffer must not rewrite them); a time
+    earlier than the last kept one starts a new history; a time is a number of seconds."""
+    from safeembodai_core import Guard
+
+    rules = ["command_limits", {"use": "moving_obstacles", "options": {"think_time_s": THINK_S}}]
+    plan = [{"command": "straight", "direction": "forward", "distance": 399}] * 5
+    before, now = scan_from(ROBOT, CROSSING["before"]), scan_from(ROBOT, CROSSING["now"])
+    guard, buffer = Guard(rules), np.empty(before.beam_count)
+    buffer[:] = before.ranges_mm
+    guard.check(plan[:1], lidar_mm=buffer, max_range_mm=before.max_range_mm, pose=ROBOT, time_s="10")
+    buffer[:] = now.ranges_mm
+    assert not guard.check(plan, lidar_mm=buffer, max_range_mm=now.max_range_mm, pose=ROBOT, time_s=15).valid
+    assert guard.history[0].scan.ranges_mm is not buffer and not guard.history[0].scan.ranges_mm.flags.writeable
+    # a new episode whose clock starts again: the old scans are dropped, nothing to compare
+    assert guard.check(plan, lidar_mm=now, pose=ROBOT, time_s=2.0).valid and len(guard.history) == 1
+    with pytest.raises(ValueError, match="time_s must be a number"):
+        guard.check(plan, lidar_mm=now, pose=ROBOT, time_s="soon")
+
+
+def test_an_earlier_scan_too_old_to_say_anything_is_not_compared():
+    """Scans more than ``max_scan_gap_s`` apart give no mover (and the check stays cheap)."""
+    context = context_for(ROBOT, CROSSING["now"], CROSSING["before"], dt_s=300.0)
+    assert rule().movers(context)[0] == []
+    assert not refusals([go(399)] * 5, context, rule(think_time_s=None))
+    assert rule(max_scan_gap_s=600.0).movers(context)[0]  # told the scans still count: the mover is found

@@ -13,7 +13,7 @@ from safeembodai_core.models import Pose
 from safeembodai_plugins.validators.futures import WanderingFutures, WanderSettings, yielding
 from safeembodai_plugins.validators.tracking import Blob
 
-from .test_moving_obstacles import LABBOT_MM, context_for, go, refusals, rule
+from .test_moving_obstacles import LABBOT_MM, context_for, go, refusals, rotate, rule
 
 TIMES = np.arange(0.0, 12.0, 0.1)
 
@@ -103,3 +103,46 @@ def test_yielding_movers_are_judged_on_where_the_robot_will_be():
     for options in ({}, {"movers_yield_mm": 300.0}):
         assert refusals([go(399), go(399)], context, rule(**options)), options
         assert not refusals([go(-399)], context, rule(**options)), options
+
+
+def test_a_mover_that_stops_for_the_robot_ahead_lets_a_plan_pass_that_a_blind_one_refuses():
+    """A Labbot 1 m to the robot's left and 300 mm ahead, coming at the robot's line at 60 mm/s
+    (straight courses, for a verdict that does not depend on draws): blind, it crosses the line as
+    the robot drives by; yielding, it sees the robot coming and stops short of the line."""
+    context = context_for(ROBOT, [(1300.0, 4000.0, LABBOT_MM)], [(1300.0, 4300.0, LABBOT_MM)])
+    plan = [go(399), go(399), go(399)]
+    assert refusals(plan, context, rule(wander_deg=0.0))
+    assert not refusals(plan, context, rule(wander_deg=0.0, movers_yield_mm=300.0))
+
+
+def test_the_robot_track_before_a_straight_follows_the_think_time_and_the_earlier_signals():
+    """Where a yielding mover sees the robot depends on where the plan has put it: at the start
+    pose through the think time (5 s), still there through a 60-degree left turn (1 s at
+    60 deg/s), then 399 mm at 60 degrees in 2 s."""
+    context = context_for(ROBOT, [], None).advanced(rotate(60)).advanced(go(399))
+    track = rule()._track_before(context, np.array([0.0, 5.0, 6.0, 7.0, 8.0]))
+    way = np.array([math.cos(math.radians(60)), math.sin(math.radians(60))])
+    assert np.allclose(track, [[1000, 3000], [1000, 3000], [1000, 3000], [1000, 3000] + 199.5 * way,
+                               [1000, 3000] + 399 * way], atol=1.0)
+
+
+def test_a_motion_that_gets_out_of_a_movers_way_passes_while_one_towards_it_is_refused():
+    """A Labbot coming head-on at 150 mm/s, due to reach the waiting robot: backing away keeps the
+    body further from every course than standing still would, so it passes (refusing it would not
+    keep the mover away); driving towards it is refused."""
+    context = context_for(ROBOT, [(2400.0, 3000.0, LABBOT_MM)], [(3150.0, 3000.0, LABBOT_MM)])
+    assert not refusals([go(-399)], context)
+    assert refusals([go(399)], context)
+
+
+def test_courses_are_the_same_across_the_noise_chunks_whatever_the_order_of_the_checks():
+    """Noise is drawn in chunks of 128 time steps (12.8 s); a long horizon asked first or last
+    gives the same courses, and course 0 is the measured course at any horizon."""
+    times = np.arange(0.0, 40.0, 0.1)
+    settings = WanderSettings(seed=3)
+    first_long = WanderingFutures(settings).at(mover(), times)
+    growing = WanderingFutures(settings)
+    for end in (20, 150, 300, len(times)):
+        growing.at(mover(), times[:end])
+    assert np.array_equal(first_long, growing.at(mover(), times))
+    assert np.allclose(first_long[0], np.array([1000.0, 2000.0]) + times[:, None] * np.array([150.0, 0.0]))
