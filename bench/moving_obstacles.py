@@ -218,8 +218,7 @@ def misses(run: Path) -> None:
         return verdict
 
     def shares(rule, signal, context, blob) -> tuple[float, float]:
-        start = rule.movers(context)[1] + sum(rule.duration_s(s) for s in context.earlier_signals)
-        sweep = rule.sweep(context, signal, blob, start)
+        sweep = rule.sweep(context, signal, blob, rule.start_s(context))
         return float(sweep.counted.mean()), float(sweep.inside.any(axis=1).mean())
 
     MovingObstaclesRule.validate = spy

@@ -128,6 +128,11 @@ class MovingObstaclesRule(Validator):
                 bounds.append(tb - ta - need)
         return max(0.0, min(bounds)) if bounds else 0.0
 
+    def start_s(self, context: ValidationContext) -> float:
+        """When the signal being judged starts, in seconds after the scan: the think time, then
+        the plan's earlier signals at the rule's speeds."""
+        return self.movers(context)[1] + sum(self.duration_s(s) for s in context.earlier_signals)
+
     def duration_s(self, signal: ControlSignal) -> float:
         if isinstance(signal, Straight):
             return signal.distance / self.options.robot_speed_mm_s
@@ -170,7 +175,7 @@ class MovingObstaclesRule(Validator):
         """Where the robot's centre is at ``times`` before this straight: at the start pose through
         the think time, then along the plan's earlier signals at the rule's speeds."""
         pose = context.start_pose
-        x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, self.think_time_s(context)
+        x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, self.movers(context)[1]
         ts, xs, ys = [0.0, t], [x, x], [y, y]
         for earlier in context.earlier_signals:
             t += self.duration_s(earlier)
@@ -211,7 +216,7 @@ class MovingObstaclesRule(Validator):
         blobs, think = self.movers(context)
         if not blobs:
             return Verdict(rule=self.name, valid=True)
-        start = think + sum(self.duration_s(s) for s in context.earlier_signals)
+        start = self.start_s(context)
         meeting = self.first_meeting(context, signal, blobs, start)
         if meeting is None:
             return Verdict(rule=self.name, valid=True)
