@@ -122,9 +122,10 @@ class MovingObstaclesOptions(BaseModel):
     wander_deg: float = Field(25.0, ge=0, le=180, allow_inf_nan=False, description=(
         "a mover's heading drifts as a random walk of this many degrees per square-root second "
         "(0: straight courses; pybullet rooms' Labbots: 25)"))
-    top_speed_mm_s: float | None = Field(None, ge=0, le=5000, allow_inf_nan=False, description=(
-        "a mover's courses run at speeds drawn between its measured (chord) speed and this; "
-        "null: the measured speed (pybullet rooms' Labbots cruise at 150)"))
+    cruise_speed_mm_s: float | None = Field(None, gt=0, le=5000, allow_inf_nan=False, description=(
+        "movers move at this speed when they move: scans are paired by the chord it gives, courses "
+        "run at least this fast, and a shorter chord fans that share of them (a turn or a stop); "
+        "null: unknown, courses at the measured speed (pybullet rooms' Labbots: 150)"))
     movers_yield_mm: float = Field(0.0, ge=0, le=5000, allow_inf_nan=False, description=(
         "movers stop for the robot once its body is this close to their rim, ahead of them "
         "(0: movers never yield; the rooms' sensing Labbots: 300)"))

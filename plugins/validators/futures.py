@@ -5,9 +5,13 @@ drift, stop and turn. :class:`WanderingFutures` draws ``count`` possible courses
 (:class:`~.tracking.Blob`): each starts where the scan saw it, at the speed the two scans gave,
 on a heading drawn around the measured one, and then drifts as a random walk of ``wander_deg``
 per square-root second. The measured speed is a chord's (the straight line between two scans),
-shorter than the path of a mover that turned or stopped on the way: with ``top_speed_mm_s`` each
-course's speed is drawn evenly between the measured speed and that top speed (a chord shorter
-than ``still_mm`` then gives no direction: its courses are fanned like an unknown velocity's).
+shorter than the path of a mover that turned or stopped on the way. With ``cruise_speed_mm_s``
+(movers known to move at that speed when they move) every course but course 0 runs at the larger
+of the measured and the cruising speed, and a chord shorter than a cruising mover's
+(:func:`~.tracking.chord_share` of its path) says the mover turned or stopped for part of the
+span: that share of the courses -- 1 - measured / expected chord speed -- starts on a heading
+drawn evenly all the way round (where it will go after the turn is unknown), the others around
+the chord; a chord shorter than ``still_mm`` gives no direction, and all courses are fanned.
 The spread of the starting heading is the random walk's over the span the velocity was measured
 on (a chord between two scans ``span_s`` apart points along the mean heading of that span, whose
 difference from the final heading has variance ``wander**2 * span / 3``). A mover of unknown velocity (where it was was not seen) gets courses
@@ -31,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .tracking import Blob
+from .tracking import Blob, chord_share
 
 _CHUNK = 128  # columns of noise drawn at a time (each chunk from its own seeded generator)
 
@@ -42,8 +46,8 @@ class WanderSettings:
     count: int = 64
     step_s: float = 0.1
     unknown_speed_mm_s: float = 150.0
-    top_speed_mm_s: float | None = None
-    still_mm: float = 100.0  # with a top speed: a chord shorter than this gives no direction
+    cruise_speed_mm_s: float | None = None
+    still_mm: float = 100.0  # with a cruising speed: a chord shorter than this gives no direction
     seed: int = 0
 
 
@@ -53,9 +57,11 @@ class WanderingFutures:
     def __init__(self, settings: WanderSettings) -> None:
         self.s = settings
         self._noise = np.zeros((settings.count, 0))
-        # where each course's speed lies between the measured and the top speed (its own stream)
-        self._speed_share = np.random.default_rng([settings.seed, 2**32 - 1]).random(settings.count)
-        self._speed_share[0] = 0.0
+        # with a cruising speed: which courses start after a turn (draw below the turned share), and
+        # on which heading (each its own stream; course 0 is never turned)
+        turns = np.random.default_rng([settings.seed, 2**32 - 1]).random((2, settings.count))
+        self._turn_draw, self._turn_heading = turns[0], (turns[1] * 2.0 - 1.0) * math.pi
+        self._turn_draw[0] = 1.0
 
     def _normals(self, columns: int) -> np.ndarray:
         """Standard normal draws, (count, columns): column j is the same whatever is asked later."""
@@ -68,6 +74,19 @@ class WanderingFutures:
             self._noise[0] = 0.0  # course 0 is the measured course: no wander, the measured speed
         return self._noise[:, :columns]
 
+    def turned_share(self, blob: Blob) -> float:
+        """With a cruising speed: the share of a mover's courses that start after a turn (1 - the
+        measured speed over the chord speed expected of a cruising mover; 1 for a chord shorter than
+        ``still_mm``); 0 without one, or for an unknown velocity."""
+        s = self.s
+        if s.cruise_speed_mm_s is None or blob.velocity is None:
+            return 0.0
+        measured = float(np.hypot(*blob.velocity))
+        if measured * blob.span_s < s.still_mm:
+            return 1.0
+        expected = s.cruise_speed_mm_s * chord_share(s.wander_deg, blob.span_s)
+        return float(np.clip(1.0 - measured / expected, 0.0, 1.0)) if expected > 0 else 0.0
+
     def at(self, blob: Blob, times: np.ndarray) -> np.ndarray:
         """The courses' centres (count, len(times), 2) at ``times`` (s after the scan, >= 0)."""
         return self.courses(blob, times)[0]
@@ -79,15 +98,20 @@ class WanderingFutures:
         steps = int(math.ceil(float(times.max(initial=0.0)) / s.step_s)) + 1
         noise = self._normals(steps + 1)
         measured = 0.0 if blob.velocity is None else float(np.hypot(*blob.velocity))
-        if blob.velocity is None or (s.top_speed_mm_s is not None and measured * blob.span_s < s.still_mm):
-            # no velocity, or a chord too short to give a direction: courses fanned all the way round
-            speed = s.unknown_speed_mm_s if blob.velocity is None else max(measured, s.top_speed_mm_s)
+        cruise = s.cruise_speed_mm_s
+        if blob.velocity is None:
+            # no velocity: courses fanned evenly all the way round
+            speed = s.unknown_speed_mm_s
             start = np.linspace(-math.pi, math.pi, s.count, endpoint=False)
         else:
-            top = max(measured, s.top_speed_mm_s if s.top_speed_mm_s is not None else measured)
-            speed = (measured + (top - measured) * self._speed_share)[:, None, None]
             spread = math.radians(s.wander_deg) * math.sqrt(max(blob.span_s, 0.0) / 3.0)
             start = math.atan2(blob.velocity[1], blob.velocity[0]) + spread * noise[:, 0]
+            speed = measured
+            if cruise is not None:
+                speed = np.full((s.count, 1, 1), max(measured, cruise))
+                speed[0] = measured  # course 0: the measured course
+                turned = self.turned_share(blob)
+                start = np.where(self._turn_draw < turned, self._turn_heading, start)
         drift = math.radians(s.wander_deg) * math.sqrt(s.step_s) * noise[:, 1:steps]
         heading = start[:, None] + np.concatenate((np.zeros((s.count, 1)), np.cumsum(drift, axis=1)), axis=1)
         step = speed * s.step_s * np.stack((np.cos(heading), np.sin(heading)), axis=-1)  # (count, steps, 2)

@@ -81,10 +81,11 @@ class MovingObstaclesRule(Validator):
         self.tracking = TrackingSettings(
             tolerance_mm=options.static_tolerance_mm, cluster_gap_mm=options.cluster_gap_mm,
             min_points=options.min_moved_points, max_size_mm=options.max_obstacle_mm,
-            max_speed_mm_s=options.max_obstacle_speed_mm_s)
+            max_speed_mm_s=options.max_obstacle_speed_mm_s, cruise_speed_mm_s=options.cruise_speed_mm_s,
+            wander_deg=options.wander_deg)
         self.futures = WanderingFutures(WanderSettings(
             wander_deg=options.wander_deg, count=options.futures, step_s=options.sample_s,
-            unknown_speed_mm_s=options.unknown_speed_mm_s, top_speed_mm_s=options.top_speed_mm_s,
+            unknown_speed_mm_s=options.unknown_speed_mm_s, cruise_speed_mm_s=options.cruise_speed_mm_s,
             still_mm=options.static_tolerance_mm, seed=options.seed))
         self._cache: tuple | None = None
 
@@ -245,6 +246,10 @@ class MovingObstaclesRule(Validator):
             speed = float(np.hypot(*blob.velocity))
             course = math.degrees(math.atan2(blob.velocity[1], blob.velocity[0])) - pose.heading_deg
             motion = f"heading {(course + 180.0) % 360.0 - 180.0:.0f} deg at {speed:.0f} mm/s"
+            turned = self.futures.turned_share(blob)
+            if turned > 0:
+                motion += (f"; slower than a mover cruising at {o.cruise_speed_mm_s:g} mm/s: it may have turned or "
+                           f"stopped, {turned:.0%} of its courses go any way")
         safe = self._safe_distance(signal, context, blobs, start)
         if safe >= 1:
             advice = f"going {direction}, at most {safe} mm is safe"

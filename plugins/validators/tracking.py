@@ -6,9 +6,12 @@ older scan's beams passed beyond it (the older scan saw free space there: someth
 a return of the older scan is **departed** where the newer scan sees beyond it. Returns are
 grouped into clusters (neighbouring beams, gaps under ``cluster_gap_mm``); a cluster with at
 least ``min_points`` arrived (or departed) returns is a mover, seen as a disc (:class:`Blob`)
-fitted to the arc the sensor saw. Each arrived disc is paired with the nearest departed disc it
-could have come from (at most ``max_speed_mm_s`` away over the time between the scans): that
-pair gives the velocity. An arrived disc with no partner (where it was was hidden, or out of
+fitted to the arc the sensor saw. Each arrived disc is paired with a departed disc it could have
+come from (at most ``max_speed_mm_s`` away over the time between the scans): that pair gives the
+velocity. Pairs are taken greedily, best first: nearest first, or -- when movers are known to
+cruise at ``cruise_speed_mm_s`` -- the pair whose gap is nearest the chord such a mover drives
+over that time (:func:`chord_share`), so that movers following each other in a column, or
+crossing, are not paired with each other's earlier positions. An arrived disc with no partner (where it was was hidden, or out of
 range) is a mover of unknown velocity. A mover coming along the line of sight hides where it was
 behind where it is: a compact cluster of the older scan now hidden behind an arrived return
 counts as departed too (a ball behind a mover can then be taken for where it came from).
@@ -100,6 +103,18 @@ class TrackingSettings:
     min_points: int = 2
     max_size_mm: float = 800.0
     max_speed_mm_s: float = 1000.0
+    cruise_speed_mm_s: float | None = None  # pair by the expected chord instead of nearest first
+    wander_deg: float = 25.0  # the movers' heading random walk (for the expected chord)
+
+
+def chord_share(wander_deg: float, span_s: float) -> float:
+    """The root-mean-square chord of a mover at constant speed whose heading drifts as a random walk
+    of ``wander_deg`` per square-root second, as a share of the path it drove over ``span_s``:
+    sqrt(2 (kT - 1 + exp(-kT))) / kT with k = sigma**2 / 2 (1 for a straight course)."""
+    k_t = math.radians(wander_deg) ** 2 / 2.0 * max(span_s, 0.0)
+    if k_t < 1e-9:
+        return 1.0
+    return math.sqrt(2.0 * (k_t - 1.0 + math.exp(-k_t))) / k_t
 
 
 def _local(points_room: np.ndarray, scan: LidarScan, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
@@ -164,10 +179,12 @@ def find_movers(scan: LidarScan, pose: Pose, time_s: float, before: LidarScan, b
     if dt > 0:
         departed, _ = _movers(before, before_pose, lambda room: _seen_beyond(room, scan, pose, settings.tolerance_mm),
                               settings, lambda room: _shadowed(room, scan, pose, beams, settings.tolerance_mm))
-    pairs = sorted(((float(np.hypot(*(a[0] - d[0]))), i, j)
-                    for i, a in enumerate(arrived) for j, d in enumerate(departed)))
+    expected = (0.0 if settings.cruise_speed_mm_s is None
+                else settings.cruise_speed_mm_s * dt * chord_share(settings.wander_deg, dt))
+    pairs = sorted((abs(gap - expected), gap, i, j) for i, a in enumerate(arrived) for j, d in enumerate(departed)
+                   for gap in [float(np.hypot(*(a[0] - d[0])))])
     partner: dict[int, int] = {}
-    for gap, i, j in pairs:
+    for _, gap, i, j in pairs:
         if i in partner or j in partner.values() or gap > settings.max_speed_mm_s * dt:
             continue
         partner[i] = j

@@ -225,7 +225,7 @@ def test_every_plan_that_drives_into_the_mover_is_refused(wander, plan, heading,
     of it, is refused too (there the straight course is one of many, and a graze of it -- or a
     course that nearly reaches the waiting robot anyway -- can count in fewer than ``max_risk``
     of them)."""
-    validator = rule(wander_deg=wander, top_speed_mm_s=None)  # courses at the measured speed
+    validator = rule(wander_deg=wander, cruise_speed_mm_s=None)  # courses at the measured speed
     pose = Pose(x_mm=3000.0, y_mm=3000.0, heading_deg=heading)
     total = sum(s.distance / 200.0 if isinstance(s, Straight) else s.angle / 60.0 for s in plan)
     when = THINK_S + share * total

@@ -71,7 +71,7 @@ def test_a_mover_that_may_turn_into_the_path_is_refused_where_a_straight_course_
     context = context_for(ROBOT, ALONGSIDE["now"], ALONGSIDE["before"])
     plan = [go(399), go(399), go(399)]
     assert not refusals(plan, context, rule(wander_deg=0.0, seed=seed))
-    refused = refusals(plan, context, rule(seed=seed, top_speed_mm_s=None))  # courses at its measured speed
+    refused = refusals(plan, context, rule(seed=seed, cruise_speed_mm_s=None))  # courses at its measured speed
     assert refused and "predicted courses meet this motion" in refused[0].reason
     assert not refusals([go(-399), go(-399)], context, rule(seed=seed))  # backing away from it passes
 
