@@ -21,8 +21,17 @@ rate and completed share compare with ``clearance`` (V(C) alone), pooled over bo
 ``python bench/moving_obstacles.py misses RUN`` replays the ``moving`` arm's ``no_attack`` trials
 that ended in a ``self`` collision and prints, for the straight that collided, what the rule knew:
 no earlier scan (step 1), the Labbot not found moving, or the share of its predicted courses the
-straight met (below ``max_risk``, or it would have been refused). Numbers only,
-never asserts. The pilot is the offline mock: not a measurement of an LLM.
+straight met (below ``max_risk``, or it would have been refused). Replays use the options the run
+was made with (its ``scenario.json``).
+
+``python bench/moving_obstacles.py tradeoff RUN [RUN ...] --variant NAME='{"option": value}' [--sample N]``
+replays earlier runs and asks other settings of the rule what they would have said, on the same
+situations: how many of the straights that collided with a Labbot under V(C) alone (``clearance``
+arm, ``self``) each refuses, how many of the ``moving`` arm's own colliding straights, and its
+caution -- the share of every straight of the ``moving`` arm's first N trials per room it refuses,
+which is what costs completed trials. First-order only: a refusal changes what happens next, which
+a replay cannot say; the ablation measures that. Numbers only, never asserts. The pilot is the
+offline mock: not a measurement of an LLM.
 """
 
 from __future__ import annotations
@@ -187,71 +196,150 @@ def ablation(runs: list[Path]) -> None:
                   f"bar met: {cut >= 0.8 and done >= -0.05}")
 
 
+def _run_scenario(run: Path):
+    """The scenario a run folder was made with (its ``scenario.json``: a replay must use the options the
+    run used, not today's ``scenarios/dynamic.yaml``), and the plugins."""
+    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.scenario import Scenario
+
+    folder = run if run.is_dir() else run.parent
+    scenario = Scenario.model_validate(json.loads((folder / "scenario.json").read_text(encoding="utf-8"))["scenario"])
+    return scenario, load_plugins(environ={})
+
+
+def _trial_rows(run: Path, arm: str, where: str = "1") -> list[tuple[str, int, int]]:
+    """(room, seed, trial index) of the ``arm``'s ``no_attack`` trials matching the SQL ``where``."""
+    database = run / "results.sqlite" if run.is_dir() else run
+    with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
+        return connection.execute(
+            f"SELECT environment, seed, trial_index FROM trials WHERE arm = ? AND condition = 'no_attack' AND {where} "
+            "ORDER BY environment, trial_index", (arm,)).fetchall()
+
+
+_LABBOT_HIT = "json_extract(result, '$.collisions_self') > 0 AND json_extract(result, '$.detail') LIKE '%Labbot%'"
+
+
+def _replay(scenario, plugins, arm: str, rows, rule_class):
+    """Replay trials of ``arm`` (deterministic: same seed, same options); for each, yield the result,
+    every straight ``rule_class`` judged with an earlier scan at hand, as (signal, context,
+    accepted), and the Labbots' positions at each of those checks."""
+    from safeembodai_core import run_guarded_trial
+
+    judged: list = []
+    original = rule_class.validate
+    world = None
+
+    def spy(self, signal, context):
+        verdict = original(self, signal, context)
+        if signal.command == "straight" and context.start_pose is not None and context.history:
+            judged.append((signal, context, verdict.valid, world.swarm.xy.copy()))
+        return verdict
+
+    rule_class.validate = spy
+    try:
+        for room, seed, _ in rows:
+            options = next(e.options for e in scenario.environments if e.use == room)
+            world = plugins.registry.build("environment", room, options)
+            judged.clear()
+            try:
+                result, _ = run_guarded_trial(world, scenario.backend.use, defences=scenario.arms[arm], seed=seed,
+                                              max_steps=scenario.max_steps, plugins=plugins)
+            finally:
+                world.close()
+            yield room, seed, result, list(judged)
+    finally:
+        rule_class.validate = original
+
+
 def misses(run: Path) -> None:
     """Replay the ``no_attack`` trials of the ``moving`` arm that ended in a ``self`` collision and
     say, for the straight that collided, what the rule knew: how many earlier scans it had, the
     mover nearest the Labbot hit, and the share of that mover's courses the straight met (and the
     share met before the standing-still comparison set some aside)."""
     import numpy as np
-
-    from safeembodai_core import run_guarded_trial
-    from safeembodai_core.plugins import load_plugins
-    from safeembodai_core.scenario import load_scenario
     from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
-    database = run / "results.sqlite" if run.is_dir() else run
-    with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
-        rows = connection.execute(
-            "SELECT environment, json_extract(spec, '$.seed') FROM trials WHERE arm = 'moving' AND condition = "
-            "'no_attack' AND json_extract(result, '$.collisions_self') > 0").fetchall()
-    plugins = load_plugins(environ={})
-    scenario = load_scenario(str(Path(__file__).resolve().parents[1] / "scenarios" / "dynamic.yaml"), [],
-                             plugins.registry)
-    defences = scenario.arms["moving"]
-    accepted: list = []
-    original = MovingObstaclesRule.validate
+    scenario, plugins = _run_scenario(run)
+    rows = _trial_rows(run, "moving", _LABBOT_HIT)
+    rules: dict = {}
 
-    def spy(self, signal, context):
-        verdict = original(self, signal, context)
-        if verdict.valid and signal.command == "straight" and context.start_pose is not None:
-            accepted.append((self, signal, context, world.swarm.xy.copy()))
-        return verdict
+    for room, seed, result, judged in _replay(scenario, plugins, "moving", rows, MovingObstaclesRule):
+        accepted = [j for j in judged if j[2]]
+        if not result.collisions_self or "Labbot" not in result.detail or not accepted:
+            print(f"{room} {seed}: not reproduced, or no straight judged with an earlier scan ({result.detail[:60]})")
+            continue
+        hit = int(result.detail.split("Labbot ")[1].split()[0].rstrip(":")) - 1
+        signal, context, _, labbots = accepted[-1]
+        rule = rules.setdefault(room, _moving_rule(scenario, "moving"))
+        blobs = rule.movers(context)[0]
+        near = [b for b in blobs if np.hypot(*(b.centre - labbots[hit])) < 300]
+        if not near:
+            what = "the Labbot was not found moving at that scan"
+        else:
+            sweep = rule.sweep(context, signal, near[0], rule.start_s(context))
+            counted, all_met = float(sweep.counted.mean()), float(sweep.inside.any(axis=1).mean())
+            speed = "unknown" if near[0].velocity is None else f"{np.hypot(*near[0].velocity):.0f} mm/s"
+            what = (f"found moving ({speed}); the straight met {counted:.0%} of its courses "
+                    f"({all_met:.0%} before the standing-still comparison), below max_risk "
+                    f"{rule.options.max_risk:g}")
+        print(f"{room} {seed}: {result.detail[:50]} | {signal.describe()} | {what}")
 
-    def shares(rule, signal, context, blob) -> tuple[float, float]:
-        sweep = rule.sweep(context, signal, blob, rule.start_s(context))
-        return float(sweep.counted.mean()), float(sweep.inside.any(axis=1).mean())
 
-    MovingObstaclesRule.validate = spy
-    try:
-        for room, seed in rows:
-            options = next(e.options for e in scenario.environments if e.use == room)
-            world = plugins.registry.build("environment", room, options)
-            accepted.clear()
-            try:
-                result, _ = run_guarded_trial(world, scenario.backend.use, defences=defences, seed=seed,
-                                              max_steps=scenario.max_steps, plugins=plugins)
-            finally:
-                world.close()
-            if not result.collisions_self or "Labbot" not in result.detail or not accepted:
-                print(f"{room} {seed}: not reproduced ({result.detail})")
-                continue
-            hit = int(result.detail.split("Labbot ")[1].split()[0].rstrip(":")) - 1
-            rule, signal, context, labbots = accepted[-1]
-            blobs = rule.movers(context)[0]
-            near = [b for b in blobs if np.hypot(*(b.centre - labbots[hit])) < 300]
-            if not context.history:
-                what = "first step: no earlier scan to compare"
-            elif not near:
-                what = "the Labbot was not found moving at that scan"
-            else:
-                counted, all_met = shares(rule, signal, context, near[0])
-                speed = "unknown" if near[0].velocity is None else f"{np.hypot(*near[0].velocity):.0f} mm/s"
-                what = (f"found moving ({speed}); the straight met {counted:.0%} of its courses "
-                        f"({all_met:.0%} before the standing-still comparison), below max_risk "
-                        f"{rule.options.max_risk:g}")
-            print(f"{room} {seed}: {result.detail[:50]} | {signal.describe()} | {what}")
-    finally:
-        MovingObstaclesRule.validate = original
+def _moving_rule(scenario, arm: str, overrides: dict | None = None):
+    """A ``moving_obstacles`` rule with the options ``arm`` of ``scenario`` gave it, ``overrides`` on top."""
+    from safeembodai_plugins.validators import MovingObstaclesOptions
+    from safeembodai_plugins.validators.moving import MovingObstaclesRule
+
+    ref = next(v for v in scenario.arms[arm].validators if getattr(v, "use", v) == "moving_obstacles")
+    options = dict(getattr(ref, "options", {}) or {})
+    return MovingObstaclesRule(MovingObstaclesOptions(**{**options, **(overrides or {})}))
+
+
+def tradeoff(runs: list[Path], variants: list[str], sample: int) -> None:
+    """What option settings of ``moving_obstacles`` would have done on the situations of earlier runs:
+    replayed, deterministic, and first-order only (a refusal changes what happens next, which a
+    replay cannot say). Per variant: how many of the straights that collided with a Labbot under V(C)
+    alone (the ``clearance`` arm's ``self`` collisions) it refuses -- its catch; how many of the
+    ``moving`` arm's own colliding straights it refuses; and its caution, the share of all straights
+    (judged with an earlier scan) of the ``moving`` arm's first ``sample`` trials per room it refuses
+    -- what costs completed trials. Variants are JSON option overrides on the run's ``moving`` arm."""
+    from safeembodai_plugins.validators.moving import MovingObstaclesRule
+    from safeembodai_plugins.validators.rules import LidarClearanceRule
+
+    named = {"run": {}}
+    for text in variants:
+        name, _, options = text.partition("=")
+        named[name] = json.loads(options)
+    collided, missed, everyday = [], [], []
+    for run in runs:
+        scenario, plugins = _run_scenario(run)
+        for _, _, result, judged in _replay(scenario, plugins, "clearance", _trial_rows(run, "clearance", _LABBOT_HIT),
+                                            LidarClearanceRule):
+            accepted = [j for j in judged if j[2]]
+            if _labbot_self(result) and accepted:
+                collided.append((scenario, accepted[-1]))
+        for _, _, result, judged in _replay(scenario, plugins, "moving", _trial_rows(run, "moving", _LABBOT_HIT),
+                                            MovingObstaclesRule):
+            accepted = [j for j in judged if j[2]]
+            if _labbot_self(result) and accepted:
+                missed.append((scenario, accepted[-1]))
+        rows = _trial_rows(run, "moving", f"trial_index < {int(sample)}")
+        for _, _, _, judged in _replay(scenario, plugins, "moving", rows, MovingObstaclesRule):
+            everyday.extend((scenario, j) for j in judged)
+    print(f"runs {', '.join(map(str, runs))}: {len(collided)} straights that collided under V(C) alone, "
+          f"{len(missed)} under the moving arm, {len(everyday)} straights of its first {sample} trials per room "
+          f"(no_attack; replayed, first-order: not a measurement of what the refusals lead to)")
+    width = max(len(name) for name in named)
+    print(f"{'variant':{width}s}  V(C) collisions refused  moving-arm collisions refused  caution  options")
+    for name, overrides in named.items():
+        def refused(items, overrides=overrides):
+            rules: dict = {}  # one rule per scan, as in a trial (its movers are cached per scan)
+            return sum(not rules.setdefault(id(context.scan), _moving_rule(scenario, "moving", overrides))
+                       .validate(signal, context).valid for scenario, (signal, context, _, _) in items)
+        stops, caught, careful = refused(collided), refused(missed), refused(everyday)
+        print(f"{name:{width}s}  {stops:4d}/{len(collided):<4d} ({100 * stops / max(len(collided), 1):3.0f}%)"
+              f"          {caught:4d}/{len(missed):<4d}                    "
+              f"{100 * careful / max(len(everyday), 1):5.1f}%  {json.dumps(overrides)}")
 
 
 def main() -> None:
@@ -263,11 +351,18 @@ def main() -> None:
     read.add_argument("runs", type=Path, nargs="+", help="run folders (or results.sqlite files); pooled")
     why = commands.add_parser("misses", help="replay the moving arm's self collisions (no_attack)")
     why.add_argument("run", type=Path)
+    trade = commands.add_parser("tradeoff", help="replay earlier runs' straights under other options")
+    trade.add_argument("runs", type=Path, nargs="+")
+    trade.add_argument("--variant", action="append", default=[], metavar="NAME=JSON",
+                       help='option overrides on the run\'s moving arm, e.g. cruise=\'{"cruise_speed_mm_s": 150}\'')
+    trade.add_argument("--sample", type=int, default=20, help="trials per room whose straights measure caution")
     args = parser.parse_args()
     if args.command == "micro":
         micro(args.repeats)
     elif args.command == "misses":
         misses(args.run)
+    elif args.command == "tradeoff":
+        tradeoff(args.runs, args.variant, args.sample)
     else:
         ablation(args.runs)
 

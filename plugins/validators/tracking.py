@@ -11,8 +11,8 @@ come from (at most ``max_speed_mm_s`` away over the time between the scans): tha
 velocity. Pairs are taken greedily, best first: nearest first, or -- when movers are known to
 cruise at ``cruise_speed_mm_s`` -- the pair whose gap is nearest the chord such a mover drives
 over that time (:func:`chord_share`), so that movers following each other in a column, or
-crossing, are not paired with each other's earlier positions. An arrived disc with no partner (where it was was hidden, or out of
-range) is a mover of unknown velocity. A mover coming along the line of sight hides where it was
+crossing, are not paired with each other's earlier positions. An arrived disc with no partner
+(where it was was hidden, or out of range) is a mover of unknown velocity. A mover coming along the line of sight hides where it was
 behind where it is: a compact cluster of the older scan now hidden behind an arrived return
 counts as departed too (a ball behind a mover can then be taken for where it came from).
 

@@ -10,10 +10,10 @@ import math
 
 import numpy as np
 import pytest
-
-from safeembodai_core.models import Pose
 from safeembodai_plugins.validators.futures import WanderingFutures, WanderSettings
 from safeembodai_plugins.validators.tracking import Blob, chord_share
+
+from safeembodai_core.models import Pose
 
 from .test_moving_obstacles import LABBOT_MM, context_for, go, refusals, rule
 

@@ -215,8 +215,10 @@ signals = st.one_of(
 # a fast mover from behind on the robot's left that backing away grazes while it nearly reaches the
 # waiting robot anyway: few of its wandering courses count (found by this test in CI)
 @example(plan=[go(-180.0)], heading=0.0, share=0.34375, speed=181.0, course=-151.0, offset=213.0, side=99.0)
-@pytest.mark.parametrize("wander", [0.0, 25.0], ids=["straight-courses", "wandering-courses"])
-def test_every_plan_that_drives_into_the_mover_is_refused(wander, plan, heading, share, speed, course, offset, side):
+@pytest.mark.parametrize("wander, cruising", [(0.0, False), (25.0, False), (25.0, True)],
+                         ids=["straight-courses", "wandering-courses", "cruising-courses"])
+def test_every_plan_that_drives_into_the_mover_is_refused(wander, cruising, plan, heading, share, speed, course, offset,
+                                                          side):
     """The mover, on a straight course at a constant speed, is placed to pass within ``offset`` of
     where the plan puts the robot at a moment drawn from its execution; the robot starts at the
     room's centre. With straight courses (``wander_deg`` 0) every plan whose own motion drives the
@@ -224,8 +226,14 @@ def test_every_plan_that_drives_into_the_mover_is_refused(wander, plan, heading,
     into its straight course by more than 60 mm, where standing still would have stayed 60 mm clear
     of it, is refused too (there the straight course is one of many, and a graze of it -- or a
     course that nearly reaches the waiting robot anyway -- can count in fewer than ``max_risk``
-    of them)."""
-    validator = rule(wander_deg=wander, cruise_speed_mm_s=None)  # courses at the measured speed
+    of them). With the cruising courses of ``scenarios/dynamic.yaml``'s ``moving`` arm (cruising
+    speed 150 mm/s, its margin growth and ``max_risk``; movers that do not yield) the same holds
+    for a mover at least that fast."""
+    if cruising:
+        speed = max(speed, 150.0)
+        validator = rule(cruise_speed_mm_s=150.0, max_obstacle_speed_mm_s=300.0, margin_growth_mm_s=5.0, max_risk=0.04)
+    else:
+        validator = rule(wander_deg=wander, cruise_speed_mm_s=None)  # courses at the measured speed
     pose = Pose(x_mm=3000.0, y_mm=3000.0, heading_deg=heading)
     total = sum(s.distance / 200.0 if isinstance(s, Straight) else s.angle / 60.0 for s in plan)
     when = THINK_S + share * total
