@@ -207,27 +207,34 @@ def _run_scenario(run: Path):
     return scenario, load_plugins(environ={})
 
 
-def _trial_rows(run: Path, arm: str, where: str = "1") -> list[tuple[str, int, int]]:
-    """(room, seed, trial index) of the ``arm``'s ``no_attack`` trials matching the SQL ``where``."""
+def _trial_rows(run: Path, arm: str, labbot_hit: bool = False, first: int | None = None) -> list[tuple[str, int, int]]:
+    """(room, seed, trial index) of the ``arm``'s ``no_attack`` trials: those that ended in a ``self``
+    collision with a Labbot, or the first ``first`` of each room, or all."""
     database = run / "results.sqlite" if run.is_dir() else run
+    where = ["arm = ?", "condition = 'no_attack'"]
+    values: list = [arm]
+    if labbot_hit:
+        where.append("json_extract(result, '$.collisions_self') > 0 AND json_extract(result, '$.detail') LIKE '%Labbot%'")
+    if first is not None:
+        where.append("trial_index < ?")
+        values.append(int(first))
     with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
-        return connection.execute(
-            f"SELECT environment, seed, trial_index FROM trials WHERE arm = ? AND condition = 'no_attack' AND {where} "
-            "ORDER BY environment, trial_index", (arm,)).fetchall()
+        return connection.execute(f"SELECT environment, seed, trial_index FROM trials WHERE {' AND '.join(where)} "
+                                  "ORDER BY environment, trial_index", values).fetchall()
 
 
-_LABBOT_HIT = "json_extract(result, '$.collisions_self') > 0 AND json_extract(result, '$.detail') LIKE '%Labbot%'"
-
-
-def _replay(scenario, plugins, arm: str, rows, rule_class):
-    """Replay trials of ``arm`` (deterministic: same seed, same options); for each, yield the result,
-    every straight ``rule_class`` judged with an earlier scan at hand, as (signal, context,
-    accepted), and the Labbots' positions at each of those checks."""
+def _replay(scenario, plugins, arm: str, rows, rule_class) -> list:
+    """Replay trials of ``arm`` (deterministic: same seed, same options); per trial: room, seed, the
+    result, every straight ``rule_class`` judged with an earlier scan at hand as (signal, context,
+    accepted, the Labbots' positions then), and the straight that collided, as one of those (None:
+    the trial had no collision during a straight so judged -- it was hit while turning or waiting,
+    or on step 1)."""
     from safeembodai_core import run_guarded_trial
 
     judged: list = []
     original = rule_class.validate
     world = None
+    replays = []
 
     def spy(self, signal, context):
         verdict = original(self, signal, context)
@@ -242,13 +249,30 @@ def _replay(scenario, plugins, arm: str, rows, rule_class):
             world = plugins.registry.build("environment", room, options)
             judged.clear()
             try:
-                result, _ = run_guarded_trial(world, scenario.backend.use, defences=scenario.arms[arm], seed=seed,
-                                              max_steps=scenario.max_steps, plugins=plugins)
+                result, steps = run_guarded_trial(world, scenario.backend.use, defences=scenario.arms[arm], seed=seed,
+                                                  max_steps=scenario.max_steps, plugins=plugins)
             finally:
                 world.close()
-            yield room, seed, result, list(judged)
+            replays.append((room, seed, result, list(judged), _collided(steps, judged)))
     finally:
         rule_class.validate = original
+    return replays
+
+
+def _collided(steps, judged):
+    """The judged straight whose execution collided: the accepted plan's signal, matched by the step's
+    pose, its place in the plan and the signal itself."""
+    for record in steps:
+        for index, executed in enumerate(record.executed):
+            if not executed.result.collided:
+                continue
+            for item in reversed(judged):
+                signal, context, accepted, _ = item
+                if (accepted and signal == executed.signal and context.start_pose == record.pose_before
+                        and len(context.earlier_signals) == index):
+                    return item
+            return None
+    return None
 
 
 def misses(run: Path) -> None:
@@ -260,16 +284,18 @@ def misses(run: Path) -> None:
     from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
     scenario, plugins = _run_scenario(run)
-    rows = _trial_rows(run, "moving", _LABBOT_HIT)
+    rows = _trial_rows(run, "moving", labbot_hit=True)
     rules: dict = {}
-
-    for room, seed, result, judged in _replay(scenario, plugins, "moving", rows, MovingObstaclesRule):
-        accepted = [j for j in judged if j[2]]
-        if not result.collisions_self or "Labbot" not in result.detail or not accepted:
-            print(f"{room} {seed}: not reproduced, or no straight judged with an earlier scan ({result.detail[:60]})")
+    for room, seed, result, _, collided in _replay(scenario, plugins, "moving", rows, MovingObstaclesRule):
+        if not _labbot_self(result):
+            print(f"{room} {seed}: not reproduced ({result.detail[:60]})")
+            continue
+        if collided is None:
+            print(f"{room} {seed}: {result.detail[:50]} | not during a straight judged with an earlier scan "
+                  "(step 1, or hit while turning or waiting)")
             continue
         hit = int(result.detail.split("Labbot ")[1].split()[0].rstrip(":")) - 1
-        signal, context, _, labbots = accepted[-1]
+        signal, context, _, labbots = collided
         rule = rules.setdefault(room, _moving_rule(scenario, "moving"))
         blobs = rule.movers(context)[0]
         near = [b for b in blobs if np.hypot(*(b.centre - labbots[hit])) < 300]
@@ -308,34 +334,44 @@ def tradeoff(runs: list[Path], variants: list[str], sample: int) -> None:
 
     named = {"run": {}}
     for text in variants:
-        name, _, options = text.partition("=")
-        named[name] = json.loads(options)
+        name, equals, options = text.partition("=")
+        if not equals or name == "run":
+            raise SystemExit(f"--variant {text!r}: give NAME='{{\"option\": value}}' (NAME not 'run')")
+        try:
+            named[name] = json.loads(options)
+        except json.JSONDecodeError as error:
+            raise SystemExit(f"--variant {name}: not JSON ({error})") from None
     collided, missed, everyday = [], [], []
     for run in runs:
         scenario, plugins = _run_scenario(run)
-        for _, _, result, judged in _replay(scenario, plugins, "clearance", _trial_rows(run, "clearance", _LABBOT_HIT),
-                                            LidarClearanceRule):
-            accepted = [j for j in judged if j[2]]
-            if _labbot_self(result) and accepted:
-                collided.append((scenario, accepted[-1]))
-        for _, _, result, judged in _replay(scenario, plugins, "moving", _trial_rows(run, "moving", _LABBOT_HIT),
-                                            MovingObstaclesRule):
-            accepted = [j for j in judged if j[2]]
-            if _labbot_self(result) and accepted:
-                missed.append((scenario, accepted[-1]))
-        rows = _trial_rows(run, "moving", f"trial_index < {int(sample)}")
-        for _, _, _, judged in _replay(scenario, plugins, "moving", rows, MovingObstaclesRule):
+        for arm, rule_class, found in (("clearance", LidarClearanceRule, collided), ("moving", MovingObstaclesRule, missed)):
+            for _, _, result, _, straight in _replay(scenario, plugins, arm, _trial_rows(run, arm, labbot_hit=True),
+                                                     rule_class):
+                if _labbot_self(result):
+                    found.append(None if straight is None else (scenario, straight))
+        for _, _, _, judged, _ in _replay(scenario, plugins, "moving", _trial_rows(run, "moving", first=sample),
+                                          MovingObstaclesRule):
             everyday.extend((scenario, j) for j in judged)
-    print(f"runs {', '.join(map(str, runs))}: {len(collided)} straights that collided under V(C) alone, "
-          f"{len(missed)} under the moving arm, {len(everyday)} straights of its first {sample} trials per room "
-          f"(no_attack; replayed, first-order: not a measurement of what the refusals lead to)")
+    outside = sum(item is None for item in collided)
+    print(f"runs {', '.join(map(str, runs))}: {len(collided)} self collisions into Labbots under V(C) alone "
+          f"({outside} not during a straight judged with an earlier scan: step 1, turning or waiting -- counted as "
+          f"not caught), {len(missed)} under the moving arm, {len(everyday)} straights of its first {sample} trials "
+          "per room (no_attack; replayed, first-order: not a measurement of what the refusals lead to)")
     width = max(len(name) for name in named)
     print(f"{'variant':{width}s}  V(C) collisions refused  moving-arm collisions refused  caution  options")
     for name, overrides in named.items():
         def refused(items, overrides=overrides):
             rules: dict = {}  # one rule per scan, as in a trial (its movers are cached per scan)
-            return sum(not rules.setdefault(id(context.scan), _moving_rule(scenario, "moving", overrides))
-                       .validate(signal, context).valid for scenario, (signal, context, _, _) in items)
+            count = 0
+            for item in items:
+                if item is None:
+                    continue
+                scenario, (signal, context, _, _) = item
+                if id(context.scan) not in rules:
+                    rules[id(context.scan)] = _moving_rule(scenario, "moving", overrides)
+                count += not rules[id(context.scan)].validate(signal, context).valid
+            return count
+
         stops, caught, careful = refused(collided), refused(missed), refused(everyday)
         print(f"{name:{width}s}  {stops:4d}/{len(collided):<4d} ({100 * stops / max(len(collided), 1):3.0f}%)"
               f"          {caught:4d}/{len(missed):<4d}                    "

@@ -149,6 +149,14 @@ class MovingObstaclesOptions(BaseModel):
                                            description="faster pairings are not the same obstacle")
     expected_beams: int | None = Field(None, ge=4, description="refuse scans with another number of beams")
 
+    @model_validator(mode="after")
+    def _pairable(self) -> "MovingObstaclesOptions":
+        if self.cruise_speed_mm_s is not None and self.cruise_speed_mm_s > self.max_obstacle_speed_mm_s:
+            raise ValueError(f"cruise_speed_mm_s {self.cruise_speed_mm_s:g} is above max_obstacle_speed_mm_s "
+                             f"{self.max_obstacle_speed_mm_s:g}: a mover at its cruising speed could never be "
+                             "paired; raise max_obstacle_speed_mm_s")
+        return self
+
 
 def _limits(options, context):
     from .rules import CommandLimitsRule

@@ -7,11 +7,12 @@ on a heading drawn around the measured one, and then drifts as a random walk of 
 per square-root second. The measured speed is a chord's (the straight line between two scans),
 shorter than the path of a mover that turned or stopped on the way. With ``cruise_speed_mm_s``
 (movers known to move at that speed when they move) every course but course 0 runs at the larger
-of the measured and the cruising speed, and a chord shorter than a cruising mover's
-(:func:`~.tracking.chord_share` of its path) says the mover turned or stopped for part of the
-span: that share of the courses -- 1 - measured / expected chord speed -- starts on a heading
-drawn evenly all the way round (where it will go after the turn is unknown), the others around
-the chord; a chord shorter than ``still_mm`` gives no direction, and all courses are fanned.
+of the measured and the cruising speed, and a chord shorter than a wandering cruiser's reaches in
+all but ``TURN_QUANTILE`` (5%) of cases (:func:`~.tracking.chord_share_quantile`) says the mover
+turned or stopped for part of the span: that share of the courses -- 1 - measured / that chord
+speed -- starts on a heading drawn evenly all the way round (where it goes after a turn is
+unknown), the others around the chord; a chord shorter than ``still_mm`` gives no direction, and
+every course but course 0 is fanned.
 The spread of the starting heading is the random walk's over the span the velocity was measured
 on (a chord between two scans ``span_s`` apart points along the mean heading of that span, whose
 difference from the final heading has variance ``wander**2 * span / 3``). A mover of unknown velocity (where it was was not seen) gets courses
@@ -35,9 +36,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .tracking import Blob, chord_share
+from .tracking import Blob, chord_share_quantile
 
 _CHUNK = 128  # columns of noise drawn at a time (each chunk from its own seeded generator)
+#: a chord shorter than this quantile of a wandering cruiser's says the mover turned or stopped
+TURN_QUANTILE = 0.05
 
 
 @dataclass(frozen=True)
@@ -75,17 +78,22 @@ class WanderingFutures:
         return self._noise[:, :columns]
 
     def turned_share(self, blob: Blob) -> float:
-        """With a cruising speed: the share of a mover's courses that start after a turn (1 - the
-        measured speed over the chord speed expected of a cruising mover; 1 for a chord shorter than
-        ``still_mm``); 0 without one, or for an unknown velocity."""
+        """With a cruising speed: the share of a mover's courses that start after a turn, 1 - the
+        measured speed over the chord speed a cruising, wandering mover reaches in all but
+        ``TURN_QUANTILE`` of cases (so a mover that only wandered is read as turned that rarely);
+        1 for a chord shorter than ``still_mm``; 0 without a cruising speed, or for an unknown velocity."""
         s = self.s
         if s.cruise_speed_mm_s is None or blob.velocity is None:
             return 0.0
         measured = float(np.hypot(*blob.velocity))
         if measured * blob.span_s < s.still_mm:
             return 1.0
-        expected = s.cruise_speed_mm_s * chord_share(s.wander_deg, blob.span_s)
-        return float(np.clip(1.0 - measured / expected, 0.0, 1.0)) if expected > 0 else 0.0
+        least = s.cruise_speed_mm_s * chord_share_quantile(s.wander_deg, blob.span_s, TURN_QUANTILE)
+        return float(np.clip(1.0 - measured / least, 0.0, 1.0)) if least > 0 else 0.0
+
+    def turned_courses(self, blob: Blob) -> int:
+        """How many of the mover's courses start on a heading drawn all the way round (never course 0)."""
+        return int(np.count_nonzero(self._turn_draw < self.turned_share(blob)))
 
     def at(self, blob: Blob, times: np.ndarray) -> np.ndarray:
         """The courses' centres (count, len(times), 2) at ``times`` (s after the scan, >= 0)."""
@@ -110,8 +118,7 @@ class WanderingFutures:
             if cruise is not None:
                 speed = np.full((s.count, 1, 1), max(measured, cruise))
                 speed[0] = measured  # course 0: the measured course
-                turned = self.turned_share(blob)
-                start = np.where(self._turn_draw < turned, self._turn_heading, start)
+                start = np.where(self._turn_draw < self.turned_share(blob), self._turn_heading, start)
         drift = math.radians(s.wander_deg) * math.sqrt(s.step_s) * noise[:, 1:steps]
         heading = start[:, None] + np.concatenate((np.zeros((s.count, 1)), np.cumsum(drift, axis=1)), axis=1)
         step = speed * s.step_s * np.stack((np.cos(heading), np.sin(heading)), axis=-1)  # (count, steps, 2)

@@ -246,10 +246,10 @@ class MovingObstaclesRule(Validator):
             speed = float(np.hypot(*blob.velocity))
             course = math.degrees(math.atan2(blob.velocity[1], blob.velocity[0])) - pose.heading_deg
             motion = f"heading {(course + 180.0) % 360.0 - 180.0:.0f} deg at {speed:.0f} mm/s"
-            turned = self.futures.turned_share(blob)
-            if turned > 0:
+            turned = self.futures.turned_courses(blob)
+            if turned:
                 motion += (f"; slower than a mover cruising at {o.cruise_speed_mm_s:g} mm/s: it may have turned or "
-                           f"stopped, {turned:.0%} of its courses go any way")
+                           f"stopped, {turned} of its courses go any way")
         safe = self._safe_distance(signal, context, blobs, start)
         if safe >= 1:
             advice = f"going {direction}, at most {safe} mm is safe"

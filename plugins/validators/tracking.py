@@ -22,6 +22,7 @@ see (occluded, or beyond its range) -- is taken to be static: seen once, its mot
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -112,9 +113,29 @@ def chord_share(wander_deg: float, span_s: float) -> float:
     of ``wander_deg`` per square-root second, as a share of the path it drove over ``span_s``:
     sqrt(2 (kT - 1 + exp(-kT))) / kT with k = sigma**2 / 2 (1 for a straight course)."""
     k_t = math.radians(wander_deg) ** 2 / 2.0 * max(span_s, 0.0)
-    if k_t < 1e-9:
+    if k_t < 1e-12:
         return 1.0
-    return math.sqrt(2.0 * (k_t - 1.0 + math.exp(-k_t))) / k_t
+    return min(1.0, math.sqrt(2.0 * (k_t + math.expm1(-k_t))) / k_t)
+
+
+@functools.lru_cache(maxsize=256)
+def _chord_quantile(wander_deg: float, span_s: float, quantile: float) -> float:
+    walks, steps = 2000, 100
+    rng = np.random.default_rng(0)
+    sigma = math.radians(wander_deg) * math.sqrt(span_s / steps)
+    heading = np.cumsum(sigma * rng.standard_normal((walks, steps)), axis=1)
+    chord = np.hypot(np.cos(heading).mean(axis=1), np.sin(heading).mean(axis=1))
+    return float(np.quantile(chord, quantile))
+
+
+def chord_share_quantile(wander_deg: float, span_s: float, quantile: float) -> float:
+    """The ``quantile`` of the chord share (chord over path) of a mover at constant speed whose
+    heading drifts as a random walk of ``wander_deg`` per square-root second over ``span_s``: from
+    2,000 simulated walks of 100 steps (fixed draws; cached per 0.1 degree and 0.1 s)."""
+    wander, span = round(wander_deg, 1), round(max(span_s, 0.0), 1)
+    if wander <= 0 or span <= 0:
+        return 1.0
+    return _chord_quantile(wander, span, quantile)
 
 
 def _local(points_room: np.ndarray, scan: LidarScan, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
@@ -167,6 +188,41 @@ def _movers(scan: LidarScan, pose: Pose, moved_of, s: TrackingSettings,
     return discs, marked
 
 
+def _nearest_first(gaps: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
+    """Pairs (arrived -> departed) taken greedily, nearest first."""
+    partner: dict[int, int] = {}
+    for i, j in sorted(zip(*np.nonzero(feasible)), key=lambda ij: (gaps[ij], ij)):
+        if int(i) not in partner and int(j) not in partner.values():
+            partner[int(i)] = int(j)
+    return partner
+
+
+_EXACT_DEPARTED = 12  # more departed discs than this: greedy pairing (the exact search is 2**n)
+
+
+def _least_total(cost: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
+    """Pairs (arrived -> departed) as many as can be made, and among those the least total cost: a
+    search over subsets of the departed discs (a greedy best-first pass beyond ``_EXACT_DEPARTED`` of
+    them). Greedy best-first alone lets one good pair take the partner another mover needs: a
+    stopped mover near where a cruising one was gets the cruiser's earlier position."""
+    arrived, departed = cost.shape
+    if departed > _EXACT_DEPARTED:
+        return _nearest_first(np.where(feasible, cost, np.inf), feasible)
+    # best[mask]: (pairs made, -total cost) over the first i arrived discs, using the departed in mask
+    best = {0: ((0, 0.0), {})}
+    for i in range(arrived):
+        step: dict[int, tuple] = {}
+        for mask, (score, pairs) in best.items():
+            options = [(mask, score, pairs)]
+            options += [(mask | 1 << j, (score[0] + 1, score[1] - float(cost[i, j])), {**pairs, i: j})
+                        for j in range(departed) if feasible[i, j] and not mask & 1 << j]
+            for key, value, chosen in options:
+                if key not in step or value > step[key][0]:
+                    step[key] = (value, chosen)
+        best = step
+    return max(best.values(), key=lambda entry: entry[0])[1] if best else {}
+
+
 def find_movers(scan: LidarScan, pose: Pose, time_s: float, before: LidarScan, before_pose: Pose,
                 before_time_s: float, settings: TrackingSettings = TrackingSettings()) -> list[Blob]:
     """The movers of ``scan`` (positions now), with velocities from ``before`` where paired."""
@@ -179,15 +235,13 @@ def find_movers(scan: LidarScan, pose: Pose, time_s: float, before: LidarScan, b
     if dt > 0:
         departed, _ = _movers(before, before_pose, lambda room: _seen_beyond(room, scan, pose, settings.tolerance_mm),
                               settings, lambda room: _shadowed(room, scan, pose, beams, settings.tolerance_mm))
-    expected = (0.0 if settings.cruise_speed_mm_s is None
-                else settings.cruise_speed_mm_s * dt * chord_share(settings.wander_deg, dt))
-    pairs = sorted((abs(gap - expected), gap, i, j) for i, a in enumerate(arrived) for j, d in enumerate(departed)
-                   for gap in [float(np.hypot(*(a[0] - d[0])))])
-    partner: dict[int, int] = {}
-    for _, gap, i, j in pairs:
-        if i in partner or j in partner.values() or gap > settings.max_speed_mm_s * dt:
-            continue
-        partner[i] = j
+    gaps = np.array([[float(np.hypot(*(a[0] - d[0]))) for d in departed] for a in arrived]).reshape(len(arrived), -1)
+    feasible = gaps <= settings.max_speed_mm_s * dt
+    if settings.cruise_speed_mm_s is None:
+        partner = _nearest_first(gaps, feasible)
+    else:
+        expected = settings.cruise_speed_mm_s * dt * chord_share(settings.wander_deg, dt)
+        partner = _least_total(np.abs(gaps - expected), feasible)
     blobs = []
     for i, (centre, radius, count) in enumerate(arrived):
         velocity = (centre - departed[partner[i]][0]) / dt if i in partner else None

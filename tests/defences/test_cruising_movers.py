@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 import pytest
-from safeembodai_plugins.validators.futures import WanderingFutures, WanderSettings
-from safeembodai_plugins.validators.tracking import Blob, chord_share
+from safeembodai_plugins.validators.futures import TURN_QUANTILE, WanderingFutures, WanderSettings
+from safeembodai_plugins.validators.tracking import Blob, chord_share, chord_share_quantile
 
 from safeembodai_core.models import Pose
 
@@ -32,6 +32,13 @@ def test_the_expected_chord_is_the_random_walks_root_mean_square(wander, span):
     chord = np.hypot(np.cos(heading).sum(axis=1) * dt, np.sin(heading).sum(axis=1) * dt) / span
     assert chord_share(wander, span) == pytest.approx(math.sqrt(np.mean(chord ** 2)), abs=0.01)
     assert chord_share(0.0, span) == 1.0 and chord_share(wander, 0.0) == 1.0
+    assert chord_share_quantile(wander, span, 0.5) == pytest.approx(np.median(chord), abs=0.02)
+    assert chord_share_quantile(wander, span, 0.05) == pytest.approx(np.quantile(chord, 0.05), abs=0.03)
+
+
+@pytest.mark.parametrize("wander, span", [(0.001, 30.0), (0.01, 0.1), (0.005, 5.0), (0.03, 0.1)])
+def test_the_expected_chord_of_a_barely_wandering_mover_is_its_path(wander, span):
+    assert chord_share(wander, span) == pytest.approx(1.0, abs=1e-6)
 
 
 def velocities(options):
@@ -48,12 +55,34 @@ def test_a_column_of_movers_is_paired_nearest_first_without_a_cruising_speed_and
         assert velocity[0] == pytest.approx(0.0, abs=25.0) and velocity[1] == pytest.approx(150.0, abs=25.0)
 
 
-def test_a_pairing_faster_than_max_obstacle_speed_gives_an_unknown_velocity():
-    # only the leader was seen before: the one behind came out of nowhere (outside the old scan)
-    before, now = [(3000.0, 2500.0, LABBOT_MM)], COLUMN["now"]
+def test_a_stopped_mover_near_where_a_cruising_one_was_keeps_its_own_short_chord():
+    """Taken greedily, the pair nearest the expected chord (the stopped Labbot and where the cruising
+    one was) would leave the cruiser a partner 1.4 m away: the least total keeps both right."""
+    before = [(3000.0, 2000.0, LABBOT_MM), (3695.0, 2150.0, LABBOT_MM)]
+    now = [(3000.0, 2150.0, LABBOT_MM), (4445.0, 2150.0, LABBOT_MM)]
     blobs, _ = rule(cruise_speed_mm_s=150.0, max_obstacle_speed_mm_s=300.0).movers(context_for(LOOKING_UP, now, before))
-    unknown = [b for b in blobs if b.velocity is None]
-    assert len(blobs) == 2 and len(unknown) == 1
+    stopped, cruiser = sorted(blobs, key=lambda b: b.centre[0])
+    assert stopped.velocity == pytest.approx([0.0, 30.0], abs=15.0)  # 150 mm in 5 s: it stopped
+    assert cruiser.velocity == pytest.approx([150.0, 0.0], abs=15.0)
+
+
+def test_a_pairing_faster_than_max_obstacle_speed_gives_an_unknown_velocity():
+    # one Labbot, 1,750 mm on in 5 s (350 mm/s): over 300 mm/s it is not the same obstacle
+    before, now = [(3000.0, 1500.0, LABBOT_MM)], [(3000.0, 3250.0, LABBOT_MM)]
+    context = context_for(LOOKING_UP, now, before)
+    slow, = rule(cruise_speed_mm_s=150.0, max_obstacle_speed_mm_s=300.0).movers(context)[0]
+    fast, = rule(cruise_speed_mm_s=150.0, max_obstacle_speed_mm_s=1000.0).movers(context)[0]
+    assert slow.velocity is None
+    assert fast.velocity == pytest.approx([0.0, 350.0], abs=20.0)
+
+
+def test_a_cruising_speed_above_the_pairing_limit_is_refused_at_load():
+    from pydantic import ValidationError
+    from safeembodai_plugins.validators import MovingObstaclesOptions
+
+    with pytest.raises(ValidationError, match="max_obstacle_speed_mm_s"):
+        MovingObstaclesOptions(cruise_speed_mm_s=1400.0)
+    assert MovingObstaclesOptions(cruise_speed_mm_s=1400.0, max_obstacle_speed_mm_s=2000.0).cruise_speed_mm_s == 1400.0
 
 
 def mover(speed: float, span_s: float = 5.0) -> Blob:
@@ -67,28 +96,38 @@ def starts(futures: WanderingFutures, blob: Blob) -> np.ndarray:
     return np.degrees((heading[:, 0] + math.pi) % (2 * math.pi) - math.pi)
 
 
-def test_a_chord_as_long_as_a_cruising_movers_keeps_every_course_around_it():
+def test_a_chord_only_a_turn_explains_is_read_as_one_and_a_wandering_one_is_not():
+    """A cruiser that only wandered has a chord above the 5th percentile of wandering chords 95% of
+    the time: its courses stay around the chord; below it, the shortfall is the share fanned."""
     futures = WanderingFutures(WanderSettings(count=256, cruise_speed_mm_s=150.0))
-    full = mover(150.0 * chord_share(25.0, 5.0))
-    assert futures.turned_share(full) == 0.0
-    assert np.abs(starts(futures, full)).max() < 5 * 25.0 * math.sqrt(5.0 / 3.0)
+    rng = np.random.default_rng(1)
+    heading = np.cumsum(math.radians(25.0) * math.sqrt(0.05) * rng.standard_normal((2000, 100)), axis=1)
+    chords = 150.0 * np.hypot(np.cos(heading).mean(axis=1), np.sin(heading).mean(axis=1))  # 5 s at 150 mm/s
+    read_as_turned = np.mean([futures.turned_share(mover(c)) > 0 for c in chords[:400]])
+    assert read_as_turned < 0.1
+    typical = mover(150.0 * chord_share(25.0, 5.0))
+    assert futures.turned_share(typical) == 0.0
+    assert np.abs(starts(futures, typical)).max() < 5 * 25.0 * math.sqrt(5.0 / 3.0)
 
 
 def test_a_short_chord_fans_that_share_of_the_courses_at_the_cruising_speed():
     futures = WanderingFutures(WanderSettings(count=256, cruise_speed_mm_s=150.0))
-    half = mover(0.5 * 150.0 * chord_share(25.0, 5.0))
+    least = 150.0 * chord_share_quantile(25.0, 5.0, TURN_QUANTILE)
+    half = mover(0.5 * least)
     assert futures.turned_share(half) == pytest.approx(0.5)
+    assert 100 < futures.turned_courses(half) < 156  # about half of 256
     off = np.abs(starts(futures, half))
     assert 0.08 < np.mean(off > 120.0) < 0.26  # half fanned evenly, a third of those beyond 120 deg: 1/6
     where = futures.at(half, np.array([0.0, 1.0]))
     travelled = np.hypot(*(where[:, 1] - where[:, 0]).T)
-    assert travelled[0] == pytest.approx(0.5 * 150.0 * chord_share(25.0, 5.0), rel=0.01)  # course 0: measured
+    assert travelled[0] == pytest.approx(0.5 * least, rel=0.01)  # course 0: the measured course
     # the others cruise: a 1 s arc of a wandering course, its chord a little under 150 mm
     assert (travelled[1:] <= 150.0 + 1e-6).all() and np.median(travelled[1:]) > 145.0
     still = mover(10.0)  # 50 mm in 5 s: no direction at all
-    assert futures.turned_share(still) == 1.0
+    assert futures.turned_share(still) == 1.0 and futures.turned_courses(still) == 255  # all but course 0
     quadrants = np.floor((starts(futures, still)[1:] + 180.0) / 90.0)
     assert set(quadrants.tolist()) == {0.0, 1.0, 2.0, 3.0}
+    assert starts(futures, still)[0] == pytest.approx(0.0)
 
 
 def test_without_a_cruising_speed_nothing_is_fanned():
@@ -108,3 +147,4 @@ def test_a_mover_that_stopped_to_turn_is_refused_in_the_way_only_with_a_cruising
     assert not refusals([go(399), go(399)], context, rule())
     refused = refusals([go(399), go(399)], context, rule(cruise_speed_mm_s=150.0))
     assert refused and "at most" in refused[0].reason
+    assert "may have turned or stopped" in refused[0].reason and " of its courses go any way" in refused[0].reason
