@@ -19,9 +19,10 @@ rate and completed share compare with ``clearance`` (V(C) alone), pooled over bo
 (differences with Newcombe's 95% intervals), against the issue's bar (``self`` down by >= 80 %, completed down by <= 5 points).
 
 ``python bench/moving_obstacles.py misses RUN`` replays the ``moving`` arm's ``no_attack`` trials
-that ended in a ``self`` collision and prints, for the straight that collided, what the rule knew:
-no earlier scan (step 1), the Labbot not found moving, or the share of its predicted courses the
-straight met (below ``max_risk``, or it would have been refused). Replays use the options the run
+that ended in a ``self`` collision and prints, for the straight whose execution collided, what the
+rule knew: nothing (the collision was not during a straight judged with an earlier scan: step 1,
+or hit while turning or waiting), the Labbot not found moving, or the share of its predicted
+courses the straight met (below ``max_risk``, or it would have been refused). Replays use the options the run
 was made with (its ``scenario.json``).
 
 ``python bench/moving_obstacles.py tradeoff RUN [RUN ...] --variant NAME='{"option": value}' [--sample N]``
@@ -277,9 +278,9 @@ def _collided(steps, judged):
 
 def misses(run: Path) -> None:
     """Replay the ``no_attack`` trials of the ``moving`` arm that ended in a ``self`` collision and
-    say, for the straight that collided, what the rule knew: how many earlier scans it had, the
-    mover nearest the Labbot hit, and the share of that mover's courses the straight met (and the
-    share met before the standing-still comparison set some aside)."""
+    say, for the straight whose execution collided, what the rule knew: the mover nearest the
+    Labbot hit, and the share of that mover's courses the straight met (and the share met before
+    the standing-still comparison set some aside)."""
     import numpy as np
     from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
