@@ -8,7 +8,9 @@ model, that every plan whose motion drives the body into the mover is refused.""
 
 from __future__ import annotations
 
+import functools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -199,6 +201,25 @@ def _body_at(plan, pose: Pose, when: float, options: MovingObstaclesOptions) -> 
     return np.array([x, y])
 
 
+@functools.cache
+def _shipped(path: str = "scenarios/dynamic.yaml") -> dict:
+    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.scenario import load_scenario
+
+    root = Path(__file__).resolve().parents[2]
+    scenario = load_scenario(str(root / path), [], load_plugins(environ={}).registry)
+    ref = next(v for v in scenario.arms["moving"].validators if getattr(v, "use", v) == "moving_obstacles")
+    return dict(ref.options)
+
+
+def _shipped_options(yielding: bool) -> dict:
+    """The ``moving`` arm's options in ``scenarios/dynamic.yaml`` (without its yielding movers if asked)."""
+    options = dict(_shipped())
+    if not yielding:
+        options.pop("movers_yield_mm", None)
+    return options
+
+
 signals = st.one_of(
     st.builds(go, st.floats(1, 399).flatmap(lambda d: st.sampled_from([d, -d]))),
     st.builds(rotate, st.floats(1, 89).flatmap(lambda a: st.sampled_from([a, -a]))),
@@ -226,12 +247,12 @@ def test_every_plan_that_drives_into_the_mover_is_refused(wander, cruising, plan
     into its straight course by more than 60 mm, where standing still would have stayed 60 mm clear
     of it, is refused too (there the straight course is one of many, and a graze of it -- or a
     course that nearly reaches the waiting robot anyway -- can count in fewer than ``max_risk``
-    of them). With the cruising courses of ``scenarios/dynamic.yaml``'s ``moving`` arm (cruising
-    speed 150 mm/s, its margin growth and ``max_risk``; movers that do not yield) the same holds
-    for a mover at least that fast."""
+    of them). With the options of ``scenarios/dynamic.yaml``'s ``moving`` arm (cruising speed 150
+    mm/s, its margin growth and ``max_risk``; these movers do not yield) the same holds for a mover
+    at least that fast."""
     if cruising:
-        speed = max(speed, 150.0)
-        validator = rule(cruise_speed_mm_s=150.0, max_obstacle_speed_mm_s=300.0, margin_growth_mm_s=5.0, max_risk=0.04)
+        speed = 150.0 + (speed - 80.0) * 100.0 / 170.0  # 150 to 250 mm/s: at least the cruising speed
+        validator = rule(**_shipped_options(yielding=False))
     else:
         validator = rule(wander_deg=wander, cruise_speed_mm_s=None)  # courses at the measured speed
     pose = Pose(x_mm=3000.0, y_mm=3000.0, heading_deg=heading)
