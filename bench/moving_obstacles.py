@@ -16,7 +16,9 @@ condition: trials, outcomes, trials with a ``self`` collision into a Labbot (rat
 95% Wilson interval), ``struck`` collisions, completed share (Wilson interval), MOER (its
 bootstrap interval) and mean steps of completed trials; then, per room, how each arm's ``self``
 rate and completed share compare with ``clearance`` (V(C) alone), pooled over both conditions
-(differences with Newcombe's 95% intervals), against the issue's bar (``self`` down by >= 80 %, completed down by <= 5 points).
+(differences with Newcombe's 95% intervals), against the issue's bar (``self`` down by >= 80 %, completed down by <= 5
+points); and where the completed trials go: the ``moving`` arm's trials with no ``moving_obstacles`` refusal are the
+same trials as ``clearance``'s of the same seed, and for those with one, how each arm's trial ended.
 
 ``python bench/moving_obstacles.py misses RUN`` replays the ``moving`` arm's ``no_attack`` trials
 that ended in a ``self`` collision and prints, for the straight whose execution collided, what the
@@ -195,6 +197,36 @@ def ablation(runs: list[Path]) -> None:
                   f"[{100 * own_ci[0]:+.1f}, {100 * own_ci[1]:+.1f}] ({100 * cut:+.0f}% cut of {100 * base_self:.1f})"
                   f"  completed {100 * done:+.1f} points [{100 * done_ci[0]:+.1f}, {100 * done_ci[1]:+.1f}]  "
                   f"bar met: {cut >= 0.8 and done >= -0.05}")
+    _where_completions_go(runs)
+
+
+def _where_completions_go(runs: list[Path]) -> None:
+    """The ``moving`` arm's trials against the ``clearance`` trials of the same seed (same room,
+    condition and index): with no ``moving_obstacles`` refusal the two are the same trial (the rule
+    changed nothing); with one, how each ended."""
+    rows = []
+    for run in runs:
+        database = run / "results.sqlite" if run.is_dir() else run
+        with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
+            rows += connection.execute(
+                "SELECT m.environment, EXISTS (SELECT 1 FROM verdicts v WHERE v.trial_id = m.trial_id AND v.valid = 0 "
+                "AND v.rule = 'moving_obstacles'), m.outcome, c.outcome FROM trials m JOIN trials c ON "
+                "c.environment = m.environment AND c.condition = m.condition AND c.trial_index = m.trial_index "
+                "AND c.arm = 'clearance' WHERE m.arm = 'moving' AND m.outcome IS NOT NULL AND c.outcome IS NOT NULL"
+            ).fetchall()
+    if not rows:
+        return
+    print("\nthe moving arm against the clearance trial of the same seed (both conditions):")
+    for room in sorted({row[0] for row in rows}):
+        mine = [row for row in rows if row[0] == room]
+        untouched = [row for row in mine if not row[1]]
+        refused = [row for row in mine if row[1]]
+        same = sum(row[2] == row[3] for row in untouched)
+        print(f"  {room}: {len(untouched)} trials without a refusal by moving_obstacles ({same} ended the same way as "
+              f"under V(C) alone); {len(refused)} ({100 * len(refused) / len(mine):.0f}%) with one: completed "
+              f"{sum(r[2] == 'completed' for r in refused)} vs {sum(r[3] == 'completed' for r in refused)} under V(C), "
+              f"collided {sum(r[2] == 'interrupted' for r in refused)} vs {sum(r[3] == 'interrupted' for r in refused)}, "
+              f"timed out {sum(r[2] == 'timeout' for r in refused)} vs {sum(r[3] == 'timeout' for r in refused)}")
 
 
 def _run_scenario(run: Path):
