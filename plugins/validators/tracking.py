@@ -8,11 +8,12 @@ grouped into clusters (neighbouring beams, gaps under ``cluster_gap_mm``); a clu
 least ``min_points`` arrived (or departed) returns is a mover, seen as a disc (:class:`Blob`)
 fitted to the arc the sensor saw. Each arrived disc is paired with a departed disc it could have
 come from (at most ``max_speed_mm_s`` away over the time between the scans): that pair gives the
-velocity. Pairs are taken greedily, best first: nearest first, or -- when movers are known to
-cruise at ``cruise_speed_mm_s`` -- the pair whose gap is nearest the chord such a mover drives
-over that time (:func:`chord_share`), so that movers following each other in a column, or
-crossing, are not paired with each other's earlier positions. An arrived disc with no partner
-(where it was was hidden, or out of range) is a mover of unknown velocity. A mover coming along the line of sight hides where it was
+velocity. By default pairs are taken greedily, nearest first; when movers are known to cruise at
+``cruise_speed_mm_s``, as many pairs as can be made with the least total departure from the chord
+such a mover drives over that time (:func:`chord_share`), so that movers following each other in
+a column, or crossing, are not paired with each other's earlier positions, and a stopped mover
+keeps its own short chord. An arrived disc with no partner (where it was was hidden, or out of
+range) is a mover of unknown velocity. A mover coming along the line of sight hides where it was
 behind where it is: a compact cluster of the older scan now hidden behind an arrived return
 counts as departed too (a ball behind a mover can then be taken for where it came from).
 
@@ -188,10 +189,10 @@ def _movers(scan: LidarScan, pose: Pose, moved_of, s: TrackingSettings,
     return discs, marked
 
 
-def _nearest_first(gaps: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
-    """Pairs (arrived -> departed) taken greedily, nearest first."""
+def _greedy(cost: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
+    """Pairs (arrived -> departed) taken greedily, lowest cost first (with the gaps: nearest first)."""
     partner: dict[int, int] = {}
-    for i, j in sorted(zip(*np.nonzero(feasible)), key=lambda ij: (gaps[ij], ij)):
+    for i, j in sorted(zip(*np.nonzero(feasible)), key=lambda ij: (cost[ij], ij)):
         if int(i) not in partner and int(j) not in partner.values():
             partner[int(i)] = int(j)
     return partner
@@ -207,7 +208,7 @@ def _least_total(cost: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
     stopped mover near where a cruising one was gets the cruiser's earlier position."""
     arrived, departed = cost.shape
     if departed > _EXACT_DEPARTED:
-        return _nearest_first(np.where(feasible, cost, np.inf), feasible)
+        return _greedy(cost, feasible)
     # best[mask]: (pairs made, -total cost) over the first i arrived discs, using the departed in mask
     best = {0: ((0, 0.0), {})}
     for i in range(arrived):
@@ -238,7 +239,7 @@ def find_movers(scan: LidarScan, pose: Pose, time_s: float, before: LidarScan, b
     gaps = np.array([[float(np.hypot(*(a[0] - d[0]))) for d in departed] for a in arrived]).reshape(len(arrived), -1)
     feasible = gaps <= settings.max_speed_mm_s * dt
     if settings.cruise_speed_mm_s is None:
-        partner = _nearest_first(gaps, feasible)
+        partner = _greedy(gaps, feasible)
     else:
         expected = settings.cruise_speed_mm_s * dt * chord_share(settings.wander_deg, dt)
         partner = _least_total(np.abs(gaps - expected), feasible)
