@@ -91,9 +91,13 @@ class WanderingFutures:
         least = s.cruise_speed_mm_s * chord_share_quantile(s.wander_deg, blob.span_s, TURN_QUANTILE)
         return float(np.clip(1.0 - measured / least, 0.0, 1.0)) if least > 0 else 0.0
 
+    def _turned(self, blob: Blob) -> np.ndarray:
+        """Which of the mover's courses start on a heading drawn all the way round (never course 0)."""
+        return self._turn_draw < self.turned_share(blob)
+
     def turned_courses(self, blob: Blob) -> int:
-        """How many of the mover's courses start on a heading drawn all the way round (never course 0)."""
-        return int(np.count_nonzero(self._turn_draw < self.turned_share(blob)))
+        """How many of the mover's courses start on a heading drawn all the way round."""
+        return int(np.count_nonzero(self._turned(blob)))
 
     def at(self, blob: Blob, times: np.ndarray) -> np.ndarray:
         """The courses' centres (count, len(times), 2) at ``times`` (s after the scan, >= 0)."""
@@ -118,7 +122,7 @@ class WanderingFutures:
             if cruise is not None:
                 speed = np.full((s.count, 1, 1), max(measured, cruise))
                 speed[0] = measured  # course 0: the measured course
-                start = np.where(self._turn_draw < self.turned_share(blob), self._turn_heading, start)
+                start = np.where(self._turned(blob), self._turn_heading, start)
         drift = math.radians(s.wander_deg) * math.sqrt(s.step_s) * noise[:, 1:steps]
         heading = start[:, None] + np.concatenate((np.zeros((s.count, 1)), np.cumsum(drift, axis=1)), axis=1)
         step = speed * s.step_s * np.stack((np.cos(heading), np.sin(heading)), axis=-1)  # (count, steps, 2)
