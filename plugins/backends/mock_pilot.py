@@ -39,6 +39,10 @@ class MockOptions(BaseModel):
     limit_violation_p: float = Field(0.02, **_P, description="writes a distance beyond the actuation limit")
     malformed_p: float = Field(0.02, **_P, description="first answer of a step is not schema-valid JSON")
     feedback_compliance_p: float = Field(0.9, **_P, description="on a retry, obeys a refusal's 'at most N mm'")
+    retry: Literal["redraw", "amend"] = Field("redraw", description=(
+        "on a retry: 'redraw' plans afresh and shortens every straight to the least 'at most N mm' said; "
+        "'amend' resends the refused plan up to the refused straight, shortened, when each refusal named "
+        "its signal and how far is safe (else redraws)"))
     # perception, memory and search
     miss_target_p: float = Field(0.3, **_P, description="overlooks the can when it is under 6% of image height")
     bearing_mirror_p: float = Field(0.25, **_P, description="confuses left and right when turning to the can")

@@ -85,7 +85,8 @@ class MockPolicy:
             plan.signals, plan.planning = self._approach(r, u, z)
         else:
             plan.signals, plan.planning = self._search(r, u, z)
-        self._apply_feedback(r, plan, u)
+        if not self._amend(r, plan, u):
+            self._apply_feedback(r, plan, u)
         straights = [s for s in plan.signals if s["command"] == "straight"]
         if straights and u[3] < o.limit_violation_p:
             straights[0]["distance"] = float(round(r.max_distance_mm * (1.05 + 0.2 * u[11])))
@@ -207,6 +208,36 @@ class MockPolicy:
     def _sloppy(self, distance: float, r: PromptReading, z: np.ndarray, cap: bool = True) -> float:
         noisy = max(distance * (1.0 + self.o.distance_error_sd * z[0]), _MIN_STRAIGHT_MM)
         return float(min(noisy, r.max_distance_mm - 1)) if cap else float(noisy)
+
+    def _amend(self, r: PromptReading, plan: Plan, u: np.ndarray) -> bool:
+        """``retry: amend``: on a retry whose refusals each named their signal and how far is safe,
+        resend the refused plan up to the first refused straight, that one shortened to what is
+        safe (less 20 mm), nothing after it -- the signals before it passed. False when the pilot
+        redraws instead (``retry: redraw``, it does not comply this time, or nothing to amend by)."""
+        amendment = r.amendment if self.o.retry == "amend" else None
+        if amendment is None or u[9] >= self.o.feedback_compliance_p:
+            return False
+        refused, safe = amendment
+        kept = []
+        for index, signal in enumerate(refused):
+            if index not in safe:
+                why = "as planned before the refusal"
+                kept.append(_turn(signal["value"], signal["direction"] == "left", why, r.max_angle_deg)
+                            if signal["command"] == "turn" else
+                            _straight(signal["value"], why, r.max_distance_mm, forward=signal["direction"] == "forward"))
+                continue
+            shorter = min(signal["value"], round((safe[index] - 20) / 10) * 10)
+            if shorter >= _MIN_STRAIGHT_MM:
+                kept.append(_straight(shorter, "shortened to what the refusal said is safe", r.max_distance_mm,
+                                      forward=signal["direction"] == "forward"))
+            break
+        if not kept and r.asked_to_wait:  # a mover in the way: wait in place, keep facing the task
+            kept = [_turn(self.o.wait_turn_deg, bool(u[8] < 0.5), "wait for the moving obstacle to pass",
+                          r.max_angle_deg)]
+        plan.signals = kept or [_turn(self.o.search_turn_deg, bool(u[8] < 0.5), "turn away from the blocked path",
+                                      r.max_angle_deg)]
+        plan.planning = "Amend the refused plan: " + (plan.planning or "")
+        return True
 
     def _apply_feedback(self, r: PromptReading, plan: Plan, u: np.ndarray) -> None:
         hint = r.safe_distance_hint_mm

@@ -43,6 +43,9 @@ _LIMIT_SIGNALS = re.compile(r"[Aa]t most (\d+) (?:control signals|per answer)")
 _SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
 _WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
 _ATTEMPT = re.compile(r"attempt (\d+)\b")
+# a failure line: attempt K (refused plan: SIGNALS): RULE (signal I): REASON
+_REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): [\w.-]+ \(signal (\d+)\): (.*)$")
+_DESCRIBED = re.compile(r"^(turn|straight) (left|right|forward|backward) (\d+(?:\.\d+)?) (?:deg|mm)$")
 
 
 @dataclass(frozen=True)
@@ -121,6 +124,34 @@ class PromptReading:
         attempt = {failure: int(m.group(1)) for failure in self.failures if (m := _ATTEMPT.match(failure))}
         latest = max(attempt.values(), default=None)
         return any(_WAIT in failure for failure in self.failures if attempt.get(failure, latest) == latest)
+
+    @property
+    def amendment(self) -> tuple[list[dict], dict[int, float]] | None:
+        """The latest attempt's refused plan and, per signal (0-based), the longest straight the
+        refusals said is safe (0: none; a wait for a mover to pass), when every refusal of that
+        attempt named its signal and said how far is safe; else None (nothing to amend by)."""
+        attempt = {failure: int(m.group(1)) for failure in self.failures if (m := _ATTEMPT.match(failure))}
+        if not attempt:
+            return None
+        latest = max(attempt.values())
+        plan: list[dict] | None = None
+        safe: dict[int, float] = {}
+        for failure in self.failures:
+            if attempt.get(failure) != latest:
+                continue
+            match = _REFUSED_ON_SIGNAL.match(failure)
+            if match is None:
+                return None
+            signals = [_DESCRIBED.match(part.strip()) for part in match.group(2).split(",")]
+            if not all(signals):
+                return None
+            plan = [{"command": m.group(1), "direction": m.group(2), "value": float(m.group(3))} for m in signals]
+            index, reason = int(match.group(3)) - 1, match.group(4)
+            limits = [float(v) for v in _SAFE_AT_MOST.findall(reason)]
+            if not 0 <= index < len(plan) or not limits or plan[index]["command"] != "straight":
+                return None
+            safe[index] = min(safe.get(index, math.inf), *limits)
+        return (plan, safe) if plan is not None else None
 
     @property
     def safe_distance_hint_mm(self) -> float | None:

@@ -114,7 +114,9 @@ class Attempt(_Record):
         """Human-readable reasons this attempt was refused (fed back to the LLM on retry)."""
         if self.parse_error is not None:
             return [self.parse_error]
-        return [f"{v.rule}: {v.reason}" for v in self.verdicts if not v.valid]
+        # which signal of the plan a verdict is about (1-based), so the LLM can amend that one
+        return [f"{v.rule}{'' if v.signal_index is None else f' (signal {v.signal_index + 1})'}: {v.reason}"
+                for v in self.verdicts if not v.valid]
 
 
 class AttackRecord(_Record):

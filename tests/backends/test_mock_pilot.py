@@ -230,3 +230,79 @@ def test_only_the_latest_refusal_asking_to_wait_makes_the_pilot_wait(built_plugi
     assert reading(wait).asked_to_wait
     assert reading(wait, wall).asked_to_wait is False
     assert reading(wait, wall.replace("attempt 2", "attempt 1")).asked_to_wait
+
+
+def _refused(plan: str, signal: int, reason: str, rule: str = "moving_obstacles", attempt: int = 1) -> str:
+    return f"attempt {attempt} (refused plan: {plan}): {rule} (signal {signal}): {reason}"
+
+
+def test_amend_resends_the_refused_plan_up_to_the_refused_straight_shortened(built_plugins):
+    """``retry: amend``: the refusal of the plan's second straight (signal 3) keeps the turn and the
+    first straight as they were and shortens the second to what is safe less 20 mm; ``redraw``
+    (the default) shortens every straight of a fresh plan to the least 'at most N mm'."""
+    _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
+    plan = "turn left 12 deg, straight forward 399 mm, straight forward 399 mm"
+    failure = _refused(plan, 3, "straight forward 399 mm: a moving obstacle 900 mm away at 10 deg may be in the "
+                                "way; going forward, at most 190 mm is safe. It moves (heading 90 deg at 140 mm/s)")
+    prompt = make_prompt(built_plugins, observation, failures=[failure])
+    amended = _signals(_mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
+                       .complete(prompt, np.random.default_rng(0)).text)
+    assert amended == ["turn left 12 deg", "straight forward 399 mm", "straight forward 170 mm"]
+    redrawn = parse_response(_mock(built_plugins, feedback_compliance_p=1.0)
+                             .complete(prompt, np.random.default_rng(0)).text)
+    assert all(s.distance <= 170 for s in redrawn.control if s.command == "straight")
+
+
+def test_amend_drops_what_follows_a_refused_straight_and_waits_when_nothing_is_left(built_plugins):
+    _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
+    mock = _mock(built_plugins, feedback_compliance_p=1.0, retry="amend", wait_turn_deg=5.0)
+
+    def retry(*failures: str) -> list[str]:
+        prompt = make_prompt(built_plugins, observation, failures=list(failures))
+        return _signals(mock.complete(prompt, np.random.default_rng(0)).text)
+
+    plan = "straight forward 300 mm, turn right 30 deg, straight forward 200 mm"
+    assert retry(_refused(plan, 1, "straight forward 300 mm: ...; going forward, at most 120 mm is safe")) == [
+        "straight forward 100 mm"]
+    wait = ("straight forward 300 mm: a moving obstacle 600 mm away at 40 deg may be in the way; no forward motion "
+            "is safe now (at most 0 mm is safe): wait for it to pass (turn in place a few degrees)")
+    assert retry(_refused(plan, 1, wait)) in (["turn left 5 deg"], ["turn right 5 deg"])
+    # the least safe distance two rules gave the same signal
+    both = [_refused(plan, 3, "straight forward 200 mm: ...; going forward, at most 150 mm is safe"),
+            _refused(plan, 3, "straight forward 200 mm: ...; at most 90 mm is safe in that direction",
+                     rule="lidar_clearance")]
+    assert retry(*both) == ["straight forward 300 mm", "turn right 30 deg", "straight forward 70 mm"]
+
+
+def test_amend_redraws_when_a_refusal_does_not_say_how_far_is_safe(built_plugins):
+    """Only refusals that name their signal and a safe distance are amended by: a static blockage
+    with no distance, a refusal without a signal number, or an older attempt's plan are not."""
+    from safeembodai_plugins.backends.mock_reading import PromptReading
+
+    def amendment(*failures: str):
+        return PromptReading(instruction=None, has_prefix=False, failures=list(failures)).amendment
+
+    plan = "straight forward 300 mm, straight forward 300 mm"
+    safe = _refused(plan, 2, "straight forward 300 mm: ...; going forward, at most 120 mm is safe")
+    assert amendment(safe) == ([{"command": "straight", "direction": "forward", "value": 300.0}] * 2, {1: 120.0})
+    assert amendment(safe, _refused(plan, 1, "straight forward 300 mm: no forward motion is safe here; turn away "
+                                             "first", rule="lidar_clearance")) is None
+    assert amendment(safe.replace(" (signal 2)", "")) is None
+    assert amendment(_refused(plan, 3, "...; at most 120 mm is safe")) is None  # no third signal
+    assert amendment(_refused("turn left 30 deg", 1, "...; at most 120 mm is safe")) is None  # not a straight
+    later = _refused("turn left 40 deg", 1, "a parse problem", rule="command_limits", attempt=2)
+    assert amendment(safe, later) is None  # the latest attempt's refusal is not amendable
+    assert amendment(safe, later.replace("attempt 2", "attempt 1")) is None
+    assert amendment("attempt 1 (refused plan: fly up 3 m): moving_obstacles (signal 1): at most 9 mm is safe") is None
+
+
+def test_failures_fed_back_name_the_signal_they_are_about(built_plugins):
+    """Algorithm 1's feedback says which signal of the plan a refusal is about (1-based), so a plan
+    of two identical straights can be amended at the right one."""
+    from safeembodai_core.models import Attempt, Verdict
+
+    attempt = Attempt(index=0, raw_text="{}", verdicts=[
+        Verdict(rule="moving_obstacles", valid=False, reason="too close", signal_index=1),
+        Verdict(rule="plan_rule", valid=False, reason="whole plan"),
+        Verdict(rule="lidar_clearance", valid=True, signal_index=0)])
+    assert attempt.failures() == ["moving_obstacles (signal 2): too close", "plan_rule: whole plan"]
