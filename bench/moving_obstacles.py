@@ -282,7 +282,8 @@ def _replay(scenario, plugins, arm: str, rows, rule_class) -> list:
             world = plugins.registry.build("environment", room, options)
             judged.clear()
             try:
-                result, steps = run_guarded_trial(world, scenario.backend.use, defences=scenario.arms[arm], seed=seed,
+                backend = {"use": scenario.backend.use, "options": dict(scenario.backend.options or {})}  # as the run had it
+                result, steps = run_guarded_trial(world, backend, defences=scenario.arms[arm], seed=seed,
                                                   max_steps=scenario.max_steps, plugins=plugins)
             finally:
                 world.close()
