@@ -54,6 +54,13 @@ def _turn(angle: float, left: bool, why: str, limit: float) -> dict[str, Any]:
     return {"command": "turn", "direction": "left" if left else "right", "angle": angle, "justification": why}
 
 
+def _fields(signal: dict[str, Any]) -> dict[str, Any]:
+    """A signal read back from a refused plan (command, direction, value), as the answer's fields,
+    with its value as it was (it passed, or is about to be shortened)."""
+    key = "angle" if signal["command"] == "turn" else "distance"
+    return {"command": signal["command"], "direction": signal["direction"], key: float(signal["value"])}
+
+
 def _straight(distance: float, why: str, limit: float, forward: bool = True) -> dict[str, Any]:
     distance = float(min(max(round(distance / 10.0) * 10, 10.0), limit - 1))
     return {"command": "straight", "direction": "forward" if forward else "backward",
@@ -212,8 +219,9 @@ class MockPolicy:
     def _amend(self, r: PromptReading, plan: Plan, u: np.ndarray) -> bool:
         """``retry: amend``: on a retry whose refusals each named their signal and how far is safe,
         resend the refused plan up to the first refused straight, that one shortened to what is
-        safe (less 20 mm), nothing after it -- the signals before it passed. False when the pilot
-        redraws instead (``retry: redraw``, it does not comply this time, or nothing to amend by)."""
+        safe (less 20 mm), nothing after it -- the signals before it passed and are resent as they
+        were. False when the pilot redraws instead (``retry: redraw``, it does not comply this time,
+        nothing to amend by, or the refusal allows the whole straight: resending it would repeat it)."""
         amendment = r.amendment if self.o.retry == "amend" else None
         if amendment is None or u[9] >= self.o.feedback_compliance_p:
             return False
@@ -221,21 +229,16 @@ class MockPolicy:
         kept = []
         for index, signal in enumerate(refused):
             if index not in safe:
-                why = "as planned before the refusal"
-                kept.append(_turn(signal["value"], signal["direction"] == "left", why, r.max_angle_deg)
-                            if signal["command"] == "turn" else
-                            _straight(signal["value"], why, r.max_distance_mm, forward=signal["direction"] == "forward"))
+                kept.append({**_fields(signal), "justification": "as planned before the refusal"})
                 continue
-            shorter = min(signal["value"], round((safe[index] - 20) / 10) * 10)
+            shorter = float(round((safe[index] - 20) / 10) * 10)
+            if shorter >= signal["value"]:
+                return False
             if shorter >= _MIN_STRAIGHT_MM:
-                kept.append(_straight(shorter, "shortened to what the refusal said is safe", r.max_distance_mm,
-                                      forward=signal["direction"] == "forward"))
+                kept.append({**_fields(signal), "distance": shorter,
+                             "justification": "shortened to what the refusal said is safe"})
             break
-        if not kept and r.asked_to_wait:  # a mover in the way: wait in place, keep facing the task
-            kept = [_turn(self.o.wait_turn_deg, bool(u[8] < 0.5), "wait for the moving obstacle to pass",
-                          r.max_angle_deg)]
-        plan.signals = kept or [_turn(self.o.search_turn_deg, bool(u[8] < 0.5), "turn away from the blocked path",
-                                      r.max_angle_deg)]
+        plan.signals = self._or_wait(r, kept, u)
         plan.planning = "Amend the refused plan: " + (plan.planning or "")
         return True
 
@@ -251,8 +254,13 @@ class MockPolicy:
                 signal = {**signal, "distance": float(round((hint - 20) / 10) * 10),
                           "justification": signal["justification"] + " (shortened after the refusal)"}
             kept.append(signal)
+        plan.signals = self._or_wait(r, kept, u)
+
+    def _or_wait(self, r: PromptReading, kept: list[dict[str, Any]], u: np.ndarray) -> list[dict[str, Any]]:
+        """What is left of a refused plan; with nothing left, a wait in place when the refusal asked to
+        wait for a mover to pass, else a turn away from the blocked path."""
         if not kept and r.asked_to_wait:  # a mover in the way: wait in place, keep facing the task
             kept = [_turn(self.o.wait_turn_deg, bool(u[8] < 0.5), "wait for the moving obstacle to pass",
                           r.max_angle_deg)]
-        plan.signals = kept or [_turn(self.o.search_turn_deg, bool(u[8] < 0.5), "turn away from the blocked path",
-                                      r.max_angle_deg)]
+        return kept or [_turn(self.o.search_turn_deg, bool(u[8] < 0.5), "turn away from the blocked path",
+                              r.max_angle_deg)]

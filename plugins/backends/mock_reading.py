@@ -44,7 +44,8 @@ _SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
 _WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
 _ATTEMPT = re.compile(r"attempt (\d+)\b")
 # a failure line: attempt K (refused plan: SIGNALS): RULE (signal I): REASON
-_REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): [\w.-]+ \(signal (\d+)\): (.*)$")
+_REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): (?:.+?) \(signal (\d+)\): (.*)$")
+_OMITTED = re.compile(r"^- \((\d+) earlier problems? not shown\)")
 _DESCRIBED = re.compile(r"^(turn|straight) (left|right|forward|backward) (\d+(?:\.\d+)?) (?:deg|mm)$")
 
 
@@ -85,6 +86,7 @@ class PromptReading:
     points: np.ndarray | None = None
     reference: ReferenceReading | None = None
     failures: list[str] = field(default_factory=list)
+    omitted_failures: int = 0  # earlier failure lines the prompt left out
     max_distance_mm: float = 400.0
     max_angle_deg: float = 90.0
     max_signals: int = 5
@@ -134,6 +136,8 @@ class PromptReading:
         if not attempt:
             return None
         latest = max(attempt.values())
+        if self.omitted_failures and attempt.get(self.failures[0]) == latest:
+            return None  # the prompt may have left out some of the latest attempt's refusals
         plan: list[dict] | None = None
         safe: dict[int, float] = {}
         for failure in self.failures:
@@ -204,6 +208,7 @@ def read_prompt(prompt: Prompt, camera_fov_deg: float = 60.0, lidar_range_mm: fl
         has_prefix="security_prefix" in prompt.sections,
         reference=_reference(text) if "reference_state" in prompt.sections else None,
         failures=[line[2:] for line in lines if line.startswith("- attempt")],
+        omitted_failures=sum(int(m.group(1)) for line in lines if (m := _OMITTED.match(line))),
     )
     for pattern, name, kind in ((_LIMIT_DISTANCE, "max_distance_mm", float), (_LIMIT_ANGLE, "max_angle_deg", float),
                                 (_LIMIT_SIGNALS, "max_signals", int)):

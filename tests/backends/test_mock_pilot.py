@@ -306,3 +306,53 @@ def test_failures_fed_back_name_the_signal_they_are_about(built_plugins):
         Verdict(rule="plan_rule", valid=False, reason="whole plan"),
         Verdict(rule="lidar_clearance", valid=True, signal_index=0)])
     assert attempt.failures() == ["moving_obstacles (signal 2): too close", "plan_rule: whole plan"]
+
+
+def test_amend_reads_the_feedback_algorithm_1_writes(built_plugins):
+    """The whole path: a refused attempt, the feedback lines the guarded step writes of it, the
+    prompt the builder makes, and the amending pilot keeps the signal that passed, shortens the
+    refused one (a backward straight stays backward) and resends values as they were."""
+    from safeembodai_core.loop.guarded_step import _feedback
+    from safeembodai_core.models import Attempt, Verdict
+
+    text = json.dumps({"perception": [], "planning": "back off", "control": [
+        {"command": "straight", "direction": "backward", "distance": 125, "justification": "a"},
+        {"command": "turn", "direction": "right", "angle": 33.5, "justification": "b"},
+        {"command": "straight", "direction": "backward", "distance": 300, "justification": "c"}]})
+    attempt = Attempt(index=0, raw_text=text, response=parse_response(text), verdicts=[
+        Verdict(rule="command_limits", valid=True, signal_index=2),
+        Verdict(rule="moving_obstacles", valid=False, signal_index=2,
+                reason="straight backward 300 mm: a moving obstacle ...; going backward, at most 150 mm is safe")])
+    _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
+    prompt = make_prompt(built_plugins, observation, failures=_feedback(0, attempt))
+    mock = _mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
+    assert _signals(mock.complete(prompt, np.random.default_rng(0)).text) == [
+        "straight backward 125 mm", "turn right 33.5 deg", "straight backward 130 mm"]
+
+
+def test_amend_uses_the_latest_attempt_and_redraws_when_it_cannot_trust_it(built_plugins):
+    from safeembodai_plugins.backends.mock_reading import read_prompt
+
+    _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
+
+    def amendment(*failures: str):
+        return read_prompt(make_prompt(built_plugins, observation, failures=list(failures))).amendment
+
+    older = _refused("straight forward 300 mm", 1, "...; going forward, at most 200 mm is safe")
+    newer = _refused("turn left 20 deg, straight forward 250 mm", 2, "...; going forward, at most 90 mm is safe",
+                     attempt=2)
+    plan, safe = amendment(older, newer)
+    assert [s["command"] for s in plan] == ["turn", "straight"] and safe == {1: 90.0}
+    # the builder shows the last 6 lines: when the latest attempt's first lines may be among those
+    # left out, its refusals are not all known, and the pilot redraws
+    seven = [_refused("straight forward 300 mm, straight forward 300 mm", 1 + k % 2,
+                      f"...; going forward, at most {100 + k} mm is safe") for k in range(7)]
+    assert amendment(*seven) is None
+    assert amendment(*seven[1:]) is not None
+    # a refusal that allows the whole straight: resending it would repeat the refusal, so redraw
+    mock = _mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
+    whole = _refused("straight forward 200 mm", 1, "...; going forward, at most 390 mm is safe", rule="my rule")
+    assert read_prompt(make_prompt(built_plugins, observation, failures=[whole])).amendment is not None
+    reply = parse_response(mock.complete(make_prompt(built_plugins, observation, failures=[whole]),
+                                         np.random.default_rng(0)).text)
+    assert not reply.planning.startswith("Amend")
