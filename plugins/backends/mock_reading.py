@@ -33,7 +33,8 @@ from .mock_instruction import InstructionReading, read_instruction
 _INSTRUCTION = re.compile(r"^Human Instruction:\s*(.*)$", re.MULTILINE)
 _FENCED = re.compile(r"^Human Instruction \(untrusted data between (\S+) and (\S+)\):\n\1\n(.*?)\n\2", re.MULTILINE | re.DOTALL)
 _REFERENCE = re.compile(r"Reference State \(step (\d+)\):(.*)")
-_SIGNAL = re.compile(r"(turn|straight) (left|right|forward|backward) (\d+(?:\.\d+)?) (?:deg|mm) -> ([^;\n]*)")
+_SIGNAL_TEXT = r"(turn|straight) (left|right|forward|backward) (\d+(?:\.\d+)?) (?:deg|mm)"  # Signal.describe()
+_SIGNAL = re.compile(_SIGNAL_TEXT + r" -> ([^;\n]*)")
 _CAMERA_THEN = re.compile(r'^Your camera perception then: (".*")\s*$', re.MULTILINE)
 _PLAN_THEN = re.compile(r'^Your plan then: (".*")\s*$', re.MULTILINE)
 _SEARCH_SIDE = re.compile(r"search(?:ing)? to the (left|right)|turn (left|right) to search")
@@ -44,9 +45,9 @@ _SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
 _WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
 _ATTEMPT = re.compile(r"attempt (\d+)\b")
 # a failure line: attempt K (refused plan: SIGNALS): RULE (signal I): REASON
-_REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): (?:.+?) \(signal (\d+)\): (.*)$")
+_REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): .+? \(signal (\d+)\): (.*)$")
 _OMITTED = re.compile(r"^- \((\d+) earlier problems? not shown\)")
-_DESCRIBED = re.compile(r"^(turn|straight) (left|right|forward|backward) (\d+(?:\.\d+)?) (?:deg|mm)$")
+_DESCRIBED = re.compile(f"^{_SIGNAL_TEXT}$")
 
 
 @dataclass(frozen=True)
@@ -120,11 +121,15 @@ class PromptReading:
         index = int(round((bearing_deg % 360.0) / 45.0)) % len(SECTORS)
         return self.clearance[SECTORS[index]]
 
+    def _attempts(self) -> tuple[dict[str, int], int | None]:
+        """Each failure line's attempt number, and the latest (None without any)."""
+        attempt = {failure: int(m.group(1)) for failure in self.failures if (m := _ATTEMPT.match(failure))}
+        return attempt, max(attempt.values(), default=None)
+
     @property
     def asked_to_wait(self) -> bool:
         """Did the refusal of the latest attempt ask to wait for something moving to pass?"""
-        attempt = {failure: int(m.group(1)) for failure in self.failures if (m := _ATTEMPT.match(failure))}
-        latest = max(attempt.values(), default=None)
+        attempt, latest = self._attempts()
         return any(_WAIT in failure for failure in self.failures if attempt.get(failure, latest) == latest)
 
     @property
@@ -132,10 +137,9 @@ class PromptReading:
         """The latest attempt's refused plan and, per signal (0-based), the longest straight the
         refusals said is safe (0: none; a wait for a mover to pass), when every refusal of that
         attempt named its signal and said how far is safe; else None (nothing to amend by)."""
-        attempt = {failure: int(m.group(1)) for failure in self.failures if (m := _ATTEMPT.match(failure))}
-        if not attempt:
+        attempt, latest = self._attempts()
+        if latest is None:
             return None
-        latest = max(attempt.values())
         if self.omitted_failures and attempt.get(self.failures[0]) == latest:
             return None  # the prompt may have left out some of the latest attempt's refusals
         plan: list[dict] | None = None
