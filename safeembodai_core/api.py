@@ -41,8 +41,9 @@ from .models import (
     TrialResult,
     TrialSpec,
     Verdict,
-    parse_response,
+    read_reply,
 )
+from .models.reply import as_reply
 from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
@@ -65,7 +66,7 @@ class GuardReport:
 
     @property
     def reasons(self) -> list[str]:
-        return [f"{v.rule}: {v.reason}" for v in self.verdicts if not v.valid]
+        return [v.line() for v in self.verdicts if not v.valid]
 
 
 def _pose(pose: Any) -> Pose | None:
@@ -164,26 +165,29 @@ class Guard:
         verdicts = validate_plan(signals, context, self.rules)
         return GuardReport(signals=signals, verdicts=verdicts)
 
-    def check_answer(
+    def check_reply(
         self,
-        text: str,
+        reply: Any,
         *,
-        finish_reason: str | None = None,
         lidar_mm: Any = None,
         max_range_mm: float = 10_000.0,
         pose: Any = None,
         time_s: float | None = None,
     ) -> GuardReport:
-        """Parse an LLM's raw answer (untrusted) and validate its control signals.
+        """Read an LLM's whole reply (untrusted) and validate its control signals.
 
-        The reading is the guarded loop's (:func:`~safeembodai_core.models.parse_response`):
-        duplicate keys, several JSON objects, huge numbers and the like give a ``schema`` verdict.
-        Pass the provider's ``finish_reason`` when you have it: an answer that did not end with a
-        normal stop (``"length"``, ``"content_filter"``, ...) is refused the same way. ``lidar_mm``,
-        ``max_range_mm``, ``pose`` and ``time_s`` are as for :meth:`check`.
+        ``reply`` is a :class:`~safeembodai_core.models.BackendReply` -- or a mapping with its fields
+        (``text``, ``finish_reason``, ``reasoning``, ``choices``, ``envelope_error``), or the answer
+        text alone. The reading is the guarded loop's (:func:`~safeembodai_core.models.read_reply`):
+        a reply that did not end with a normal stop, holds two choices, a second plan in its
+        reasoning, duplicate keys, several JSON objects, text outside the object (unless the
+        guard's ``limits`` allow it), huge numbers and the like gives a ``schema`` verdict. To read
+        an OpenAI-style response body you received yourself, pass
+        :func:`~safeembodai_core.models.chat_completion.reply_from_chat_completion` of it.
+        ``lidar_mm``, ``max_range_mm``, ``pose`` and ``time_s`` are as for :meth:`check`.
         """
         try:
-            response = parse_response(text, self.limits, finish_reason=finish_reason)
+            response = read_reply(as_reply(reply), self.limits)
         except ResponseParseError as error:
             self._context(lidar_mm, max_range_mm, pose, time_s)  # the scan is kept for later checks all the same
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))])
@@ -191,6 +195,26 @@ class Guard:
                             pose=pose, time_s=time_s)
         report.response = response
         return report
+
+    def check_answer(
+        self,
+        text: str,
+        *,
+        finish_reason: str | None = None,
+        reasoning: str | None = None,
+        lidar_mm: Any = None,
+        max_range_mm: float = 10_000.0,
+        pose: Any = None,
+        time_s: float | None = None,
+    ) -> GuardReport:
+        """:meth:`check_reply` of a reply given as its text, finish reason and reasoning.
+
+        Pass the provider's ``finish_reason`` and its separate ``reasoning`` field when you have
+        them: an answer that did not end with a normal stop (``"length"``, ``"content_filter"``,
+        ...) is refused, and a plan in the reasoning other than the answer's is a second plan.
+        """
+        reply = as_reply({"text": text, "finish_reason": finish_reason, "reasoning": reasoning})
+        return self.check_reply(reply, lidar_mm=lidar_mm, max_range_mm=max_range_mm, pose=pose, time_s=time_s)
 
 
 def run_guarded_trial(

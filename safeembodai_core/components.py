@@ -16,6 +16,7 @@ import numpy as np
 
 from .models import (
     AttackRecord,
+    BackendReply,
     ControlLimits,
     ControlSignal,
     ExecutionResult,
@@ -27,7 +28,6 @@ from .models import (
     PromptRequest,
     ReferenceState,
     StepRecord,
-    TokenUsage,
     TrialResult,
     TrialSpec,
     Verdict,
@@ -209,23 +209,6 @@ class LLMBackend(ABC):
 
     def close(self) -> None:
         """Release connections."""
-
-
-@dataclass
-class BackendReply:
-    """A backend's answer: the raw text (untrusted), token usage, latency and why it ended.
-
-    ``finish_reason`` is the provider's reason the answer ended (OpenAI's ``"stop"``,
-    ``"length"``, ``"content_filter"``, ...), or ``None`` for a backend that does not report one.
-    Algorithm 1 refuses any answer whose reason is not a normal stop: a cut-off answer is never
-    executed (``safeembodai_core.loop.guarded_step``).
-    """
-
-    text: str
-    usage: TokenUsage = field(default_factory=TokenUsage)
-    latency_s: float = 0.0
-    model: str = ""
-    finish_reason: str | None = None
 
 
 @dataclass

@@ -5,9 +5,13 @@ answer -- is only ever shown as a JSON string literal: quotes, backslashes and n
 escaped, so it cannot close its quotes and pose as a new section of the prompt (``Role: ...``,
 ``SYSTEM: ...``). JSON leaves a few characters unescaped that can still break a line or
 reorder what a reader sees; they are escaped here too: C1 controls and DEL, the Unicode line and
-paragraph separators, bidirectional-text controls ("Trojan Source") and lone surrogates (which
-are not valid Unicode and cannot even be encoded as UTF-8). Ordinary text, accents and emoji
-included, is left as it is.
+paragraph separators, bidirectional-text controls ("Trojan Source"), lone surrogates (which
+are not valid Unicode and cannot even be encoded as UTF-8) and invisible characters that can
+carry text a reader never sees: zero-width spaces and joiners, word joiners and invisible
+operators, the byte-order mark, the soft hyphen, Unicode tag characters (U+E0000-U+E007F, which
+can spell a whole hidden instruction) and the supplementary variation selectors. Ordinary text,
+accents and emoji included, is left as it is (the emoji variation selectors U+FE00-U+FE0F too,
+and a zero-width joiner inside an emoji sequence is shown escaped).
 
 The prompt templates' ``quoted`` filter and the answer parser's refusal reasons both use
 :func:`quote_untrusted`, so every LLM-facing quotation follows the same rule.
@@ -25,12 +29,17 @@ CLIPPED = "[...]"
 #: Characters that can reorder, hide or break a line a reader sees and that JSON leaves as they
 #: are: DEL and C1 controls, line/paragraph separators, bidi controls, lone surrogates (a regex
 #: character-class body; :mod:`.text_safety` adds the C0 controls for terminals).
-UNSAFE_BEYOND_JSON = "\x7f-\x9f\u2028\u2029\u061c\u200e\u200f\u202a-\u202e\u2066-\u2069\ud800-\udfff"
+UNSAFE_BEYOND_JSON = ("\x7f-\x9f\u00ad\u034f\u061c\u180e\u200b-\u200f\u2028\u2029\u202a-\u202e\u2060-\u2064"
+                      "\u2066-\u2069\ufeff\ufff9-\ufffb\ud800-\udfff\U000e0000-\U000e007f\U000e0100-\U000e01ef")
 _STILL_UNSAFE = re.compile(f"[{UNSAFE_BEYOND_JSON}]")
 
 
 def _escape(match: re.Match[str]) -> str:
-    return f"\\u{ord(match.group()):04x}"
+    code = ord(match.group())
+    if code > 0xFFFF:  # a JSON escape of a character beyond the BMP is its surrogate pair
+        code -= 0x10000
+        return f"\\u{0xD800 + (code >> 10):04x}\\u{0xDC00 + (code & 0x3FF):04x}"
+    return f"\\u{code:04x}"
 
 
 def quote_untrusted(value: Any, max_chars: int | None = None) -> str:

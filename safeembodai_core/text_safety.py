@@ -11,8 +11,9 @@ store and on the operator's terminal. Two rules, one module:
   record reaches any store, the built-in stores apply it again for library callers: storing can
   then fail only for the store's own reasons (disk, locks), never because of what an answer held.
 * **shown** -- :func:`terminal_text` makes control characters visible (``\\x1b`` for ESC,
-  ``\\x00`` for NUL, ``\\u202e`` for a bidi override), so an answer cannot clear the screen, write
-  the clipboard (OSC 52), hide text or reorder a line; :func:`terminal_markup` also escapes rich
+  ``\\x00`` for NUL, ``\\u202e`` for a bidi override, ``\\u200b`` for a zero-width space,
+  ``\\U000e0041`` for a Unicode tag character), so an answer cannot clear the screen, write
+  the clipboard (OSC 52), hide text from the operator or reorder a line; :func:`terminal_markup` also escapes rich
   markup for text placed inside a markup string. ``run`` and ``show`` print LLM-written text only
   through them.
 
@@ -108,6 +109,8 @@ def _visible(match: re.Match[str]) -> str:
     if char in _NAMED:
         return _NAMED[char]
     code = ord(char)
+    if code > 0xFFFF:
+        return f"\\U{code:08x}"
     return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
 
 

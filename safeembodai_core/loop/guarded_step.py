@@ -5,10 +5,13 @@ required: the robot cannot execute anything else) and, when safety validation is
 control signal passes every rule. Otherwise the reasons are handed to the prompt builder for
 attempt j+1, up to the failure threshold N. With N spent the step has no executable answer.
 
-Parsing is the strict reading of :func:`~safeembodai_core.models.parse_response`, the same as
-:meth:`~safeembodai_core.api.Guard.check_answer`: an answer the provider did not end normally
-(cut off at the token limit, filtered) is refused like any malformed one, refusal reasons quote
-the LLM's own words as JSON strings, and nothing raised while reading an answer ends the trial.
+Parsing is the strict reading of the whole reply, :func:`~safeembodai_core.models.read_reply`, the
+same as :meth:`~safeembodai_core.api.Guard.check_reply`, the Gymnasium env's and the Inspect
+solver's: an answer the provider did not end normally (cut off at the token limit, filtered), a
+reply with two choices or a second plan in its reasoning is refused like any malformed one,
+refusal reasons quote the LLM's own words as JSON strings, and nothing raised while reading an
+answer ends the trial. The attempt's record keeps the reply's text, reasoning, finish reason (as
+sent), number of choices and origin.
 """
 
 from __future__ import annotations
@@ -20,8 +23,8 @@ from typing import Sequence
 
 from .. import seeds
 from ..components import LLMBackend, PromptBuilder, Validator
-from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, parse_response
-from ..models.response import finish_reason_text
+from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, read_reply
+from ..models.reply import as_reply, finish_reason_text
 from ..validation import ValidationContext, validate_plan
 
 from ..logs import get_logger, redact
@@ -29,6 +32,16 @@ from ..logs import get_logger, redact
 log = get_logger(__name__)
 
 MAX_STORED_TEXT = 16_000
+
+
+def _stored(text: object) -> str:
+    """Untrusted reply text as recorded: redacted before the cut, so the cut can never leave part
+    of a secret readable; anything that is not text records as empty (the reading refuses it)."""
+    return redact(text)[:MAX_STORED_TEXT] if isinstance(text, str) else ""
+
+
+def _count(value: object) -> int | None:
+    return value if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < 2**31 else None
 
 
 def _one_line(text: str) -> str:
@@ -68,17 +81,16 @@ def decide(
         prepare = getattr(backend, "prepare_attempt", None)
         sampling = prepare(index=index, limits=request.limits, rng=rng) if callable(prepare) else None
         started = time.perf_counter()
-        reply = backend.complete(prompt, rng)
+        reply = as_reply(backend.complete(prompt, rng))
         latency = reply.latency_s or (time.perf_counter() - started)
-        text = getattr(reply, "text", None)
-        finish_reason = finish_reason_text(getattr(reply, "finish_reason", None))
-        # redacted before the cut, so the cut can never leave part of a secret readable
-        attempt = Attempt(index=index, raw_text=redact(text)[:MAX_STORED_TEXT] if isinstance(text, str) else "",
-                          usage=reply.usage, latency_s=latency, finish_reason=finish_reason, sampling=sampling or None)
+        attempt = Attempt(index=index, raw_text=_stored(reply.text), reasoning=_stored(reply.reasoning),
+                          choices=_count(reply.choices), origin=_stored(reply.origin) or None,
+                          usage=reply.usage, latency_s=latency, finish_reason=finish_reason_text(reply.finish_reason),
+                          sampling=sampling or None)
         try:
-            # The one strict reading (shared with Guard.check_answer); it raises nothing else, so
-            # no answer, however hostile or cut off, can end the trial.
-            response = parse_response(text, request.limits, finish_reason=finish_reason)
+            # The one strict reading of the whole reply (shared with Guard.check_reply); it raises
+            # nothing else, so no answer, however hostile or cut off, can end the trial.
+            response = read_reply(reply, request.limits)
         except ResponseParseError as error:
             attempt.parse_error = str(error)
         else:

@@ -16,13 +16,14 @@ from .records import (
     TrialSpec,
     Verdict,
 )
-from .response import LLMResponse, PerceptionEntry, ResponseParseError, parse_response, response_json_schema
+from .response import LLMResponse, PerceptionEntry, ResponseParseError, response_json_schema
+from .reply import BackendReply, parse_response, read_reply
 
 __all__ = [
-    "DEFAULT_LIMITS", "Attempt", "AttackRecord", "ControlLimits", "ControlSignal", "ExecutedSignal",
+    "DEFAULT_LIMITS", "Attempt", "BackendReply", "AttackRecord", "ControlLimits", "ControlSignal", "ExecutedSignal",
     "ExecutionResult", "GroundTruth", "ImagePart", "LLMResponse", "LidarScan", "Modalities",
     "Observation", "Outcome", "PerceptionEntry", "Pose", "Prompt", "PromptRequest",
     "ReferenceState", "ResponseParseError", "StepRecord", "Straight", "TextPart", "TokenUsage",
-    "TrialResult", "TrialSpec", "Turn", "Verdict", "parse_response",
+    "TrialResult", "TrialSpec", "Turn", "Verdict", "parse_response", "read_reply",
     "response_json_schema",
 ]

@@ -18,13 +18,20 @@ MAX_TEXT = 2000
 
 
 class ControlLimits(BaseModel):
-    """Exclusive upper bounds of the actuation contract (the prompt's control method ``m``)."""
+    """The answer contract: exclusive upper bounds of the actuation contract (the prompt's control
+    method ``m``) and how strictly a reply is read (:mod:`safeembodai_core.models.reply`)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     max_distance_mm: float = Field(400.0, gt=0, allow_inf_nan=False)
     max_angle_deg: float = Field(90.0, gt=0, le=360, allow_inf_nan=False)
     max_signals: int = Field(5, ge=1, le=50, description="most control signals in one answer")
+    outside_text: Literal["refuse", "allow"] = Field(
+        "refuse", description="text outside the one JSON object (beyond whitespace, one code fence and leading "
+                              "reasoning blocks): refuse the answer, or allow it (for models without a JSON mode)")
+    require_finish_reason: bool = Field(
+        False, description="refuse a reply whose backend reports no finish reason (by default it is accepted "
+                           "and recorded as not reported)")
 
 
 DEFAULT_LIMITS = ControlLimits()

@@ -87,6 +87,15 @@ class Verdict(_Record):
     reason: str = ""
     signal_index: int | None = None
 
+    def line(self) -> str:
+        """The one way a refusal is written, wherever it is shown: ``rule (signal K): reason``, K from 1.
+
+        Algorithm 1's feedback, :attr:`GuardReport.reasons`, the Gymnasium refusals and the Inspect
+        transcript all use it (the reason is shown as written; each place makes it safe for its reader).
+        """
+        where = "" if self.signal_index is None else f" (signal {self.signal_index + 1})"
+        return f"{self.rule}{where}: {self.reason}"
+
 
 class Attempt(_Record):
     """One call to the LLM within a step (the first try or a retry of Algorithm 1)."""
@@ -95,7 +104,10 @@ class Attempt(_Record):
     raw_text: str = ""
     response: LLMResponse | None = None
     parse_error: str | None = None
-    finish_reason: str | None = None  # the backend's reason the answer ended; None when not reported
+    finish_reason: str | None = None  # the backend's reason the answer ended, as sent; None when not reported
+    reasoning: str = ""  # reasoning the reply held apart from its answer (a provider's field, <think> blocks)
+    choices: int | None = None  # how many choices the reply held; None when the backend handed over one text
+    origin: str | None = None  # where the answer came from (scheme://host:port), when the backend knows
     verdicts: list[Verdict] = Field(default_factory=list)
     usage: TokenUsage = Field(default_factory=TokenUsage)
     latency_s: float = 0.0
@@ -115,8 +127,7 @@ class Attempt(_Record):
         if self.parse_error is not None:
             return [self.parse_error]
         # which signal of the plan a verdict is about (1-based), so the LLM can amend that one
-        return [f"{v.rule}{'' if v.signal_index is None else f' (signal {v.signal_index + 1})'}: {v.reason}"
-                for v in self.verdicts if not v.valid]
+        return [v.line() for v in self.verdicts if not v.valid]
 
 
 class AttackRecord(_Record):

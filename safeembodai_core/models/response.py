@@ -15,25 +15,10 @@ The answer is one JSON object::
       ]
     }
 
-:func:`parse_response` is the one strict reading of an answer, shared by Algorithm 1
-(:mod:`safeembodai_core.loop.guarded_step`) and :meth:`safeembodai_core.api.Guard.check_answer`.
-It accepts the object bare, inside a Markdown code fence or with prose around it, and refuses
-everything else with a :class:`ResponseParseError` whose message is fed back to the LLM on a
-retry:
-
-* an answer the provider did not end normally (``finish_reason`` outside
-  :data:`NORMAL_FINISH_REASONS`: cut off at the token limit, filtered, ...);
-* an answer longer than :data:`MAX_RESPONSE_CHARS`;
-* what :func:`~safeembodai_core.models.strict_json.read_one_object` refuses: duplicate keys,
-  more than one object (or a stray ``{``), truncated JSON, NaN/Infinity, huge numbers, invalid
-  Unicode, control characters, deep nesting;
-* what the schema refuses: unknown keys, missing keys, wrong types, out-of-limit values, more
-  signals than the limits allow, oversized text.
-
-Reasons never repeat LLM-written text bare: keys, tags and values are quoted as short JSON
-string literals (:func:`safeembodai_core.quoting.quote_untrusted`). Nothing else ever escapes:
-an unexpected exception while reading is turned into a refusal too, so no answer can end a trial.
-See "The parsing contract" in ``docs/defences.md``.
+The schema is the contract; the one strict reading of a whole reply (envelope, choices,
+reasoning, finish reason, the text around the object) is :mod:`safeembodai_core.models.reply`.
+Schema errors are described with every LLM-written key, tag and value quoted as a short JSON string
+literal (:func:`safeembodai_core.quoting.quote_untrusted`), never repeated bare.
 """
 
 from __future__ import annotations
@@ -45,25 +30,12 @@ from typing import Any, Literal, get_args
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from ..logs import get_logger
-from ..quoting import CLIPPED, quote_untrusted
+from ..quoting import quote_untrusted
 from .control import DEFAULT_LIMITS, MAX_TEXT, ControlLimits, ControlSignal, Straight, Turn
-from .strict_json import QUOTE_CHARS, ResponseParseError, read_one_object
+from .strict_json import QUOTE_CHARS, ResponseParseError
 
-log = get_logger(__name__)
-
-MAX_RESPONSE_CHARS = 64_000
-MAX_FINISH_REASON_CHARS = 64
-
-# Finish reasons that mean "the model ended its answer itself". OpenAI (and litellm, which maps
-# every provider to OpenAI's names) says "stop"; the others are the native names of providers
-# reached without litellm: Anthropic "end_turn"/"stop_sequence", Hugging Face "eos"/"eos_token",
-# Cohere "COMPLETE" (compared case-insensitively). Everything else -- "length", "content_filter",
-# "tool_calls", "error", ... -- is refused. None means the backend does not report a reason and is
-# accepted: the strict parser still refuses a cut-off object. litellm maps reasons it does not
-# know (and some errors) to "stop"; the built-in litellm backend reports the provider's own
-# reason instead (plugins/backends/litellm_reply.py), which is then refused here.
-NORMAL_FINISH_REASONS = frozenset({"stop", "end_turn", "stop_sequence", "eos", "eos_token", "complete"})
+__all__ = ["LLMResponse", "PerceptionEntry", "ResponseParseError", "describe_schema_error", "response_json_schema",
+           "schema_outline"]
 
 
 class PerceptionEntry(BaseModel):
@@ -73,7 +45,7 @@ class PerceptionEntry(BaseModel):
 
     input: str = Field(max_length=64, description="human_instruction, camera_image, lidar_image, ...")
     result: str = Field(max_length=MAX_TEXT)
-    is_attack: bool = Field(False, strict=True)
+    is_attack: bool = Field(strict=True, description="required: an answer that does not say is refused")
 
 
 class LLMResponse(BaseModel):
@@ -136,71 +108,6 @@ def describe_schema_error(error: ValidationError, most: int = 6) -> str:
     parts = [f"{_location(tuple(item['loc']))}: {_message(item)}" for item in error.errors()[:most]]
     more = error.error_count() - len(parts)
     return "; ".join(parts) + (f"; and {more} more" if more > 0 else "")
-
-
-def finish_reason_text(reason: Any) -> str | None:
-    """A backend's finish reason as short text (an enum's value, say); None when not reported."""
-    if reason is None:
-        return None
-    text = str(getattr(reason, "value", reason))
-    # clipped visibly: padding cannot push an abnormal reason past the cut and leave "stop" in front
-    return text if len(text) <= MAX_FINISH_REASON_CHARS else text[:MAX_FINISH_REASON_CHARS] + CLIPPED
-
-
-def _check_finish_reason(reason: str | None) -> None:
-    if reason is None or reason.strip().lower() in NORMAL_FINISH_REASONS:
-        return
-    if reason.strip().lower() in ("length", "max_tokens"):
-        hint = "it was cut off at the token limit; send one complete, shorter JSON object"
-    else:
-        hint = "the provider stopped it before a normal end; send one complete JSON object"
-    raise ResponseParseError(
-        f"answer ended with finish reason {quote_untrusted(reason, QUOTE_CHARS)}, not a normal stop, "
-        f"so it is not executed: {hint}"
-    )
-
-
-def extract_json(text: str) -> Any:
-    """Find exactly one JSON object in ``text`` (bare, fenced, or surrounded by prose), strictly."""
-    if len(text) > MAX_RESPONSE_CHARS:
-        raise ResponseParseError(f"answer is {len(text)} characters long; the limit is {MAX_RESPONSE_CHARS}")
-    return read_one_object(text)
-
-
-def _parse(text: Any, limits: ControlLimits, finish_reason: Any) -> LLMResponse:
-    _check_finish_reason(finish_reason_text(finish_reason))
-    if not isinstance(text, str):
-        raise ResponseParseError(f"answer is not text (got {type(text).__name__})")
-    data = extract_json(text)
-    try:
-        response = LLMResponse.model_validate(data, context={"limits": limits})
-    except ValidationError as error:
-        raise ResponseParseError(
-            f"answer does not follow the response schema: {describe_schema_error(error)}"
-        ) from None
-    if len(response.control) > limits.max_signals:
-        raise ResponseParseError(
-            f"answer has {len(response.control)} control signals; at most {limits.max_signals} are allowed"
-        )
-    return response
-
-
-def parse_response(text: str, limits: ControlLimits = DEFAULT_LIMITS, *, finish_reason: Any = None) -> LLMResponse:
-    """Parse and validate an LLM answer; raise :class:`ResponseParseError` on anything invalid.
-
-    ``finish_reason`` is the backend's reason the answer ended (None: not reported). This never
-    raises anything but :class:`ResponseParseError`.
-    """
-    try:
-        return _parse(text, limits, finish_reason)
-    except ResponseParseError:
-        raise
-    except Exception as error:  # any other failure to read untrusted text is a refusal, not a crash
-        # quoted: the message may hold LLM text, lone surrogates included, that a log cannot encode
-        log.warning("answer.unreadable", error=type(error).__name__, detail=quote_untrusted(error, 200))
-        raise ResponseParseError(
-            f"answer could not be read ({type(error).__name__}); send exactly one valid JSON object"
-        ) from None
 
 
 #: How the response outline shows a distance and an angle (:func:`schema_outline`).

@@ -130,12 +130,15 @@ def _check_tree(value: Any) -> None:
             _check_text(node, "a string of the answer")
 
 
-def read_one_object(text: str) -> dict[str, Any]:
-    """The only JSON object in ``text`` (bare, fenced, or surrounded by prose), read strictly."""
+def find_objects(text: str, *, most: int | None = None) -> list[tuple[dict[str, Any], int, int]]:
+    """Every complete JSON object in ``text`` with its span, strictly; a ``{`` that starts none is refused.
+
+    With ``most``, at most that many objects are read; one more raises (the caller's limit).
+    """
     if _SURROGATE.search(text):
         _check_text(text, "the answer")
     decoder = _strict_decoder()
-    found: list[dict[str, Any]] = []
+    found: list[tuple[dict[str, Any], int, int]] = []
     start = text.find("{")
     while start != -1:
         try:
@@ -148,8 +151,16 @@ def read_one_object(text: str) -> dict[str, Any]:
             ) from None
         except RecursionError:
             raise ResponseParseError(f"answer nests JSON too deeply (more than {MAX_DEPTH} levels)") from None
-        found.append(value)
+        found.append((value, start, end))
+        if most is not None and len(found) > most:
+            break
         start = text.find("{", end)
+    return found
+
+
+def read_sole_object(text: str) -> tuple[dict[str, Any], int, int]:
+    """The only JSON object in ``text`` and its span ``[start, end)``, read strictly."""
+    found = find_objects(text)
     if not found:
         raise ResponseParseError("answer contains no JSON object")
     if len(found) > 1:
@@ -157,5 +168,11 @@ def read_one_object(text: str) -> dict[str, Any]:
             f"answer contains {len(found)} JSON objects; send exactly one (two plans are ambiguous, "
             "so none is executed)"
         )
-    _check_tree(found[0])
-    return found[0]
+    value, start, end = found[0]
+    _check_tree(value)
+    return value, start, end
+
+
+def read_one_object(text: str) -> dict[str, Any]:
+    """The only JSON object in ``text`` (bare, fenced, or surrounded by prose), read strictly."""
+    return read_sole_object(text)[0]

@@ -1,0 +1,148 @@
+"""An OpenAI-style chat-completion body, read strictly into a :class:`~.reply.BackendReply`.
+
+The body is the server's, so every byte is hostile until read. The JSON is read with the answer's
+strict rules (:mod:`.strict_json`) applied to the *whole* envelope: a duplicate key anywhere (two
+``content`` keys in a message, two ``finish_reason`` keys in a choice), NaN or a lone surrogate
+anywhere refuses the reply, because the SDK and litellm keep the last of two values and a reviewer
+reading the body would see the first. :func:`reply_from_chat_completion` never raises: what it
+cannot accept becomes the reply's ``envelope_error`` (the core then refuses the answer, and the
+attempt's record keeps the body as its text), and the rest is read as:
+
+* ``choices`` -- counted; more than one is refused by :func:`~.reply.read_reply` (one plan per
+  reply; nothing here asks for ``n``); none, or a choice whose ``index`` is not 0, is an envelope
+  error.
+* ``message.content`` -- text, ``null`` (no answer), or a list of ``{"type": "text"}`` parts
+  (joined); ``reasoning_content`` / ``reasoning`` -- the reply's reasoning; ``tool_calls``,
+  ``function_call`` or ``refusal`` set -- an envelope error (no tool was offered; a refusal is
+  not an answer).
+* ``finish_reason`` -- as sent (text; a number as its JSON), None when absent or ``null``.
+* ``usage`` -- whole numbers clamped to [0, 2**31 - 1]; anything else counts 0.
+* a body that is an ``error`` object (an HTTP 200 carrying an error) -- an envelope error that
+  quotes its message; a backend that sees it first treats it as the provider's error instead.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from ..quoting import quote_untrusted
+from .records import TokenUsage
+from .reply import MAX_RESPONSE_CHARS, BackendReply
+from .strict_json import ResponseParseError, find_objects
+
+MAX_BODY_BYTES = 4 * 1024 * 1024
+MAX_TOKENS_REPORTED = 2**31 - 1
+_QUOTE = 120
+
+
+def _count(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        if isinstance(value, float) and value == value and abs(value) < 2**63:
+            value = int(value)
+        else:
+            return 0
+    return min(MAX_TOKENS_REPORTED, max(0, value))
+
+
+def _usage(usage: Any) -> TokenUsage:
+    if not isinstance(usage, dict):
+        return TokenUsage()
+    return TokenUsage(prompt_tokens=_count(usage.get("prompt_tokens")),
+                      completion_tokens=_count(usage.get("completion_tokens")))
+
+
+def error_message(body: Any) -> str | None:
+    """The message of an ``{"error": ...}`` body (quoted, short); None when ``body`` is not one."""
+    if not isinstance(body, dict) or "error" not in body or "choices" in body:
+        return None
+    error = body["error"]
+    message = error.get("message") if isinstance(error, dict) else error
+    return quote_untrusted(message if message is not None else "(no message)", _QUOTE)
+
+
+def _content(message: dict[str, Any]) -> str:
+    content = message.get("content")
+    if content is None or isinstance(content, str):
+        return content or ""
+    if isinstance(content, list) and all(isinstance(p, dict) and p.get("type") == "text"
+                                         and isinstance(p.get("text"), str) for p in content):
+        return "".join(p["text"] for p in content)
+    raise ResponseParseError(f"the message's content is neither text nor text parts (got {type(content).__name__})")
+
+
+def _reasoning(message: dict[str, Any]) -> str | None:
+    parts = []
+    for key in ("reasoning_content", "reasoning"):
+        value = message.get(key)
+        if value is None:
+            continue
+        if not isinstance(value, str):
+            raise ResponseParseError(f"the message's {key} is not text (got {type(value).__name__})")
+        if value and value not in parts:
+            parts.append(value)
+    return "\n".join(parts) if parts else None
+
+
+def _finish_reason(value: Any) -> str | None:
+    if value is None:
+        return None
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def _read(data: Any, reply: BackendReply) -> BackendReply:
+    if not isinstance(data, dict):
+        raise ResponseParseError(f"the reply is not a JSON object (got {type(data).__name__})")
+    reply.usage = _usage(data.get("usage"))
+    if isinstance(data.get("model"), str):
+        reply.model = data["model"][:100]
+    message = error_message(data)
+    if message is not None:
+        raise ResponseParseError(f"the reply is an error object, not an answer: {message}")
+    choices = data.get("choices")
+    if not isinstance(choices, list) or not choices:
+        raise ResponseParseError("the reply holds no choices")
+    reply.choices = len(choices)
+    if len(choices) > 1:
+        return reply  # read_reply refuses it; the record keeps the whole body
+    choice = choices[0]
+    if not isinstance(choice, dict) or not isinstance(choice.get("message"), dict):
+        raise ResponseParseError("the reply's choice holds no message object")
+    if choice.get("index", 0) != 0:
+        raise ResponseParseError(f"the reply's only choice has index {quote_untrusted(choice.get('index'), 20)}, not 0")
+    msg = choice["message"]
+    reply.finish_reason = _finish_reason(choice.get("finish_reason"))
+    for key in ("tool_calls", "function_call"):
+        if msg.get(key):
+            raise ResponseParseError(f"the reply calls a tool ({key}); no tool was offered, only a JSON answer is read")
+    if msg.get("refusal"):
+        raise ResponseParseError(f"the model declined to answer: {quote_untrusted(msg['refusal'], _QUOTE)}")
+    if msg.get("role", "assistant") != "assistant":
+        raise ResponseParseError(f"the reply's message has role {quote_untrusted(msg.get('role'), 20)}, not assistant")
+    reply.text = _content(msg)
+    reply.reasoning = _reasoning(msg)
+    return reply
+
+
+def reply_from_chat_completion(body: bytes | str, *, origin: str | None = None) -> BackendReply:
+    """Read a chat-completion response body strictly (see the module docstring); never raises."""
+    raw = body.decode("utf-8", "replace") if isinstance(body, (bytes, bytearray)) else str(body)
+    reply = BackendReply(text="", origin=origin)
+    try:
+        if len(raw) > MAX_BODY_BYTES:
+            raise ResponseParseError(f"the reply's body is {len(raw)} characters long; at most {MAX_BODY_BYTES} are read")
+        objects = find_objects(raw, most=1)
+        if len(objects) != 1 or raw[:objects[0][1]].strip() or raw[objects[0][2]:].strip():
+            raise ResponseParseError("the reply's body is not exactly one JSON object")
+        reply = _read(objects[0][0], reply)
+        if reply.choices is not None and reply.choices > 1:
+            reply.text = raw[:MAX_RESPONSE_CHARS]  # every plan stays on record
+        return reply
+    except ResponseParseError as error:
+        problem = str(error)
+    except Exception as error:  # a body that breaks the reader is refused, never a crash
+        problem = f"the reply could not be read ({type(error).__name__})"
+    reply.text = raw[:MAX_RESPONSE_CHARS]
+    reply.envelope_error = problem.replace("answer", "reply") if problem.startswith("answer") else problem
+    reply.reasoning = None
+    return reply
