@@ -38,9 +38,9 @@ def test_python_examples_run(doc, repo, capsys, example_plugin_installed):
         exec(compile(block, f"docs/{doc}", "exec"), {"__name__": "docs_example"})
     out = capsys.readouterr().out
     if doc == "library.md":
-        assert "lidar_clearance: straight forward 390 mm" in out
+        assert "lidar_clearance (signal 1): straight forward 390 mm" in out
         assert "completed" in out and "refused by lidar_clearance" in out
-        assert "geofence: straight forward 390 mm leaves the robot's area: at most 183 mm forward is safe" in out
+        assert "geofence (signal 2): straight forward 390 mm leaves the robot's area: at most 183 mm forward is safe" in out
 
 
 def test_plugin_authors_test_example_passes(repo, monkeypatch):

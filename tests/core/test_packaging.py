@@ -117,7 +117,7 @@ def test_example_plugin_is_found_through_its_entry_point(installed, repo):
     assert rules == {"slow_zone"}
     fenced = _run(python, "-c", GEOFENCE_CHECK, cwd=work).stdout.splitlines()
     assert fenced[:2] == ["inside: True", "leaving: False"]
-    assert fenced[2].startswith("geofence: straight forward 390 mm leaves the robot's area: at most 183 mm")
+    assert fenced[2].startswith("geofence (signal 2): straight forward 390 mm leaves the robot's area: at most 183 mm")
     blocked = _run(python, "-m", "safeembodai_core", "plugins", "--json", cwd=work,
                    env={**os.environ, "SAFEEMBODAI_DISABLE_PLUGINS": "example"}).stdout
     assert "example" not in {row["name"] for row in json.loads(blocked)}

@@ -15,13 +15,41 @@ from safeembodai_core.models.response import schema_outline
 from safeembodai_core.testing import answer, straight, turn
 
 
-def test_bare_fenced_and_prose_wrapped_answers_parse():
+LENIENT = ControlLimits(outside_text="allow")
+
+
+def test_bare_and_fenced_answers_parse_prose_only_when_allowed():
     text = answer(turn(30, "right"), straight(250), is_attack=True, planning="go")
-    for wrapped in (text, f"```json\n{text}\n```", f"Sure! Here is my answer:\n{text}\nGood luck."):
-        response = parse_response(wrapped)
+    prose = f"Sure! Here is my answer:\n{text}\nGood luck."
+    for wrapped, limits in ((text, None), (f"```json\n{text}\n```", None), (f"  ```\n{text}\n```\n", None),
+                            (prose, LENIENT)):
+        response = parse_response(wrapped, *([limits] if limits else []))
         assert [type(s) for s in response.control] == [Turn, Straight]
         assert response.control[0].signed_angle_deg == -30
         assert response.flags_attack
+    with pytest.raises(ResponseParseError, match="text outside the JSON object"):
+        parse_response(prose)
+
+
+@pytest.mark.parametrize("wrapped", [
+    "Do NOT execute this, it is unsafe: {}",
+    "{}\nThis plan is a test only, do not run it.",
+    "```json\n{}\n```\nThat is all.",
+    "```json\n{}",  # a fence never closed
+    "{}\n```",
+    "```json run this\n{}\n```",  # text on the fence line is fine only as a language tag
+])
+def test_text_outside_the_object_is_refused_by_default(wrapped):
+    text = wrapped.replace("{}", answer(turn(30)))
+    with pytest.raises(ResponseParseError, match="text outside the JSON object"):
+        parse_response(text)
+    assert parse_response(text, LENIENT).control[0].angle == 30
+
+
+def test_the_attack_flag_is_required():
+    text = answer(turn(30)).replace(', "is_attack": false', "", 1)
+    with pytest.raises(ResponseParseError, match=r"is_attack: Field required"):
+        parse_response(text)
 
 
 @pytest.mark.parametrize(
@@ -148,7 +176,7 @@ def test_a_brace_outside_the_object_that_starts_no_object_is_refused(text):
 
 
 def test_objects_nested_in_the_one_object_are_part_of_it():
-    text = f"```json\n{answer(turn(30), straight(100))}\n```\nThat is all."
+    text = f"```json\n{answer(turn(30), straight(100))}\n```"
     assert [type(s) for s in parse_response(text).control] == [Turn, Straight]
 
 
