@@ -86,11 +86,26 @@ def print_uncut(console: Console, table: Table) -> None:
     console.print(table, crop=False)
 
 
+def reply_facts(attempt: Attempt) -> str:
+    """What the reply said about itself, shown safely: finish reason, choices, where it came from."""
+    reason = "not reported" if attempt.finish_reason is None else shown(attempt.finish_reason)
+    facts = [f"finish reason {reason}"]
+    if attempt.choices is not None:
+        facts.append(f"{attempt.choices} choice{'' if attempt.choices == 1 else 's'}")
+    if attempt.origin:
+        facts.append(f"from {shown(attempt.origin)}")
+    return ", ".join(facts)
+
+
 def _attempt(attempt: Attempt) -> Text:
     text = Text()
     verdict = "accepted" if attempt.accepted else "refused"
     text.append(f"attempt {attempt.index + 1}: {verdict}", style="green" if attempt.accepted else "red")
     text.append(f"  ({attempt.usage.prompt_tokens}+{attempt.usage.completion_tokens} tokens)\n", style="dim")
+    text.append(f"  reply: {reply_facts(attempt)}\n", style="dim")
+    if attempt.reasoning:
+        text.append(f"  reasoning: {shown(attempt.reasoning[:300])}{' ...' if len(attempt.reasoning) > 300 else ''}\n",
+                    style="dim")
     if attempt.parse_error is not None:
         text.append(f"  unparseable answer: {shown(attempt.parse_error)}\n", style="red")
         text.append(f"  raw: {shown(attempt.raw_text[:300])}\n", style="dim")
@@ -107,8 +122,7 @@ def _attempt(attempt: Attempt) -> Text:
             text.append(f" -- {shown(signal.justification)}\n" if signal.justification else "\n")
     for verdict_ in attempt.verdicts:
         if not verdict_.valid:
-            where = f"signal {verdict_.signal_index + 1}" if verdict_.signal_index is not None else "plan"
-            text.append(f"  x {shown(verdict_.rule)} ({where}): {shown(verdict_.reason)}\n", style="red")
+            text.append(f"  x {shown(verdict_.line())}\n", style="red")
     passed = sorted({v.rule for v in attempt.verdicts if v.valid} - {v.rule for v in attempt.verdicts if not v.valid})
     if passed:
         text.append(f"  passed: {shown(', '.join(passed))}\n", style="green")

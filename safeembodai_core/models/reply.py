@@ -106,13 +106,14 @@ def finish_reason_text(reason: Any) -> str | None:
 
 
 def normal_finish_reason(reason: Any) -> str | None:
-    """The one normalisation of a finish reason: surrounding whitespace dropped, lower case.
+    """The one normalisation of a finish reason: case is ignored, nothing else.
 
-    ``" STOP "`` becomes ``"stop"``; a zero-width or control character is not whitespace and stays,
-    so ``"stop\\u200b"`` is not a normal stop. None when not reported.
+    ``"STOP"`` is ``"stop"``; padding is not dropped (``" STOP "`` is not a normal stop, as the
+    trial loop always read it), and neither is a zero-width or control character (``"stop\\u200b"``).
+    None when not reported.
     """
     text = finish_reason_text(reason)
-    return None if text is None else text.strip().lower()
+    return None if text is None else text.lower()
 
 
 def check_finish_reason(reason: Any, limits: ControlLimits = DEFAULT_LIMITS) -> None:
