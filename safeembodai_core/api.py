@@ -59,6 +59,8 @@ class GuardReport:
     signals: list[Any] = field(default_factory=list)
     verdicts: list[Verdict] = field(default_factory=list)
     response: LLMResponse | None = None
+    #: why the reply could not be read (it then has one ``schema`` verdict saying the same); None when it was read
+    parse_error: str | None = None
 
     @property
     def valid(self) -> bool:
@@ -66,6 +68,10 @@ class GuardReport:
 
     @property
     def reasons(self) -> list[str]:
+        """Each refusal as the trial loop writes it (``Attempt.failures()``): the reading's refusal, or
+        ``rule (signal K): reason`` per refused signal."""
+        if self.parse_error is not None:
+            return [self.parse_error]
         return [v.line() for v in self.verdicts if not v.valid]
 
 
@@ -190,7 +196,7 @@ class Guard:
             response = read_reply(as_reply(reply), self.limits)
         except ResponseParseError as error:
             self._context(lidar_mm, max_range_mm, pose, time_s)  # the scan is kept for later checks all the same
-            return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))])
+            return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))], parse_error=str(error))
         report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm,
                             pose=pose, time_s=time_s)
         report.response = response
