@@ -293,3 +293,33 @@ def test_long_llm_fragments_are_clipped_in_the_reason():
     with pytest.raises(ResponseParseError) as error:
         parse_response(answer({"command": "x" * 5000, "direction": "up"}))
     assert len(str(error.value)) < 300 and '"[...]' in str(error.value)
+
+
+def test_a_missing_finish_reason_is_accepted_unless_the_contract_requires_one():
+    from safeembodai_core.testing import run_tiny_trial
+
+    text = answer(turn(30))
+    assert parse_response(text).control[0].angle == 30  # a backend that reports none: accepted
+    required = ControlLimits(require_finish_reason=True)
+    with pytest.raises(ResponseParseError, match="reports no finish reason"):
+        parse_response(text, required)
+    assert parse_response(text, required, finish_reason="stop").control[0].angle == 30
+    # from a scenario: the scripted backend reports no finish reason, so nothing runs
+    _, steps = run_tiny_trial([text], max_steps=1, limits={"require_finish_reason": True})
+    assert not steps[0].accepted and steps[0].executed == []
+    assert all(a.finish_reason is None and "reports no finish reason" in a.parse_error for a in steps[0].attempts)
+    _, steps = run_tiny_trial([text], max_steps=1)
+    assert steps[0].accepted and steps[0].attempts[0].finish_reason is None
+
+
+@pytest.mark.parametrize("reason, accepted", [
+    ("stop", True), ("STOP", True), ("End_Turn", True), (" STOP ", False), ("stop\u200b", False), ("stop\n", False),
+    ("length", False), ("max_tokens", False), ("content_filter", False), (None, True),
+])
+def test_one_normalisation_of_finish_reasons(reason, accepted):
+    from safeembodai_core import Guard
+    from safeembodai_core.models.reply import normal_finish_reason
+
+    report = Guard(rules=[]).check_answer(answer(turn(30)), finish_reason=reason)
+    assert report.valid == accepted
+    assert (normal_finish_reason(reason) in (None, "stop", "end_turn")) == accepted
