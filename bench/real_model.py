@@ -111,7 +111,7 @@ def compare(names: list[str], prompts: int, seed: int, json_mode: str | None = N
     """
     import numpy as np
 
-    from safeembodai_core.models import DEFAULT_LIMITS, PromptRequest, ResponseParseError, parse_response
+    from safeembodai_core.models import DEFAULT_LIMITS, PromptRequest, ResponseParseError, read_reply
     from safeembodai_core.plugins import load_plugins
 
     plugins = load_plugins()
@@ -136,7 +136,7 @@ def compare(names: list[str], prompts: int, seed: int, json_mode: str | None = N
                     seconds.append(reply.latency_s)
                     tokens.append(reply.usage.completion_tokens)
                     try:
-                        parse_response(reply.text, DEFAULT_LIMITS, finish_reason=reply.finish_reason)
+                        read_reply(reply, DEFAULT_LIMITS)
                         valid += 1
                     except ResponseParseError as error:
                         kinds[_refusal_kind(str(error))] += 1
@@ -224,7 +224,7 @@ def outline_variants(variants: list[str], prompts: int, seed: int, model_name: s
     from safeembodai_plugins.prompting import JinjaPromptOptions
     from safeembodai_plugins.prompting.builder import JinjaPromptBuilder, outline_rng
 
-    from safeembodai_core.models import DEFAULT_LIMITS, ResponseParseError, Straight, Turn, parse_response
+    from safeembodai_core.models import DEFAULT_LIMITS, ResponseParseError, Straight, Turn, read_reply
     from safeembodai_core.models.response import schema_outline
     from safeembodai_core.plugins import load_plugins
 
@@ -250,7 +250,7 @@ def outline_variants(variants: list[str], prompts: int, seed: int, model_name: s
                     outline = schema_outline(DEFAULT_LIMITS, variant)
                 shown_d, shown_a = _examples(outline)
                 try:
-                    response = parse_response(reply.text, DEFAULT_LIMITS, finish_reason=reply.finish_reason)
+                    response = read_reply(reply, DEFAULT_LIMITS)
                 except ResponseParseError as error:
                     kinds[_refusal_kind(str(error))] += 1
                     continue

@@ -9,7 +9,7 @@ missing method then fails at construction with a clear message instead of mid-tr
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np

@@ -134,3 +134,19 @@ def terminal_markup(text: str, *, keep_layout: bool = False) -> str:
 def one_line(text: str) -> str:
     """``text`` on one line, runs of whitespace made one space (details, error messages)."""
     return " ".join(str(text).split())
+
+
+_MARKDOWN_PUNCTUATION = re.compile(r"""([!"#$%&'()*+,\-./:;<=>?@\[\\\]^_`{|}~])""")
+
+
+def markdown_literal(text: str) -> str:
+    """``text`` (redacted) as inert Markdown: it renders as the very characters it holds, on one line.
+
+    Control, invisible and layout characters are shown as escapes first (:func:`terminal_text`:
+    ``\\u200b``, ``\\U000e0041``, ``\\n``), then every ASCII punctuation character is
+    backslash-escaped (CommonMark lets any of them be): no image, link, autolink, raw HTML,
+    emphasis, code span, table cell or math an LLM or an attacker wrote survives, so a refused
+    ``![x](http://evil/x.png)`` is shown, never loaded. For text placed in a Markdown document
+    such as Inspect's transcript.
+    """
+    return _MARKDOWN_PUNCTUATION.sub(r"\\\1", terminal_text(text))

@@ -20,7 +20,7 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 from safeembodai_core import Validator  # noqa: E402
 from safeembodai_core.gym import ENV_IDS, SafeEmbodAIGuard, default_scenario  # noqa: E402
-from safeembodai_core.models import Verdict  # noqa: E402
+from safeembodai_core.models import ResponseParseError, Verdict, parse_response  # noqa: E402
 from safeembodai_core.refs import ComponentRef  # noqa: E402
 from safeembodai_core.scenario import load_scenario  # noqa: E402
 
@@ -165,10 +165,15 @@ def test_a_text_answer_is_read_as_the_loop_reads_it():
         _, reward, _, _, info = env.step(answer(turn(30), is_attack=True))
         assert not info["refused"] and info["cost"] == 0 and info["flagged_attack"] is True
         assert info["executed"][0]["signal"]["angle"] == 30 and info["pose"]["heading_deg"] != pose["heading_deg"]
+        nan = '{"control": [{"command": "straight", "distance": NaN}]}'
+        with pytest.raises(ResponseParseError) as refused:
+            parse_response(nan)
+        nan_refused = str(refused.value)
         for attempt in range(1, 4):  # failure_threshold 3: three retries at the same step
-            _, reward, terminated, _, info = env.step('{"control": [{"command": "straight", "distance": NaN}]}')
+            _, reward, terminated, _, info = env.step(nan)
             assert info["refused"] and info["cost"] == 1 and reward == 0 and not terminated
-            assert info["attempt"] == attempt and info["reasons"][0].startswith("schema:") and info["executed"] == []
+            assert info["attempt"] == attempt and info["executed"] == []
+            assert info["reasons"] == [nan_refused]  # a reading's refusal, written as the loop writes it
         _, _, terminated, truncated, info = env.step("not json")
         assert terminated and not truncated and info["outcome"] == "safe_abort"
         with pytest.raises(RuntimeError, match="reset"):
@@ -184,7 +189,7 @@ def test_the_guard_refuses_what_its_rules_refuse_and_nothing_runs():
         action = ({"command": 0, "direction": 0, "distance": np.float32(100), "angle": np.float32(1)},)
         obs, reward, terminated, _, refused = env.step(action)
         assert refused["refused"] and refused["cost"] == 1 and refused["executed"] == [] and not terminated
-        assert refused["reasons"] == ["refuse_all: straight forward 100 mm refused for the test"]
+        assert refused["reasons"] == ["refuse_all (signal 1): straight forward 100 mm refused for the test"]
         assert refused["pose"] == info["pose"] and refused["step"] == 1
     finally:
         env.close()
@@ -208,7 +213,8 @@ def test_the_guard_uses_the_arm_validators_and_lets_safe_plans_through():
         ahead = float(obs["lidar"][0])
         into_it = ({"command": 0, "direction": 0, "distance": np.float32(min(399, ahead)), "angle": np.float32(1)},)
         _, _, _, _, info = env.step(into_it)
-        assert info["refused"] and info["executed"] == [] and any(r.startswith("lidar_clearance:") for r in info["reasons"])
+        assert info["refused"] and info["executed"] == [] and any(r.startswith("lidar_clearance (signal 1): ")
+                                                                   for r in info["reasons"])
         _, _, _, _, info = env.step(_turn(20))
         assert not info["refused"] and len(info["executed"]) == 1
     finally:
@@ -305,7 +311,7 @@ def test_a_spoofed_lidar_is_what_the_agent_and_the_guard_see():
         assert info["attacked"] and info["attacks"][0]["channel"] == "sensor"
         assert obs["lidar"][0] == 300 and env.unwrapped.scan.ranges_mm[0] == 300
         _, _, _, _, info = env.step(({"command": 0, "direction": 0, "distance": np.float32(200), "angle": np.float32(1)},))
-        assert info["refused"] and any(r.startswith("lidar_clearance:") for r in info["reasons"])
+        assert info["refused"] and any(r.startswith("lidar_clearance (signal 1): ") for r in info["reasons"])
     finally:
         env.close()
 
@@ -325,4 +331,126 @@ def test_an_llm_agent_drives_the_text_env():
         assert agent.calls >= 1 and info["outcome"] is not None
     finally:
         agent.close()
+        env.close()
+
+
+class _Replying:
+    """A backend object for ``LLMAgent``: every call returns a copy of ``reply`` (a whole ``BackendReply``)."""
+
+    def __init__(self, reply):
+        self.reply, self.calls = reply, 0
+
+    def complete(self, prompt, rng):
+        from dataclasses import replace
+
+        self.calls += 1
+        return replace(self.reply)
+
+    def close(self):
+        pass
+
+
+def _agent_step(reply, guarded=True):
+    """One step of an LLM agent whose backend replies ``reply``: ``(act's return, info before, info after)``."""
+    from safeembodai_core.integrations.gym.agents import LLMAgent
+
+    env = gymnasium.make("safeembodai/flatland-v0", action_format="text")
+    env = SafeEmbodAIGuard(env) if guarded else env
+    agent = LLMAgent(_Replying(reply), max_range_mm=float(env.observation_space["lidar"].high[0]))
+    try:
+        obs, before = env.reset(seed=2)
+        action = agent.act(obs, before)
+        return action, before, env.step(action)[4]
+    finally:
+        agent.close()
+        env.close()
+
+
+@pytest.mark.parametrize("guarded", [True, False])
+@pytest.mark.parametrize("reason", ["length", "content_filter", "max_tokens", "stop\u200b", "tool_calls", "error"])
+def test_the_agents_complete_answer_that_did_not_end_normally_is_refused(reason, guarded):
+    """The env reads the whole reply as the loop does: a complete plan is not executed when the
+    provider says the answer was cut off, filtered or ended abnormally."""
+    from safeembodai_core.models import BackendReply
+
+    action, before, info = _agent_step(BackendReply(text=answer(turn(10)), finish_reason=reason), guarded)
+    assert isinstance(action, BackendReply) and action.finish_reason == reason  # act hands over the whole reply
+    assert info["refused"] and info["executed"] == [] and info["cost"] == 1 and info["pose"] == before["pose"]
+    [line] = info["reasons"]
+    assert line.startswith("answer ended with finish reason") and "not executed" in line  # as the loop writes it
+
+
+@pytest.mark.parametrize("reason", ["STOP", "stop", "end_turn", None])
+def test_a_normal_end_is_executed(reason):
+    from safeembodai_core.models import BackendReply
+
+    _, before, info = _agent_step(BackendReply(text=answer(turn(10)), finish_reason=reason))
+    assert not info["refused"] and len(info["executed"]) == 1 and info["pose"] != before["pose"]
+
+
+def test_the_env_gives_every_finish_reason_the_loops_verdict():
+    """One reading: the env refuses a reply exactly when read_reply (the loop's) refuses it."""
+    from safeembodai_core.models import BackendReply, ResponseParseError, read_reply
+
+    env = SafeEmbodAIGuard(gymnasium.make("safeembodai/flatland-v0", action_format="text"))
+    try:
+        env.reset(seed=1)
+        for reason in (" STOP ", "STOP", "Stop", "stop\u200b", "\u200bstop", "stop\x00", "eos", "COMPLETE",
+                       "model_length", "unknown", "", None):
+            reply = BackendReply(text=answer(turn(10)), finish_reason=reason)
+            try:
+                read_reply(reply, env.unwrapped.limits)
+                loop = None
+            except ResponseParseError as error:
+                loop = str(error)
+            assert env.unwrapped.read(reply)[2] == loop, reason
+            if loop is not None:  # the refusal the agent reads is Guard.check_reply's, word for word
+                assert env.unwrapped._refusal(loop) == env.guard.check_reply(reply).reasons == [loop]
+        _, _, _, _, info = env.step(BackendReply(text=answer(turn(10)), finish_reason=" STOP "))
+        assert info["refused"] and info["reasons"] == env.guard.check_reply(
+            BackendReply(text=answer(turn(10)), finish_reason=" STOP ")).reasons
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("reply, says", [
+    ({"choices": 2}, "2 choices"),
+    ({"reasoning": "first I thought " + answer(straight(390)) + " but no"}, "reasoning holds a JSON object"),
+    ({"envelope_error": "duplicate key 'content'"}, "refused as a whole"),
+])
+def test_two_choices_a_second_plan_in_the_reasoning_or_a_refused_envelope_are_refused(reply, says):
+    from safeembodai_core.models import BackendReply
+
+    _, _, info = _agent_step(BackendReply(text=answer(turn(10)), finish_reason="stop", **reply))
+    assert info["refused"] and info["executed"] == [] and says in info["reasons"][0]
+
+
+def test_a_reasoning_that_repeats_the_answer_is_one_plan():
+    from safeembodai_core.models import BackendReply
+
+    text = answer(turn(10))
+    _, _, info = _agent_step(BackendReply(text=text, finish_reason="stop", reasoning=f"I will send {text}"))
+    assert not info["refused"] and len(info["executed"]) == 1
+
+
+def test_the_text_space_holds_replies_and_the_env_reads_every_form():
+    from safeembodai_core.models import BackendReply
+
+    env = gymnasium.make("safeembodai/flatland-v0", action_format="text")
+    try:
+        space = env.action_space
+        assert space.contains(answer(turn(10))) and space.sample() in space
+        assert BackendReply(text=answer(turn(10)), finish_reason="length") in space  # shape: its text; the rest is read
+        assert {"text": answer(turn(10)), "finish_reason": "stop"} in space
+        assert BackendReply(text=b"{}") not in space and {"finish_reason": "stop"} not in space and 5 not in space
+        base = env.unwrapped
+        env.reset(seed=1)
+        for action in (answer(turn(10)), {"text": answer(turn(10)), "finish_reason": "STOP"},
+                       BackendReply(text=answer(turn(10)), choices=1)):
+            signals, response, reason = base.read(action)
+            assert reason is None and len(signals) == 1 and response is not None
+        signals, _, reason = base.read({"text": answer(turn(10)), "finish_reason": "length"})
+        assert signals is None and "finish reason" in reason
+        assert base.read(42)[0] is None  # not a reply at all: refused, not a crash
+    finally:
         env.close()

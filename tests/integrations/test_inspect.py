@@ -4,6 +4,7 @@ provider, and Inspect's own ``mockllm`` answering for a trial that ends in each 
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -229,3 +230,167 @@ def test_inspect_eval_runs_a_scenario_file_from_the_command_line(repo, tmp_path)
         f"flatland/{arm}/{condition}/0" for arm in ("baseline", "safeembodai") for condition in ("no_attack", "attack"))
     scorers = {s["name"] for s in dumped["results"]["scores"]}
     assert scorers == {"moer", "outcome", "attack_detection", "collisions"}
+
+
+# -- the whole reply crosses Inspect ----------------------------------------------------------
+
+
+def _output(*choices):
+    """A ModelOutput of ``choices``: each ``(content, stop_reason)``."""
+    from inspect_ai.model import ChatCompletionChoice, ChatMessageAssistant
+
+    return ModelOutput(model="m", choices=[ChatCompletionChoice(message=ChatMessageAssistant(content=content),
+                                                                stop_reason=reason) for content, reason in choices])
+
+
+@pytest.mark.parametrize("inspect_reason, ours", [
+    ("stop", "stop"), ("max_tokens", "length"), ("model_length", "length"), ("content_filter", "content_filter"),
+    ("tool_calls", "tool_calls"), ("unknown", None),
+])
+def test_backend_reply_maps_inspects_stop_reasons_into_the_loops_words(inspect_reason, ours):
+    from safeembodai_core.integrations.inspect.bridge import backend_reply
+    from safeembodai_core.models import ResponseParseError, read_reply
+
+    reply = backend_reply(_output((answer(turn(10)), inspect_reason)), 0.0)
+    assert (reply.finish_reason, reply.choices, reply.reasoning) == (ours, 1, None)
+    if ours in ("stop", None):
+        assert read_reply(reply).control[0].angle == 10
+    else:
+        with pytest.raises(ResponseParseError, match="finish reason"):
+            read_reply(reply)
+
+
+def test_backend_reply_counts_choices_and_reads_the_reasoning_parts():
+    from inspect_ai.model import ContentReasoning, ContentText
+
+    from safeembodai_core.integrations.inspect.bridge import backend_reply
+    from safeembodai_core.models import ResponseParseError, read_reply
+
+    text = answer(turn(10))
+    two = backend_reply(_output((text, "stop"), (answer(straight(390)), "stop")), 0.0)
+    assert two.choices == 2 and two.text == text
+    with pytest.raises(ResponseParseError, match="2 choices"):
+        read_reply(two)
+    none = backend_reply(ModelOutput(model="m"), 0.0)
+    assert none.choices == 0 and none.finish_reason is None
+    with pytest.raises(ResponseParseError, match="0 choices"):
+        read_reply(none)
+
+    second_plan = "maybe " + answer(straight(390)) + " instead"
+    content = [ContentReasoning(reasoning=second_plan), ContentText(text=text)]
+    reply = backend_reply(_output((content, "stop")), 0.0)
+    assert reply.text == text and reply.reasoning == second_plan and reply.choices == 1
+    with pytest.raises(ResponseParseError, match="reasoning holds a JSON object"):
+        read_reply(reply)
+    # redacted: the opaque blob is not read, its readable summary is
+    redacted = [ContentReasoning(reasoning="EnCrYpTeD{blob", redacted=True), ContentText(text=text)]
+    assert backend_reply(_output((redacted, "stop")), 0.0).reasoning is None
+    assert read_reply(backend_reply(_output((redacted, "stop")), 0.0)).control[0].angle == 10
+    summarised = [ContentReasoning(reasoning="sig", summary=second_plan, redacted=True), ContentText(text=text)]
+    assert backend_reply(_output((summarised, "stop")), 0.0).reasoning == second_plan
+    same = [ContentReasoning(reasoning=f"I will send {text}"), ContentText(text=text)]
+    assert read_reply(backend_reply(_output((same, "stop")), 0.0)).control[0].angle == 10
+
+
+class _OneReply:
+    def __init__(self, reply):
+        self.reply = reply
+
+    def complete(self, prompt, rng):
+        return self.reply
+
+    def close(self):
+        pass
+
+
+@pytest.mark.parametrize("fields", [
+    {"finish_reason": None}, {"finish_reason": "stop"}, {"finish_reason": "STOP"}, {"finish_reason": "end_turn"},
+    {"finish_reason": " STOP "}, {"finish_reason": "stop\u200b"}, {"finish_reason": "error"},
+    {"finish_reason": "length"}, {"finish_reason": "max_tokens"}, {"finish_reason": "content_filter"},
+    {"finish_reason": "tool_calls"}, {"finish_reason": "stop", "choices": 2},
+    {"finish_reason": "stop", "envelope_error": "duplicate key 'content'"},
+    {"finish_reason": "stop", "reasoning": "draft " + answer(straight(390))},
+    {"finish_reason": "stop", "reasoning": "nothing but words"},
+])
+def test_the_safeembodai_provider_passes_the_whole_reply_through_inspect(fields):
+    """A backend's reply through ``--model safeembodai/<backend>`` and back is refused exactly when
+    the loop refuses it under ``ablate``: an abnormal finish reason never comes back as ``stop``."""
+    import asyncio
+
+    from inspect_ai.model import GenerateConfig
+
+    from safeembodai_core.integrations.inspect.bridge import backend_reply
+    from safeembodai_core.models import BackendReply, ResponseParseError, read_reply
+
+    def verdict(reply):
+        try:
+            return read_reply(reply).control[0].angle
+        except ResponseParseError:
+            return "refused"
+
+    original = BackendReply(text=answer(turn(10)), **fields)
+    model = get_model("safeembodai/scripted", responses=["unused"], memoize=False)
+    model.api.backend = _OneReply(original)
+    messages = prompt_messages(Prompt(system="S", user=(TextPart("instruction", "go"),)), rng(1, "backend"))
+    output = asyncio.run(model.api.generate(messages, [], "none", GenerateConfig()))
+    back = backend_reply(output, 0.0)
+    assert verdict(back) == verdict(original), (fields, back)
+    assert back.reasoning == original.reasoning and back.text == original.text
+    if verdict(original) == "refused" and "reasoning" not in fields:
+        assert output.stop_reason not in ("stop", "unknown")
+    if fields.get("finish_reason") in ("stop\u200b", "error"):
+        assert output.choices[0].stop_details.type == "finish_reason"
+        assert fields["finish_reason"].encode("unicode_escape").decode() in output.choices[0].stop_details.explanation
+
+
+# -- the transcript ----------------------------------------------------------------------------
+
+
+def _rendered(markdown):
+    from markdown_it import MarkdownIt
+
+    return MarkdownIt("commonmark", {"html": True}).enable("table").enable("strikethrough").render(markdown)
+
+
+def test_step_markdown_numbers_signals_from_1_and_shows_untrusted_text_inert():
+    from safeembodai_core.integrations.inspect.solver import step_markdown
+    from safeembodai_core.models import AttackRecord, Attempt, StepRecord, Verdict
+
+    evil = "![x](http://evil/x.png) [click](http://evil/) <img src=http://evil/y.png> `code` *em* | a | $x$"
+    hidden = "go\u200bnow\U000e0041"
+    record = StepRecord(
+        trial_id="t", step=3, instruction="i",
+        attacks=[AttackRecord(attacker="inject", channel="instruction", kind="naive", payload=evil + hidden)],
+        attempts=[
+            Attempt(index=0, raw_text=evil, parse_error=f"answer has text outside the JSON object ({evil!r}){hidden}"),
+            Attempt(index=1, verdicts=[Verdict(rule="lidar_clearance", valid=True, signal_index=0),
+                                       Verdict(rule="lidar_clearance", valid=False, signal_index=1,
+                                               reason=f"too close; see {evil}")]),
+        ])
+    text = step_markdown(record)
+    assert "signal 2" in text and "signal 1" not in text and "signal 0" not in text
+    for syntax in ("![", "](", "[click]", "`code`", "*em*", "$x$"):
+        assert syntax not in text, syntax
+    for char in "<>`|$[":  # none of ours: each one in the text is the untrusted one, escaped
+        assert re.search(rf"(?<!\\){re.escape(char)}", text) is None, char
+    assert "\u200b" not in text and "\U000e0041" not in text
+    assert "\\\\u200b" in text and "\\\\U000e0041" in text  # shown escaped (the backslash itself escaped)
+    html = _rendered(text)
+    assert "<img" not in html and "<a " not in html and "<code>" not in html and "<em>" not in html
+    assert "![x](http://evil/x.png)" in html and "go\\u200bnow\\U000e0041" in html  # the very characters, visible
+    assert "step 3" in html and "attempt 1: refused" in html and "attempt 2: refused" in html
+    assert "refused: lidar_clearance (signal 2): too close; see ![x]" in html  # Verdict.line(), as written
+
+
+def test_a_complete_plan_cut_off_at_the_token_limit_is_never_executed_under_inspect(tmp_path):
+    """mockllm says ``max_tokens`` for an answer whose JSON is complete: refused at every attempt, safe_abort."""
+    custom = [ModelOutput.from_content("mockllm/model", answer(*[straight(390)] * 4), stop_reason="max_tokens")
+              for _ in range(4)]
+    for output in custom:
+        output.usage = ModelUsage(input_tokens=1, output_tokens=1, total_tokens=2)
+    log = _eval(_corridor_task(tmp_path), get_model("mockllm/model", custom_outputs=custom, memoize=False), tmp_path)
+    [sample] = log.samples
+    sample = resolve_sample_attachments(sample)
+    assert sample.scores["outcome"].answer == "safe_abort"
+    [step] = [e.data for e in sample.events if e.event == "info" and e.source == STEP_SOURCE]
+    assert "\n- executed" not in step and step.count(": refused") == 4 and "finish reason" in step

@@ -2,9 +2,12 @@
 
 It does what the guarded loop does around the backend, from the observation alone: the
 perception plugin renders the camera image and the LiDAR picture, the prompt builder writes the
-paper's prompt (with the security prefix when ``security_prefix`` is set) and the backend's raw
-answer is the action. Refusal reasons that came back in ``info`` go into the next prompt, as
-Algorithm 1 feeds them back. The env then reads the answer exactly as the loop does; wrap the env
+paper's prompt (with the security prefix when ``security_prefix`` is set) and the backend's whole
+reply -- its text, finish reason, reasoning, number of choices and what the backend's strict reading
+of the envelope found -- is the action. Refusal reasons that came back in ``info`` go into the next
+prompt, as Algorithm 1 feeds them back. The env then reads the reply exactly as the loop does
+(:func:`~safeembodai_core.models.read_reply`): an answer cut off at the token limit, filtered, or
+with a second plan in its reasoning is refused there as here, however complete its text; wrap the env
 in :class:`SafeEmbodAIGuard` for the validators. The reference state R_{i-1} is not sent (an
 agent keeps its own memory).
 """
@@ -18,12 +21,13 @@ import numpy as np
 from ... import seeds
 from ...api import _components
 from ...models import DEFAULT_LIMITS, ControlLimits, LidarScan, Observation, PromptRequest
+from ...models.reply import BackendReply, as_reply
 from ...models.prompt import DEFAULT_TASK
 from ...plugins import Plugins, load_plugins
 
 
 class LLMAgent:
-    """``act(obs, info) -> str``: the backend's answer to the prompt of this observation.
+    """``act(obs, info) -> BackendReply``: the backend's whole reply to the prompt of this observation.
 
     ``backend``, ``perception`` and ``prompt_builder`` are registered names (with options) or
     objects, as for :func:`~safeembodai_core.run_guarded_trial`; ``max_range_mm`` is the LiDAR's
@@ -40,7 +44,9 @@ class LLMAgent:
         self.max_range_mm, self.security_prefix, self.task, self.limits = max_range_mm, security_prefix, task, limits
         self.seed, self.calls = seed, 0
 
-    def act(self, obs: dict[str, Any], info: dict[str, Any]) -> str:
+    def act(self, obs: dict[str, Any], info: dict[str, Any]) -> BackendReply:
+        """The backend's reply, whole: hand it to ``env.step`` as it is (not its ``text``: the
+        finish reason and the reasoning are part of what is judged)."""
         ranges = np.asarray(obs["lidar"], dtype=float)
         ranges = np.where(ranges >= self.max_range_mm, np.inf, ranges)  # the Box's "no return" back to inf
         observation = Observation(camera=obs.get("camera"), lidar=LidarScan(ranges, self.max_range_mm))
@@ -49,8 +55,7 @@ class LLMAgent:
             security_prefix=self.security_prefix, failures=tuple(info.get("reasons", ())), limits=self.limits,
             task=self.task)
         self.calls += 1
-        reply = self.backend.complete(self.builder.build(request), seeds.rng(self.seed, "agent", self.calls))
-        return reply.text
+        return as_reply(self.backend.complete(self.builder.build(request), seeds.rng(self.seed, "agent", self.calls)))
 
     def close(self) -> None:
         self.backend.close()

@@ -24,7 +24,10 @@ from pydantic import TypeAdapter, ValidationError
 
 from ... import seeds
 from ...components import AttackSurface
-from ...models import ControlSignal, ExecutedSignal, LLMResponse, Observation, Outcome, ResponseParseError, parse_response
+from ...models import (
+    Attempt, ControlSignal, ExecutedSignal, LLMResponse, Observation, Outcome, ResponseParseError, Verdict,
+)
+from ...models.reply import as_reply, read_reply
 from ...models.response import describe_schema_error
 from ...plugins import Plugins, load_plugins
 from ...runner import ScenarioRunner, trial_seed
@@ -99,11 +102,17 @@ class SafeEmbodAIEnv(gymnasium.Env):
 
     def read(self, action: Any) -> tuple[list[Any] | None, LLMResponse | None, str | None]:
         """``action`` as control signals under the actuation contract: ``(signals, response, None)``,
-        or ``(None, None, reason)`` when the robot cannot execute it. Text is read by
-        :func:`~safeembodai_core.models.parse_response`, the guarded loop's strict reading."""
+        or ``(None, None, reason)`` when the robot cannot execute it.
+
+        A ``text`` action is the LLM's whole reply -- a :class:`~safeembodai_core.models.BackendReply`
+        (what :meth:`LLMAgent.act <safeembodai_core.integrations.gym.agents.LLMAgent.act>` returns),
+        a mapping with its fields (``text``, ``finish_reason``, ``reasoning``, ``choices``, ...) or
+        the answer text alone -- read by :func:`~safeembodai_core.models.read_reply`, the guarded
+        loop's one strict reading: a cut-off or filtered answer, two choices, a second plan in the
+        reasoning are refused here exactly as there."""
         if self.action_format == "text":
             try:
-                response = parse_response(action, self.limits)
+                response = read_reply(as_reply(action), self.limits)
             except ResponseParseError as error:
                 return None, None, str(error)
             return list(response.control), response, None
@@ -117,6 +126,14 @@ class SafeEmbodAIEnv(gymnasium.Env):
         if len(signals) > self.limits.max_signals:
             return None, None, f"{len(signals)} control signals; at most {self.limits.max_signals} are allowed"
         return signals, None, None
+
+    def _refusal(self, reason: str) -> list[str]:
+        """An action :meth:`read` refused, in ``info["reasons"]`` as the trial loop writes it: a reply
+        it could not read as its reading's refusal (:meth:`Attempt.failures`), a command list
+        outside the contract as a ``schema`` verdict (:meth:`Verdict.line`, as :meth:`Guard.check`)."""
+        if self.action_format == "text":
+            return Attempt(index=self._attempt, parse_error=reason).failures()
+        return [Verdict(rule="schema", valid=False, reason=reason).line()]
 
     # -- the Gymnasium API --------------------------------------------------------------------
 
@@ -145,7 +162,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
             raise RuntimeError("call reset() before step(), and again once an episode has ended")
         signals, response, reason = self.read(action)
         if signals is None:
-            return self.refuse([f"schema: {reason}"])
+            return self.refuse(self._refusal(reason))
         executed = []
         for signal in signals:
             result = self.world.execute(signal)
@@ -157,6 +174,10 @@ class SafeEmbodAIEnv(gymnasium.Env):
 
     def refuse(self, reasons: list[str]):
         """The step's plan is refused and not executed: Algorithm 1's retry, one attempt.
+
+        ``reasons`` go to ``info["reasons"]`` as given: write them as the trial loop does
+        (:meth:`Attempt.failures`: a reading's refusal, or :meth:`Verdict.line` per refused
+        signal, ``rule (signal K): reason``), as the env and the guard do.
 
         The agent may try again at the same step (same observation) until the arm's
         ``failure_threshold`` retries are spent; then ``on_exhausted: abort`` ends the episode as

@@ -19,8 +19,10 @@
 ``command`` 0 = ``straight``, 1 = ``turn``; ``direction`` 0 = ``forward``/``left``, 1 =
 ``backward``/``right``; ``distance`` (mm, used by ``straight``) in ``(0, max_distance_mm)`` and
 ``angle`` (degrees, used by ``turn``) in ``(0, max_angle_deg)``. Every member of the space is a
-plan the actuation contract accepts. ``action_format="text"``: the LLM's answer, the response
-JSON of ``docs/defences.md`` as a string, read exactly as the guarded loop reads it.
+plan the actuation contract accepts. ``action_format="text"``: an :class:`Answer`, the LLM's
+reply -- a :class:`~safeembodai_core.models.BackendReply` (the answer with its finish reason,
+reasoning and choices), a mapping of its fields, or the answer text (the response JSON of
+``docs/defences.md``) alone -- read exactly as the guarded loop reads it.
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ...models import ControlLimits, ControlSignal, Straight, Turn
+from ...models.reply import BackendReply, as_reply
 
 MAX_INSTRUCTION = 4096
 MAX_ANSWER = 16_000
@@ -69,6 +72,26 @@ class Plan(spaces.Sequence):
         return isinstance(other, Plan) and other.max_length == self.max_length and super().__eq__(other)
 
 
+class Answer(spaces.Text):
+    """A :class:`gymnasium.spaces.Text` of the LLM's answers whose members may also be whole replies.
+
+    An LLM agent hands the env the backend's :class:`~safeembodai_core.models.BackendReply` (or a
+    mapping with its fields): it is in the space when its ``text`` is. The rest of the reply
+    (finish reason, reasoning, choices) is not a matter of shape: the env's reading
+    (:func:`~safeembodai_core.models.read_reply`) judges it. Samples are text, a reply that
+    reports nothing else.
+    """
+
+    def contains(self, x: Any) -> bool:
+        if isinstance(x, BackendReply) or (isinstance(x, dict) and "text" in x):
+            text = as_reply(x).text
+            return isinstance(text, str) and super().contains(text)
+        return super().contains(x)
+
+    def __repr__(self) -> str:
+        return f"Answer({self.min_length}, {self.max_length}, charset={self.characters})"
+
+
 def _below(limit: float) -> np.float32:
     """The largest float32 strictly below ``limit``: a float32 sample never reaches the bound."""
     return np.nextafter(np.float32(limit), np.float32(0))
@@ -87,7 +110,7 @@ def action_space(action_format: str, limits: ControlLimits) -> spaces.Space:
     if action_format == "commands":
         return Plan(signal_space(limits), limits.max_signals)
     if action_format == "text":
-        return spaces.Text(MAX_ANSWER, min_length=0, charset=CHARSET)
+        return Answer(MAX_ANSWER, min_length=0, charset=CHARSET)
     raise ValueError(f"action_format must be 'commands' or 'text', got {action_format!r}")
 
 

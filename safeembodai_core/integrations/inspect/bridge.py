@@ -40,8 +40,11 @@ from ...text_safety import one_line
 #: The key of the user message's metadata that carries the prompt's own facts.
 META = "safeembodai"
 
-#: Inspect's stop reasons in the words Algorithm 1 reads (an answer cut off is never executed).
-_STOP_REASONS = {"stop": "stop", "max_tokens": "length", "model_length": "length"}
+#: Inspect's stop reasons in the words Algorithm 1 reads (only ``stop`` is a normal end: an answer
+#: cut off, filtered or calling tools is never executed). ``unknown`` is a reason not reported.
+_STOP_REASONS: dict[str, str | None] = {"stop": "stop", "max_tokens": "length", "model_length": "length",
+                                        "content_filter": "content_filter", "tool_calls": "tool_calls",
+                                        "unknown": None}
 
 
 def rng_state(rng: np.random.Generator) -> dict[str, Any]:
@@ -111,17 +114,61 @@ def prompt_from_messages(messages: list[Any]) -> tuple[Prompt, np.random.Generat
     return prompt, (rng_from_state(state) if state else None)
 
 
+def finish_reason(stop_reason: Any) -> str | None:
+    """Inspect's stop reason in the words Algorithm 1 reads (:data:`_STOP_REASONS`).
+
+    ``unknown`` is Inspect's "the provider did not say": not reported (None), accepted unless the
+    contract requires a reason. A reason Inspect does not define is passed on as it came, and
+    :func:`~safeembodai_core.models.read_reply` refuses it.
+    """
+    if stop_reason is None:
+        return None
+    reason = str(getattr(stop_reason, "value", stop_reason))
+    return _STOP_REASONS.get(reason, reason)
+
+
+def reasoning_text(message: Any) -> str | None:
+    """The reasoning of an Inspect message: the text of its ``ContentReasoning`` parts, or None.
+
+    A part's readable text is its ``reasoning`` (and its ``summary``, when it has one too); a
+    *redacted* part keeps an opaque, encrypted blob or signature in ``reasoning``, which holds
+    nothing to read, so only its ``summary`` (the readable text some providers send with it)
+    counts. All of it is read for a second plan, as a provider's ``reasoning_content`` is.
+    """
+    content = getattr(message, "content", None)
+    if content is None or isinstance(content, str):
+        return None
+    texts: list[str] = []
+    for part in content:
+        if getattr(part, "type", "") != "reasoning":
+            continue
+        summary = getattr(part, "summary", None)
+        if not getattr(part, "redacted", False) and getattr(part, "reasoning", None):
+            texts.append(str(part.reasoning))
+        if summary:
+            texts.append(str(summary))
+    return "\n".join(texts) if texts else None
+
+
 def backend_reply(output: Any, started: float) -> BackendReply:
-    """Inspect's ``ModelOutput`` as the loop's :class:`BackendReply`."""
+    """Inspect's ``ModelOutput`` as the loop's :class:`BackendReply`: the whole reply.
+
+    The text is the first choice's text parts (``output.completion``), ``choices`` how many
+    choices the output held (anything but one is refused), ``reasoning`` the first choice's
+    reasoning parts (:func:`reasoning_text`), ``finish_reason`` its stop reason
+    (:func:`finish_reason`).
+    """
     usage = output.usage
-    reason = str(output.stop_reason) if output.choices else "unknown"
+    first = output.choices[0] if output.choices else None
     return BackendReply(
         text=output.completion,
         usage=TokenUsage(prompt_tokens=usage.input_tokens if usage else 0,
                          completion_tokens=usage.output_tokens if usage else 0),
         latency_s=output.time or (time.perf_counter() - started),
         model=output.model or "",
-        finish_reason=_STOP_REASONS.get(reason, reason),
+        finish_reason=None if first is None else finish_reason(first.stop_reason),
+        reasoning=None if first is None else reasoning_text(first.message),
+        choices=len(output.choices),
     )
 
 

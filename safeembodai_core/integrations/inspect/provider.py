@@ -9,6 +9,12 @@ and the state of the generator the loop drew for that call (the user message's m
 the pilot answers exactly what it answers under ``safeembodai ablate``: same prompt, same dice,
 same per-cell MOER for the same seed. A message from anything else (a plain Inspect task) is
 read as text and images with no sections, and the dice are seeded from its text.
+
+The backend's whole reply crosses Inspect: its reasoning as a ``ContentReasoning`` part, its
+finish reason as Inspect's stop reason (:func:`stop_reason`), chosen so the solver's reading
+(:func:`.bridge.backend_reply`, then :func:`~safeembodai_core.models.read_reply`) refuses what the
+loop refuses under ``ablate``: a reason Inspect has no name for (``"error"``, ``"stop\\u200b"``)
+becomes ``content_filter``, never ``stop`` or ``unknown`` (which reads back as "not reported").
 """
 
 from __future__ import annotations
@@ -18,13 +24,50 @@ from typing import Any
 
 import anyio.to_thread
 import numpy as np
-from inspect_ai.model import ChatMessage, GenerateConfig, ModelAPI, ModelOutput, ModelUsage
+from inspect_ai.model import (
+    ChatMessage, ContentReasoning, ContentText, GenerateConfig, ModelAPI, ModelOutput, ModelUsage, StopDetails,
+)
 
-from ...components import BuildContext
+from ...components import BackendReply, BuildContext
 from ...errors import SafeEmbodAIError
+from ...models.reply import NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason
+from ...quoting import quote_untrusted
 from .bridge import prompt_from_messages
 
-_STOP = {"length": "max_tokens", "max_tokens": "max_tokens", "content_filter": "content_filter"}
+#: The backend's finish reasons (normalised: :func:`~safeembodai_core.models.reply.normal_finish_reason`)
+#: that Inspect has a stop reason for. A normal end is ``stop``; not reported is ``unknown``.
+_STOP = {"length": "max_tokens", "max_tokens": "max_tokens", "model_length": "model_length",
+         "content_filter": "content_filter", "tool_calls": "tool_calls"}
+#: Inspect's stop reason for any other abnormal finish reason (``"error"``, ``"stop\u200b"``, ...):
+#: Inspect has no "other", and ``unknown`` reads back as "not reported", which is accepted, so the
+#: nearest refused one -- "the provider stopped it before a normal end". The reason as the backend
+#: sent it rides along in the choice's ``stop_details`` (``type`` ``finish_reason``).
+ABNORMAL_STOP = "content_filter"
+
+
+def stop_reason(reply: BackendReply) -> tuple[str, StopDetails | None]:
+    """The Inspect stop reason (and details) of a backend's reply, chosen so that a reply
+    :func:`~safeembodai_core.models.read_reply` refuses is refused again after the round trip
+    through Inspect (:func:`.bridge.backend_reply`), and one it accepts is accepted.
+
+    A normal end (``stop``, ``STOP``, ``end_turn``, ...: :func:`normal_finish_reason` in
+    :data:`NORMAL_FINISH_REASONS`) is ``stop``; no reason is ``unknown``; ``length``,
+    ``content_filter``, ``tool_calls`` are Inspect's own; any other reason (``" STOP "``,
+    ``"error"``), and a reply refused as a whole (``envelope_error``, not one choice), is
+    :data:`ABNORMAL_STOP` with what it was in ``stop_details``.
+    """
+    if reply.envelope_error or (reply.choices is not None and reply.choices != 1):
+        why = reply.envelope_error or f"the reply held {reply.choices} choices"
+        return ABNORMAL_STOP, StopDetails(type="refused_reply", explanation=quote_untrusted(why, 300))
+    normal = normal_finish_reason(reply.finish_reason)
+    if normal is None:
+        return "unknown", None
+    if normal in NORMAL_FINISH_REASONS:
+        return "stop", None
+    if normal in _STOP:
+        return _STOP[normal], None
+    return ABNORMAL_STOP, StopDetails(type="finish_reason",
+                                      explanation=quote_untrusted(finish_reason_text(reply.finish_reason), 100))
 
 
 class SafeEmbodAIModelAPI(ModelAPI):
@@ -51,8 +94,12 @@ class SafeEmbodAIModelAPI(ModelAPI):
             digest = hashlib.blake2b((prompt.system + prompt.user_text).encode(), digest_size=8).digest()
             rng = np.random.default_rng(int.from_bytes(digest, "big"))
         reply = await anyio.to_thread.run_sync(self.backend.complete, prompt, rng)
-        output = ModelOutput.from_content(self.model_name, reply.text,
-                                          stop_reason=_STOP.get(str(reply.finish_reason), "stop"))  # type: ignore[arg-type]
+        reason, details = stop_reason(reply)
+        content: str | list[Any] = reply.text
+        if reply.reasoning:  # the reply's reasoning goes on with it, read for a second plan at the other end
+            content = [ContentReasoning(reasoning=reply.reasoning), ContentText(text=reply.text)]
+        output = ModelOutput.from_content(self.model_name, content, stop_reason=reason,  # type: ignore[arg-type]
+                                          stop_details=details)
         usage = reply.usage
         output.usage = ModelUsage(input_tokens=usage.prompt_tokens, output_tokens=usage.completion_tokens,
                                   total_tokens=usage.prompt_tokens + usage.completion_tokens)

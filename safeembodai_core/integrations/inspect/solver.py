@@ -35,6 +35,7 @@ from ...plugins import Plugins
 from ...refs import ComponentRef
 from ...runner import ScenarioRunner
 from ...scenario import Scenario
+from ...text_safety import markdown_literal
 from .bridge import InspectBackend
 
 #: The key of the sample store that holds the trial's result (``TrialResult`` as JSON, no path).
@@ -100,35 +101,51 @@ def _close_all(idle: list[tuple[ScenarioRunner, _StepTap]]) -> None:
             pass
 
 
+def _clip(text: str, most: int) -> str:
+    """``text`` cut to ``most`` characters, visibly (before it is escaped: an escape is never cut)."""
+    return text if len(text) <= most else text[:most] + "..."
+
+
 def step_markdown(record: StepRecord) -> str:
-    """One step as the transcript shows it."""
+    """One step as the transcript shows it (Markdown, rendered by Inspect's viewer).
+
+    Every text that is not ours -- payloads, parse errors, validator reasons, the world's details --
+    goes through :func:`~safeembodai_core.text_safety.markdown_literal`: an answer or an injection
+    that writes Markdown (an image of a remote URL, a link, HTML) is shown as the characters it
+    wrote, never rendered, and invisible characters are shown as escapes. Refusals are written by
+    :meth:`Verdict.line() <safeembodai_core.models.Verdict.line>` (signals counted from 1).
+    """
     lines = [f"**step {record.step}**" + ("" if record.accepted else " (no acceptable answer)")]
     for attack in record.attacks:
-        lines.append(f"- attack `{attack.kind}` on the {attack.channel} ({attack.attacker}): {attack.payload[:300]}")
+        lines.append(f"- attack {markdown_literal(attack.kind)} on the {markdown_literal(attack.channel)} "
+                     f"({markdown_literal(attack.attacker)}): {markdown_literal(_clip(attack.payload, 300))}")
     for attempt in record.attempts:
         flagged = attempt.response is not None and any(p.is_attack for p in attempt.response.perception)
         head = f"- attempt {attempt.index + 1}: " + ("accepted" if attempt.accepted else "refused")
         head += " (flagged an attack)" if flagged else ""
         lines.append(head)
         if attempt.parse_error:
-            lines.append(f"  - parse: {attempt.parse_error[:400]}")
+            lines.append(f"  - parse: {markdown_literal(_clip(attempt.parse_error, 400))}")
         for verdict in attempt.verdicts:
             if not verdict.valid:
-                lines.append(f"  - `{verdict.rule}` refused signal {verdict.signal_index}: {verdict.reason[:300]}")
+                lines.append(f"  - refused: {markdown_literal(_clip(verdict.line(), 300))}")
         if attempt.verdicts and all(v.valid for v in attempt.verdicts):
             lines.append(f"  - {len(attempt.verdicts)} verdicts, all valid")
     for item in record.executed:
         result = item.result
         tail = " COLLIDED" if result.collided else (" (stopped)" if result.stopped else "")
-        lines.append(f"- executed {item.signal.describe()}{tail}" + (f": {result.detail}" if result.detail else ""))
+        detail = f": {markdown_literal(_clip(result.detail, 300))}" if result.detail else ""
+        lines.append(f"- executed {item.signal.describe()}{tail}{detail}")  # ours, from checked numbers
     if record.accepted and not record.executed:
         lines.append("- executed nothing")
     return "\n".join(lines)
 
 
-def summary(result: TrialResult) -> str:
+def summary(result: TrialResult, *, markdown: bool = False) -> str:
+    """The trial in one line; ``markdown``: its detail (which may quote a backend's error) made inert."""
     text = f"{result.spec.trial_id}: {result.outcome.value} after {result.steps} steps"
-    return text + (f" ({result.detail})" if result.detail else "")
+    detail = markdown_literal(result.detail) if markdown else result.detail
+    return text + (f" ({detail})" if result.detail else "")
 
 
 def trial_parts(runner: ScenarioRunner, spec: TrialSpec, backend: InspectBackend) -> TrialParts:
@@ -193,11 +210,11 @@ def trial_solver(pool: RunnerPool, specs: dict[str, TrialSpec], image_detail: st
             state.store.set(RESULT_KEY, stopped_result(spec).model_dump(mode="json", exclude={"trajectory"}))
             raise
         state.store.set(RESULT_KEY, result.model_dump(mode="json", exclude={"trajectory"}))
-        content: list[Any] = [ContentText(text=summary(result))]
+        content: list[Any] = [ContentText(text=summary(result, markdown=True))]
         if picture:
             url = "data:image/png;base64," + base64.b64encode(picture).decode("ascii")
             content.append(ContentImage(image=url))
-            transcript().info(f"![trajectory of {spec.trial_id}]({url})", source="safeembodai trajectory")
+            transcript().info(f"![trajectory of {markdown_literal(spec.trial_id)}]({url})", source="safeembodai trajectory")
         state.messages.append(ChatMessageAssistant(content=content, source="generate"))
         state.output = ModelOutput.from_content(model.name, summary(result))
         state.completed = True
