@@ -30,7 +30,14 @@ from safeembodai_core.hookspecs import hookimpl
 
 from .messages import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode
 
-_RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries")
+_RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries", "n",
+             "client", "stream")
+# why an option is the backend's own, where "use the backend's own options" does not say it
+_RESERVED_WHY = {
+    "n": "one answer per call is read (n asks for several choices: several plans, none of which would run)",
+    "client": "the backend brings its own client, which reads the reply strictly and follows no redirect",
+    "stream": "the whole reply is read at once",
+}
 NO_KEY = "no-key-required"
 
 
@@ -81,8 +88,9 @@ class _LiteLLMOptions(BaseModel):
     def _not_reserved(cls, value: dict[str, Any]) -> dict[str, Any]:
         reserved = sorted(set(value) & set(_RESERVED))
         if reserved:
+            why = "; ".join(f"{key}: {_RESERVED_WHY[key]}" for key in reserved if key in _RESERVED_WHY)
             raise ValueError(f"completion_kwargs may not set {', '.join(reserved)}: use the backend's own options "
-                             "(the key comes from the variable named by api_key_env)")
+                             "(the key comes from the variable named by api_key_env)" + (f"; {why}" if why else ""))
         return value
 
 

@@ -17,12 +17,24 @@ The configured key, and any credential in ``completion_kwargs``, is registered w
 :func:`safeembodai_core.logs.register_secret` when the backend is built, so every text that
 passes through ``redact`` is masked of it, and it is masked from the answer text before the
 reply leaves the backend: a server that reflects the key cannot get it stored or shown.
+
+What is read from the server depends on the route litellm takes (:func:`strict_route`, decided
+once per backend). Every model litellm sends through the openai SDK (provider ``openai``:
+``gpt-4o``, ``openai/<name>``; the ``gpt-4o`` and ``local`` backends) gets the *strict raw
+reading*: litellm is handed the backend's own ``openai.OpenAI`` client, whose transport records
+each exchange and follows no redirect (:mod:`.litellm_transport`); the reply is read from the
+body the server sent, by the core's strict reader, and failures are classified from that record
+first (a 3xx is an error, never followed nor retried; an HTTP 200 carrying only an error object
+is the provider's error, retried like a 5xx). Any other provider (``anthropic/...``, ...) is read
+from litellm's parsed object (:mod:`.litellm_reply`), without an origin.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import time
+import weakref
 from typing import Any, Callable
 
 import numpy as np
@@ -33,12 +45,17 @@ from safeembodai_core.errors import BackendError
 from safeembodai_core.logs import register_secret
 from safeembodai_core.models import Prompt
 from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
+from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
+from safeembodai_core.quoting import quote_untrusted
 
 from .litellm_api import NO_KEY
-from .litellm_call import call_with_deadline
-from .litellm_errors import MALFORMED, Failure, classify, format_hint, repeated, retry_after, scrub_message
-from .litellm_reply import answer_text, finish_reason, first_choice, model_name, token_usage
+from .litellm_call import CallTimedOut, TooManyHungCalls, call_with_deadline
+from .litellm_errors import (MALFORMED, Failure, classify, exchange_failure, format_hint, is_malformed, repeated,
+                             retry_after, scrub_message)
+from .litellm_preflight import endpoint
+from .litellm_reply import reply_from_body, reply_from_response
 from .litellm_runtime import import_litellm
+from .litellm_transport import Recorder, openai_client, recording
 from .messages import chat_messages, response_format
 
 log = structlog.get_logger(__name__)
@@ -88,6 +105,29 @@ def option_secrets(completion_kwargs: dict[str, Any]) -> list[str]:
     return found
 
 
+def strict_route(options: Any, litellm: Any) -> bool:
+    """Whether litellm sends ``options.model`` through the openai SDK (provider ``openai``)."""
+    try:
+        _, provider, _, _ = litellm.get_llm_provider(
+            model=options.model, api_base=options.api_base,
+            custom_llm_provider=options.completion_kwargs.get("custom_llm_provider"))
+    except Exception:  # a model id litellm cannot place: its call will say why
+        return False
+    return provider == "openai"
+
+
+class _Client:
+    """Holds the backend's own openai client (it holds the key); its repr never shows it."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value: Any) -> None:
+        self.value = value
+
+    def __repr__(self) -> str:
+        return "<openai client>"
+
+
 class LiteLLMBackend(LLMBackend):
     """Sends each prompt through ``litellm.completion``; see :mod:`.litellm_api` for the options."""
 
@@ -105,6 +145,23 @@ class LiteLLMBackend(LLMBackend):
         self._litellm = import_litellm()
         self._limits = DEFAULT_LIMITS
         self._sampling: dict[str, float | int] | None = None
+        self._client: _Client | None = None
+        if strict_route(options, self._litellm):
+            self._client = _Client(self._strict_client(api_key))
+            # a backend dropped without close() still lets go of its connections
+            self._finalizer = weakref.finalize(self, self._client.value.close)
+
+    def _strict_client(self, api_key: str | None) -> Any:
+        """The openai client of the strict raw reading (see the module docstring), built once."""
+        o = self.options
+        if api_key is None:  # what litellm falls back to; masked like a configured key
+            api_key = os.environ.get("OPENAI_API_KEY") or NO_KEY
+            if api_key != NO_KEY and len(api_key) >= _MIN_SECRET_CHARS:
+                register_secret(api_key)
+                self._secrets += (api_key,)
+                self._key = _Secret(api_key)
+        base_url = o.api_base or endpoint(o, self._litellm)
+        return openai_client(base_url, api_key, o.timeout_s)
 
     def prepare_attempt(self, index: int, limits: ControlLimits, rng: np.random.Generator) -> dict[str, float | int]:
         """Called by Algorithm 1 before attempt ``index`` of a step (0: the first try).
@@ -159,21 +216,23 @@ class LiteLLMBackend(LLMBackend):
         key = self._key.reveal()
         if key is not None:
             kwargs["api_key"] = key
+        if self._client is not None:
+            kwargs["client"] = self._client.value
         malformed = 0
         previous: Failure | None = None
         for attempt in range(o.max_retries + 1):
             started = time.perf_counter()
-            try:
-                response = call_with_deadline(self._litellm.completion, kwargs, o.timeout_s)
-            except Exception as error:  # every provider error is classified below
-                kind, retryable = classify(error)
-                if kind == MALFORMED:
-                    malformed += 1
-                    retryable = malformed <= _MALFORMED_RETRIES
-                failure = Failure(kind, retryable, self._scrub(str(error)), retry_after(error))
-                failure, previous = repeated(failure, previous), failure
-            else:
-                return self._reply(response, time.perf_counter() - started)
+            with recording() as recorder:  # call_with_deadline's worker sees it (a context copy)
+                try:
+                    response = call_with_deadline(self._litellm.completion, kwargs, o.timeout_s)
+                except Exception as error:  # every provider error is classified below
+                    failure = self._failure(error, recorder)
+                else:
+                    return self._reply(response, recorder, time.perf_counter() - started)
+            if is_malformed(failure.kind):
+                malformed += 1
+                failure = Failure(failure.kind, malformed <= _MALFORMED_RETRIES, failure.detail, failure.retry_after_s)
+            failure, previous = repeated(failure, previous), failure
             if not failure.retryable or attempt == o.max_retries:
                 tries = f"{attempt + 1} {'try' if attempt == 0 else 'tries'}"
                 log.warning("backend.failed", backend=self.name, model=o.model, reason=failure.kind, tries=attempt + 1)
@@ -187,18 +246,41 @@ class LiteLLMBackend(LLMBackend):
             self._sleep(delay)
         raise AssertionError("unreachable")  # pragma: no cover
 
+    def _failure(self, error: Exception, recorder: Recorder) -> Failure:
+        """What went wrong: from the transport's record when it shows it, else from the exception."""
+        if not isinstance(error, (CallTimedOut, TooManyHungCalls)):
+            found = exchange_failure(recorder, self._secrets)
+            if found is not None and found.kind == MALFORMED:  # litellm's words say what it could not read
+                return Failure(MALFORMED, True, self._scrub(str(error)) or found.detail)
+            if found is not None:
+                return found
+        kind, retryable = classify(error)
+        return Failure(kind, retryable, self._scrub(str(error)), retry_after(error))
+
     def preflight(self) -> None:
         """Before the first trial: the server accepts a connection (:mod:`.litellm_preflight`)."""
         from .litellm_preflight import check_reachable
 
         check_reachable(self.name, self.options, self._litellm)
 
-    def _reply(self, response: Any, latency: float) -> BackendReply:
-        choice = first_choice(response)
-        text = answer_text(choice, self._secrets)
-        reason = finish_reason(choice)
-        if reason != "stop":
-            log.info("backend.unusual_finish", backend=self.name, model=self.options.model, finish_reason=reason,
-                     chars=len(text))
-        return BackendReply(text=text, usage=token_usage(getattr(response, "usage", None)), latency_s=latency,
-                            model=model_name(response, self.options.model, self._secrets), finish_reason=reason)
+    def close(self) -> None:
+        if self._client is not None:
+            self._finalizer()
+
+    def _reply(self, response: Any, recorder: Recorder, latency: float) -> BackendReply:
+        o = self.options
+        if self._client is None:
+            reply = reply_from_response(response, o.model, self._secrets, latency)
+        else:
+            last = recorder.last
+            if last is not None and last.body is not None:
+                reply = reply_from_body(last.body, last.origin, o.model, self._secrets, latency)
+            else:  # litellm answered without a body on record: nothing is read from it
+                reply = BackendReply(text="", latency_s=latency, model=o.model,
+                                     origin=last.origin if last is not None else None,
+                                     envelope_error="the backend recorded no body for this reply")
+        if normal_finish_reason(reply.finish_reason) not in NORMAL_FINISH_REASONS or reply.envelope_error:
+            log.info("backend.unusual_reply", backend=self.name, model=o.model,
+                     finish_reason=quote_untrusted(reply.finish_reason, 64), choices=reply.choices,
+                     envelope_refused=reply.envelope_error is not None, chars=len(reply.text))
+        return reply

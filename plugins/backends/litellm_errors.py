@@ -7,6 +7,18 @@ is raised by litellm as an ``InternalServerError`` with status 500 although no s
 it is told apart by the absence of any real HTTP response behind the error and reported as a
 malformed reply.
 
+On the routes whose exchanges the backend's own transport records (:mod:`.litellm_transport`)
+the record decides first (:func:`exchange_failure`), since it holds what the server really sent:
+
+* a 3xx -- the server tried to send the call elsewhere: ``redirected`` with the status and the
+  Location's origin, never followed and not retried (a request the transport refused to send,
+  to another origin or after a redirect, likewise);
+* an HTTP 200 whose body is only an error object (``{"error": {"message": ...}}``, no
+  ``choices``) -- the provider's error, its message quoted, retried like a server error (5xx);
+  litellm itself reports it as some 4xx "(no message)";
+* any other 200 that litellm could not read -- a malformed reply (retried once);
+* a body longer than the transport reads -- a malformed reply too.
+
 Every text a provider (or litellm, about a provider) wrote passes through :func:`scrub_message`
 before it reaches a :class:`~safeembodai_core.errors.BackendError` or a log: one line, no
 traceback, no file path, no class repr, no control character, no secret, at most 300 characters.
@@ -24,8 +36,10 @@ from .litellm_call import CallTimedOut, TooManyHungCalls
 
 MESSAGE_CHARS = 300
 MALFORMED = "malformed reply (not a chat completion)"
+TOO_LARGE = "malformed reply (body too large to read)"
 TIMED_OUT = "timed out"
 SERVER_ERROR = "server error"
+ERROR_IN_200 = "provider error in an HTTP 200 reply"
 
 _NOT_RETRIED = {
     401: "authentication failed (HTTP 401), check the key in the variable named by api_key_env",
@@ -117,15 +131,60 @@ def classify(error: Exception) -> tuple[str, bool]:
     return f"unexpected {type(error).__name__}", False
 
 
+def is_malformed(kind: str) -> bool:
+    """Whether ``kind`` is a malformed reply (allowed one retry only)."""
+    return kind.startswith("malformed reply")
+
+
+def _error_only_message(body: bytes | None) -> str | None:
+    """The message of a body that is only an ``{"error": ...}`` object (no ``choices``); None otherwise."""
+    import json
+
+    try:
+        data = json.loads(body or b"")
+    except (ValueError, RecursionError):
+        return None
+    if not isinstance(data, dict) or "error" not in data or "choices" in data:
+        return None
+    error = data["error"]
+    message = error.get("message") if isinstance(error, dict) else error
+    if message is None or message == "":
+        return "(no message)"
+    return message if isinstance(message, str) else json.dumps(message)
+
+
+def exchange_failure(recorder: Any, secrets: Iterable[str] = ()) -> Failure | None:
+    """The failure the transport's record of a call shows (module docstring); None when it shows none."""
+    last = recorder.last if recorder is not None else None
+    if last is None:
+        return None
+    redirect = recorder.redirected()
+    if redirect is not None:
+        target = scrub_message(redirect.location or "no location", secrets)
+        return Failure(f"redirected (HTTP {redirect.status}), not followed: an answer is only read from the "
+                       "configured server", False, f"Location {target}")
+    if last.refused is not None and last.status is None:
+        return Failure("request not sent", False, scrub_message(last.refused, secrets))
+    if last.refused is not None:
+        return Failure(TOO_LARGE, True, scrub_message(last.refused, secrets))
+    if last.status is None or not 200 <= last.status < 300 or last.body is None:
+        return None  # no answer had (a timeout, a refused connection) or an HTTP error status: classify()
+    message = _error_only_message(last.body)
+    if message is not None:
+        return Failure(ERROR_IN_200, True, scrub_message(message, secrets))
+    return Failure(MALFORMED, True, "the server's HTTP 200 body is not a chat completion litellm can read")
+
+
 def repeated(failure: Failure, previous: Failure | None) -> Failure:
     """``failure``, not retryable when it repeats ``previous`` exactly on the same request.
 
-    A server error (HTTP 5xx) that comes back with the same status and the same text is the
-    server refusing this request, not a passing overload: one retry finds that out, more would
-    only burn the backoff. Rate limits (429), timeouts and refused connections repeat by nature
-    and keep their retries.
+    A server error (HTTP 5xx, or an error object in an HTTP 200) that comes back with the same
+    status and the same text is the server refusing this request, not a passing overload: one
+    retry finds that out, more would only burn the backoff. Rate limits (429), timeouts and
+    refused connections repeat by nature and keep their retries.
     """
-    if (failure.retryable and previous is not None and failure.kind.startswith(SERVER_ERROR)
+    server_side = failure.kind.startswith(SERVER_ERROR) or failure.kind == ERROR_IN_200
+    if (failure.retryable and previous is not None and server_side
             and (failure.kind, failure.detail) == (previous.kind, previous.detail)):
         return replace(failure, kind=f"{failure.kind}, the same twice on the same request (not transient)",
                        retryable=False)

@@ -1,20 +1,29 @@
-"""A litellm response read defensively into the pieces of a :class:`BackendReply`.
+"""A completion read into a :class:`BackendReply`: from the server's own bytes where we have them.
 
-Everything in a response came from the server. The answer text is returned as it came (the core
-parses it) except that the backend's own secrets are masked; the finish reason, the model name
-and the token counts are read so that no value can raise, grow without bound or carry control
-characters:
+Two routes, decided once per backend (:func:`.litellm_client.strict_route`):
 
-* ``finish_reason`` -- litellm maps providers' reasons onto OpenAI's (``end_turn`` -> ``stop``,
-  ``max_tokens`` -> ``length``) but turns any reason it does not know (and some it does, such
-  as Cohere's ``ERROR``) into ``"stop"``. Where litellm says ``"stop"``, the provider's own reason
-  (litellm's ``native_finish_reason``) is reported instead unless it is one of the few that mean
-  a normal end, so a server cannot slip an unknown reason past the
-  core as a normal stop. A server that sends no reason at all is a ``"stop"`` (litellm's default).
-* token counts -- whole numbers clamped to [0, 2**31 - 1]; anything else that reaches this
-  module (a string, a list, ``True``) counts 0. A count litellm itself cannot read (a fraction,
-  NaN, 1e300) never gets here: litellm rejects the whole reply, which the backend reports as a
-  malformed reply (``litellm_errors``) -- such a server is broken, and its answer is not used.
+* **The strict raw reading** -- every model litellm sends through the openai SDK (provider
+  ``openai``: ``gpt-4o``, ``openai/<name>``; the ``gpt-4o`` and ``local`` backends, and
+  ``litellm`` with such a model). The body the server sent, as recorded by the backend's own
+  transport (:mod:`.litellm_transport`), is read by the core's strict reader
+  (:func:`safeembodai_core.models.chat_completion.reply_from_chat_completion`), not litellm's
+  parsed object, which moves a leading ``<think>`` block of the content into
+  ``reasoning_content``, keeps the last of duplicate keys and takes choice 0 whatever its index:
+  :func:`reply_from_body`. The content stays whole (the core splits the reasoning off and reads
+  it for a second plan), the reasoning the server sent apart (``reasoning_content``) comes along,
+  every choice is counted, the finish reason is passed on as sent (clipped at 64 characters; the
+  core normalises it), and the reply's origin (``scheme://host:port``) is recorded.
+* **litellm's object** -- any other provider (``anthropic/...``, ``azure/...``, ...; reached
+  with a key): :func:`reply_from_response`. The text is the first choice's content, ``choices``
+  how many litellm holds, the reasoning litellm's ``reasoning_content``, and the finish reason
+  litellm's -- except that litellm maps any reason it does not know (and some it does, such as
+  Cohere's ``ERROR``) to ``"stop"``: where litellm says ``"stop"``, the provider's own reason
+  (``native_finish_reason``) is reported instead unless it is one that means a normal end. The
+  origin is not known there (None).
+
+Either way the backend's own secrets are masked from the text and the reasoning (a server that
+reflects the key), token counts are whole numbers clamped to [0, 2**31 - 1], and the model name
+is a short plain token (the configured one when the server names none).
 """
 
 from __future__ import annotations
@@ -24,16 +33,15 @@ import re
 from numbers import Real
 from typing import Any, Iterable
 
+from safeembodai_core.components import BackendReply
 from safeembodai_core.logs import mask_values
-from safeembodai_core.models.response import NORMAL_FINISH_REASONS
 from safeembodai_core.models import TokenUsage
+from safeembodai_core.models.chat_completion import reply_from_chat_completion
+from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason
 
 MAX_TOKENS_REPORTED = 2**31 - 1
-REASON_CHARS = 32
 MODEL_CHARS = 100
 _NOT_PLAIN = re.compile(r"[^A-Za-z0-9_.:/@+\-]")
-
-
 
 
 def plain(value: Any, most: int) -> str:
@@ -61,33 +69,61 @@ def token_usage(usage: Any) -> TokenUsage:
                       completion_tokens=token_count(getattr(usage, "completion_tokens", 0)))
 
 
-def finish_reason(choice: Any) -> str | None:
-    """The reason the answer ended, as a short plain token (see the module docstring)."""
-    mapped = getattr(choice, "finish_reason", None)
-    fields = getattr(choice, "provider_specific_fields", None)
-    native = fields.get("native_finish_reason") if isinstance(fields, dict) else None
-    if mapped == "stop" and native is not None and not (isinstance(native, str) and native.lower() in NORMAL_FINISH_REASONS):
-        return plain(native, REASON_CHARS) or "_"
-    if mapped is None:
-        return None
-    return plain(getattr(mapped, "value", mapped), REASON_CHARS) or "_"
-
-
-def first_choice(response: Any) -> Any:
-    try:
-        choices = getattr(response, "choices", None)
-        return choices[0] if isinstance(choices, (list, tuple)) and choices else None
-    except Exception:  # a response object that misbehaves is a response without choices
-        return None
-
-
-def answer_text(choice: Any, secrets: Iterable[str]) -> str:
-    content = getattr(getattr(choice, "message", None), "content", None)
-    return mask_values(content if isinstance(content, str) else "", secrets)
-
-
-def model_name(response: Any, configured: str, secrets: Iterable[str]) -> str:
-    reported = getattr(response, "model", None)
+def model_name(reported: Any, configured: str, secrets: Iterable[str]) -> str:
+    """The model the server names (a short plain token, secrets masked), or the configured one."""
     if not isinstance(reported, str) or not reported:
         return configured
     return plain(mask_values(reported, secrets), MODEL_CHARS)
+
+
+def _masked(text: str | None, secrets: Iterable[str]) -> str | None:
+    return mask_values(text, secrets) if isinstance(text, str) else text
+
+
+def reply_from_body(body: bytes, origin: str | None, configured: str, secrets: Iterable[str],
+                    latency_s: float) -> BackendReply:
+    """The strict raw reading of a chat-completion body (see the module docstring)."""
+    secrets = tuple(secrets)
+    reply = reply_from_chat_completion(body, origin=origin)
+    reply.text = mask_values(reply.text, secrets)
+    reply.reasoning = _masked(reply.reasoning, secrets)
+    reply.envelope_error = _masked(reply.envelope_error, secrets)
+    reply.finish_reason = finish_reason_text(reply.finish_reason)
+    reply.model = model_name(reply.model, configured, secrets)
+    reply.latency_s = latency_s
+    return reply
+
+
+def finish_reason(choice: Any) -> str | None:
+    """litellm's finish reason of ``choice``, or the provider's own where litellm says stop (module docstring)."""
+    mapped = getattr(choice, "finish_reason", None)
+    fields = getattr(choice, "provider_specific_fields", None)
+    native = fields.get("native_finish_reason") if isinstance(fields, dict) else None
+    if mapped == "stop" and native is not None and normal_finish_reason(native) not in NORMAL_FINISH_REASONS:
+        return finish_reason_text(native)
+    return finish_reason_text(mapped)
+
+
+def _choices(response: Any) -> list[Any]:
+    try:
+        choices = getattr(response, "choices", None)
+        return list(choices) if isinstance(choices, (list, tuple)) else []
+    except Exception:  # a response object that misbehaves is a response without choices
+        return []
+
+
+def reply_from_response(response: Any, configured: str, secrets: Iterable[str], latency_s: float) -> BackendReply:
+    """litellm's parsed response read into a reply (routes not read raw; see the module docstring)."""
+    secrets = tuple(secrets)
+    choices = _choices(response)
+    choice = choices[0] if choices else None
+    message = getattr(choice, "message", None)
+    content = getattr(message, "content", None)
+    reasoning = getattr(message, "reasoning_content", None)
+    return BackendReply(
+        text=mask_values(content if isinstance(content, str) else "", secrets),
+        usage=token_usage(getattr(response, "usage", None)), latency_s=latency_s,
+        model=model_name(getattr(response, "model", None), configured, secrets),
+        finish_reason=finish_reason(choice) if choice is not None else None,
+        reasoning=mask_values(reasoning, secrets) if isinstance(reasoning, str) and reasoning else None,
+        choices=len(choices), origin=None)

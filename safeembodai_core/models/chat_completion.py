@@ -16,7 +16,9 @@ attempt's record keeps the body as its text), and the rest is read as:
   ``function_call`` or ``refusal`` set -- an envelope error (no tool was offered; a refusal is
   not an answer).
 * ``finish_reason`` -- as sent (text; a number as its JSON), None when absent or ``null``.
-* ``usage`` -- whole numbers clamped to [0, 2**31 - 1]; anything else counts 0.
+* numbers anywhere in the envelope are read as the answer's are: ``NaN``, literals over 32
+  characters or magnitudes above 10^15 (a token count of 1e30) refuse the whole reply -- such a
+  server is broken; ``usage`` counts within that are clamped to [0, 2**31 - 1], non-numbers count 0.
 * a body that is an ``error`` object (an HTTP 200 carrying an error) -- an envelope error that
   quotes its message; a backend that sees it first treats it as the provider's error instead.
 """

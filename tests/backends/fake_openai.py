@@ -7,8 +7,11 @@ falling back to ``default`` when the queue is empty::
 
 Besides honest replies it plays a hostile server: :class:`Trickle` keeps a response alive one
 byte at a time (every read arrives within any per-read timeout), :class:`Raw` sends any body
-with any status (a malformed 200 envelope), ``Reply.usage`` may hold any JSON values, and a
-callable ``Reply.text`` sees the request's headers (to reflect the ``Authorization`` header).
+with any status (a malformed 200 envelope, duplicate keys), :class:`Envelope` sends a
+completion with any ``choices`` list and any other top-level fields (:func:`choice` builds one),
+:class:`Redirect` answers with a 3xx and a ``Location``, ``Reply.usage`` may hold any JSON values,
+and a callable ``Reply.text`` sees the request's headers (to reflect the ``Authorization``
+header). Every request is recorded, GETs too (a client that follows a 302 sends one).
 
 HTTP/1.1 keep-alive with Nagle off: otherwise every call through the openai SDK pays ~40 ms of
 delayed-ACK latency and timings mean nothing.
@@ -78,13 +81,40 @@ class Raw:
 
 
 @dataclass
+class Redirect:
+    """Answer ``code`` (301, 302, 303, 307, 308) with ``Location: location`` and a small JSON body."""
+
+    code: int
+    location: str
+
+
+@dataclass
+class Envelope:
+    """Answer 200 with a chat completion whose ``choices`` are exactly ``choices`` (any JSON values);
+    ``fields`` are set on (or, with the value ``DROP``, removed from) the top-level object."""
+
+    choices: Any
+    fields: dict[str, Any] = field(default_factory=dict)
+
+
+DROP = object()
+
+
+def choice(text: Any, finish_reason: Any = "stop", index: Any = 0, **message: Any) -> dict[str, Any]:
+    """One choice of an :class:`Envelope`: ``text`` as the content, ``message`` more message fields."""
+    return {"index": index, "message": {"role": "assistant", "content": text, **message},
+            "finish_reason": finish_reason}
+
+
+@dataclass
 class Recorded:
     path: str
     headers: dict[str, str]
     body: dict[str, Any]
+    method: str = "POST"
 
 
-Behaviour = Reply | Status | Hang | Trickle | Raw
+Behaviour = Reply | Status | Hang | Trickle | Raw | Redirect | Envelope
 
 
 class FakeOpenAI:
@@ -164,6 +194,9 @@ class FakeOpenAI:
                         return
                 self.wfile.write(data)
 
+            def do_GET(self) -> None:
+                self.do_POST()
+
             def do_POST(self) -> None:
                 length = int(self.headers.get("Content-Length", "0"))
                 raw = self.rfile.read(length)
@@ -171,7 +204,7 @@ class FakeOpenAI:
                     body = json.loads(raw or b"{}")
                 except json.JSONDecodeError:
                     body = {"_unparsed": raw.decode("utf-8", "replace")}
-                request = Recorded(self.path, {k.lower(): v for k, v in self.headers.items()}, body)
+                request = Recorded(self.path, {k.lower(): v for k, v in self.headers.items()}, body, self.command)
                 fake.requests.append(request)
                 behaviour = fake._next(body)
                 try:
@@ -187,6 +220,14 @@ class FakeOpenAI:
                     if isinstance(behaviour, Raw):
                         data = behaviour.body.encode() if isinstance(behaviour.body, str) else behaviour.body
                         self._send_bytes(behaviour.code, data, content_type=behaviour.content_type)
+                        return
+                    if isinstance(behaviour, Redirect):
+                        data = json.dumps({"moved": behaviour.location}).encode()
+                        self._send_bytes(behaviour.code, data, {"Location": behaviour.location})
+                        return
+                    if isinstance(behaviour, Envelope):
+                        data = json.dumps(_envelope(behaviour, request, len(fake.requests))).encode()
+                        self._send_bytes(200, data)
                         return
                     trickle = behaviour if isinstance(behaviour, Trickle) else None
                     reply = behaviour.then if trickle else behaviour
@@ -213,3 +254,14 @@ def _completion(reply: Reply, request: Recorded, number: int) -> dict[str, Any]:
         "usage": {"prompt_tokens": prompt, "completion_tokens": completion,
                   "total_tokens": prompt + completion if both_ints else 0},
     }
+
+
+def _envelope(envelope: Envelope, request: Recorded, number: int) -> dict[str, Any]:
+    body = _completion(Reply(""), request, number)
+    body["choices"] = envelope.choices
+    for key, value in envelope.fields.items():
+        if value is DROP:
+            body.pop(key, None)
+        else:
+            body[key] = value
+    return body

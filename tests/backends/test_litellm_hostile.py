@@ -13,7 +13,9 @@ import pytest
 from fake_openai import Raw, Reply, Status, Trickle
 from safeembodai_core.errors import BackendError
 from safeembodai_core.logs import redact
-from safeembodai_core.models import Prompt, TextPart
+from safeembodai_core.models import Prompt, TextPart, read_reply
+from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
+from safeembodai_core.models.strict_json import ResponseParseError
 from safeembodai_core.testing import answer, turn
 from safeembodai_plugins.backends import litellm_call
 from safeembodai_plugins.backends.litellm_errors import scrub_message
@@ -37,16 +39,26 @@ def _complete(plugins, server, **options):
     return _backend(plugins, server, **options).complete(_prompt(), np.random.default_rng(0))
 
 
-@pytest.mark.parametrize("sent,reported", [
-    ("length", "length"), ("stop", "stop"), ("end_turn", "stop"), ("max_tokens", "length"),
-    ("content_filter", "content_filter"),
-    ("no_such_reason_a_hostile_server_made_up", "no_such_reason_a_hostile_server_"),  # litellm would say "stop"
-    ("\x1b[2Jstop", "__2Jstop"), (7, "7"),
+@pytest.mark.parametrize("sent,reported,accepted", [
+    ("length", "length", False), ("stop", "stop", True), ("end_turn", "end_turn", True),
+    ("max_tokens", "max_tokens", False), ("content_filter", "content_filter", False), ("STOP", "STOP", True),
+    (" STOP ", " STOP ", None),  # None: as the core's one normalisation reads it, whatever that is
+    ("no_such_reason_a_hostile_server_made_up", "no_such_reason_a_hostile_server_made_up", False),  # litellm: "stop"
+    ("\x1b[2Jstop", "\x1b[2Jstop", False), ("stop\u200b", "stop\u200b", False), (7, "7", False),
+    ("stop" + " " * 60 + "length", "stop" + " " * 60 + "[...]", False),  # clipped visibly: never a bare "stop"
 ])
-def test_finish_reason_is_the_providers_as_a_short_plain_token(built_plugins, fake_server, fake_key, sent, reported):
+def test_finish_reason_is_the_providers_as_sent_clipped_at_64_and_judged_by_the_core(
+        built_plugins, fake_server, fake_key, sent, reported, accepted):
     fake_server.default = Reply(GOOD, finish_reason=sent)
     reply = _complete(built_plugins, fake_server)
     assert reply.finish_reason == reported and reply.text == GOOD
+    if accepted is None:
+        accepted = normal_finish_reason(reported) in NORMAL_FINISH_REASONS
+    if accepted:
+        assert read_reply(reply).control[0].angle == 30
+    else:
+        with pytest.raises(ResponseParseError, match="finish reason"):
+            read_reply(reply)
 
 
 def test_a_trickled_reply_past_the_deadline_times_out_and_is_never_used(built_plugins, fake_server, fake_key):
@@ -117,9 +129,17 @@ def test_scrubbed_provider_text_is_one_line_without_internals_or_secrets():
 
 
 def test_absurd_token_counts_are_clamped_and_never_raise(built_plugins, fake_server, fake_key):
+    fake_server.default = Reply(GOOD, usage=(10**12, -5))
+    reply = _complete(built_plugins, fake_server)
+    assert (reply.usage.prompt_tokens, reply.usage.completion_tokens) == (2**31 - 1, 0)
+    assert read_reply(reply).control[0].angle == 30
+    # past the strict reader's bound on any number (1e15) the whole envelope is refused, never a crash
     fake_server.default = Reply(GOOD, usage=(10**30, -5))
-    usage = _complete(built_plugins, fake_server).usage
-    assert (usage.prompt_tokens, usage.completion_tokens) == (2**31 - 1, 0)
+    reply = _complete(built_plugins, fake_server)
+    assert (reply.usage.prompt_tokens, reply.usage.completion_tokens) == (0, 0)
+    assert "too large" in reply.envelope_error and GOOD.replace('"', '\\"') in reply.text
+    with pytest.raises(ResponseParseError, match="refused as a whole"):
+        read_reply(reply)
     for value, count in [(12, 12), (12.9, 12), (-1, 0), (float("nan"), 0), (float("inf"), 0), (1e300, 2**31 - 1),
                          ("12", 0), (None, 0), ([1], 0), (True, 0), (10**400, 2**31 - 1)]:
         assert token_count(value) == count, value

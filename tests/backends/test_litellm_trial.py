@@ -46,20 +46,23 @@ def test_malformed_answers_are_recorded_retried_and_never_executed(built_plugins
         Reply('{"perception": [], "plan": "x", "control": []}'),         # step 2: wrong schema
         Reply(answer(straight(150))[:70], finish_reason="length"),      # truncated
         Status(429, retry_after=0),                                      # rate limited, retried by the backend
-        Reply("Here is my answer: " + answer(turn(20, "right")) + " Good luck."),  # prose around: accepted
+        Reply("Here is my answer: " + answer(turn(20, "right")) + " Good luck."),  # prose around: refused
+        Reply(answer(turn(20, "right"))),                                 # the object alone: accepted
     )
     fake_server.default = Reply(answer(turn(10)))
     result, steps = _run(built_plugins, _scenario_data(fake_server))
     assert result.outcome == Outcome.TIMEOUT and result.steps == 3
     assert [s.describe() for s in (e.signal for e in steps[0].executed)] == ["turn left 30 deg"]
     second = steps[1]
-    assert [a.parse_error is not None for a in second.attempts] == [True, True, False]
+    assert [a.parse_error is not None for a in second.attempts] == [True, True, True, False]
     assert "response schema" in second.attempts[0].parse_error
     assert 'finish reason "length"' in second.attempts[1].parse_error  # refused as cut off before parsing
+    assert "text outside the JSON object" in second.attempts[2].parse_error
+    assert second.attempts[2].raw_text.startswith("Here is my answer: ")  # the raw text is kept
     assert [e.signal.describe() for e in second.executed] == ["turn right 20 deg"]
     # every request carried both images and the security prefix; retries carried the failures
     bodies = [r.body for r in fake_server.requests]
-    assert len(bodies) == 6  # 1 + (wrong schema, truncated, 429, prose) + 1
+    assert len(bodies) == 7  # 1 + (wrong schema, truncated, 429, prose, bare) + 1
     for body in bodies:
         system, user = body["messages"]
         assert system["content"].lstrip().startswith("Security:")
