@@ -11,8 +11,8 @@ attempt's record keeps the body as its text), and the rest is read as:
 * ``choices`` -- counted; more than one is refused by :func:`~.reply.read_reply` (one plan per
   reply; nothing here asks for ``n``); none, or a choice whose ``index`` is not 0, is an envelope
   error.
-* ``message.content`` -- text, ``null`` (no answer), or a list of ``{"type": "text"}`` parts
-  (joined); ``reasoning_content`` / ``reasoning`` -- the reply's reasoning; ``tool_calls``,
+* ``message.content`` -- text or ``null`` (no answer; anything else is an envelope error, as the
+  backends always read it); ``reasoning_content`` / ``reasoning`` -- the reply's reasoning; ``tool_calls``,
   ``function_call`` or ``refusal`` set -- an envelope error (no tool was offered; a refusal is
   not an answer).
 * ``finish_reason`` -- as sent (text; a number as its JSON), None when absent or ``null``.
@@ -67,10 +67,7 @@ def _content(message: dict[str, Any]) -> str:
     content = message.get("content")
     if content is None or isinstance(content, str):
         return content or ""
-    if isinstance(content, list) and all(isinstance(p, dict) and p.get("type") == "text"
-                                         and isinstance(p.get("text"), str) for p in content):
-        return "".join(p["text"] for p in content)
-    raise ResponseParseError(f"the message's content is neither text nor text parts (got {type(content).__name__})")
+    raise ResponseParseError(f"the message's content is not text (got {type(content).__name__})")
 
 
 def _reasoning(message: dict[str, Any]) -> str | None:

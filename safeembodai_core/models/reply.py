@@ -18,8 +18,8 @@ verdict everywhere. In order, a reply is refused when:
 4. the text, with the reasoning, is longer than :data:`MAX_RESPONSE_CHARS`;
 5. its reasoning -- the backend's ``reasoning`` plus any leading ``<think>``/``<thinking>``/
    ``<reasoning>`` blocks of the text, or a text before a lone closing tag -- holds a JSON object
-   other than the answer's own (one plan per reply: ``<think>maybe {..} but no</think>{..}``), or
-   a reasoning block is never closed;
+   other than the answer's own (one plan per reply: ``<think>maybe {..} but no</think>{..}``) or
+   a ``{`` that starts no complete object, or a reasoning block is never closed;
 6. the text outside the reasoning is not exactly one JSON object read strictly
    (:mod:`.strict_json`) and, by default (``limits.outside_text: refuse``), with nothing around
    it but whitespace and one Markdown code fence;
@@ -49,9 +49,6 @@ log = get_logger(__name__)
 
 MAX_RESPONSE_CHARS = 64_000
 MAX_FINISH_REASON_CHARS = 64
-#: At most this many ``{`` in the reasoning are tried as the start of a JSON object; a reasoning
-#: with more cannot be shown to hold no second plan cheaply, and is refused.
-MAX_REASONING_BRACES = 256
 
 # Finish reasons that mean "the model ended its answer itself". OpenAI (and litellm, which maps
 # every provider to OpenAI's names) says "stop"; the others are the native names of providers
@@ -165,27 +162,18 @@ def split_reasoning(text: str) -> tuple[str, str]:
 
 
 def _check_reasoning(reasoning: str, answer: dict[str, Any]) -> None:
-    """Refuse reasoning that holds a JSON object other than ``answer`` (a second plan)."""
-    if reasoning.count("{") > MAX_REASONING_BRACES:
-        raise ResponseParseError(f"the reply's reasoning holds more than {MAX_REASONING_BRACES} '{{': it cannot be "
-                                 "read for a second plan; keep JSON out of the reasoning")
-    decoder_text = reasoning
-    start = decoder_text.find("{")
-    while start != -1:
-        try:
-            objects = find_objects(decoder_text[start:], most=0)
-        except ResponseParseError:
-            objects = []  # a { that starts no complete object is prose in a reasoning, not a plan
-        if objects:
-            value, _, end = objects[0]
-            if value != answer:
-                raise ResponseParseError(
-                    "the reply's reasoning holds a JSON object other than the answer "
-                    f"({quote_untrusted(decoder_text[start:start + end], QUOTE_CHARS)}); one plan per reply, so "
-                    "none is executed: keep drafts out of the reasoning")
-            start = decoder_text.find("{", start + end)
-        else:
-            start = decoder_text.find("{", start + 1)
+    """Refuse reasoning that holds a JSON object other than ``answer`` (a second plan), or a ``{``
+    that starts no complete object (a cut-off second plan is still one, as in the text)."""
+    try:
+        objects = find_objects(reasoning)
+    except ResponseParseError as error:
+        raise ResponseParseError(f"the reply's reasoning: {error}; keep JSON out of the reasoning") from None
+    for value, start, end in objects:
+        if value != answer:
+            raise ResponseParseError(
+                "the reply's reasoning holds a JSON object other than the answer "
+                f"({quote_untrusted(reasoning[start:end], QUOTE_CHARS)}); one plan per reply, so "
+                "none is executed: keep drafts out of the reasoning")
 
 
 def _check_layout(content: str, start: int, end: int) -> None:

@@ -297,3 +297,36 @@ def test_completion_kwargs_may_not_ask_for_several_answers_or_bring_a_client(bui
     for key, why in [("n", "one answer per call is read"), ("client", "follows no redirect")]:
         with pytest.raises(ComponentError, match=f"completion_kwargs may not set {key}.*{why}"):
             built_plugins.registry.build("llm_backend", "local", {"completion_kwargs": {key: 2}})
+
+
+# the transport gives the core's strict reader's reply, for any generated body -------------------
+
+def test_any_body_over_http_gives_the_strict_readers_reply(built_plugins, fake_key):
+    """Whole replies (tests/core/reply_strategies.py) served over HTTP: the backend's reply is the one
+    ``reply_from_chat_completion`` makes of the same body, so the verdicts of
+    tests/core/test_one_verdict.py and tests/integrations/test_one_verdict_paths.py hold through the
+    real transport too."""
+    import sys
+    from pathlib import Path
+
+    from hypothesis import HealthCheck, given, settings
+
+    from safeembodai_core.models.chat_completion import reply_from_chat_completion
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "core"))
+    from reply_strategies import bodies
+
+    with FakeOpenAI() as server:
+        backend = _backend(built_plugins, server)
+
+        @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+        @given(generated=bodies())
+        def check(generated):
+            body, _ = generated
+            server.push(Raw(body))
+            got = backend.complete(_prompt(), np.random.default_rng(0))
+            want = reply_from_chat_completion(body, origin=_origin(server))
+            fields = ("text", "reasoning", "choices", "finish_reason", "envelope_error", "origin", "usage")
+            assert {f: getattr(got, f) for f in fields} == {f: getattr(want, f) for f in fields}
+
+        check()

@@ -245,7 +245,7 @@ def _output(*choices):
 
 @pytest.mark.parametrize("inspect_reason, ours", [
     ("stop", "stop"), ("max_tokens", "length"), ("model_length", "length"), ("content_filter", "content_filter"),
-    ("tool_calls", "tool_calls"), ("unknown", None),
+    ("tool_calls", "tool_calls"), ("unknown", "unknown"),
 ])
 def test_backend_reply_maps_inspects_stop_reasons_into_the_loops_words(inspect_reason, ours):
     from safeembodai_core.integrations.inspect.bridge import backend_reply
@@ -253,7 +253,7 @@ def test_backend_reply_maps_inspects_stop_reasons_into_the_loops_words(inspect_r
 
     reply = backend_reply(_output((answer(turn(10)), inspect_reason)), 0.0)
     assert (reply.finish_reason, reply.choices, reply.reasoning) == (ours, 1, None)
-    if ours in ("stop", None):
+    if ours == "stop":
         assert read_reply(reply).control[0].angle == 10
     else:
         with pytest.raises(ResponseParseError, match="finish reason"):

@@ -41,10 +41,12 @@ from ...text_safety import one_line
 META = "safeembodai"
 
 #: Inspect's stop reasons in the words Algorithm 1 reads (only ``stop`` is a normal end: an answer
-#: cut off, filtered or calling tools is never executed). ``unknown`` is a reason not reported.
+#: cut off, filtered or calling tools is never executed). ``unknown`` stays ``unknown`` (refused):
+#: Inspect's providers say it for a reason they could not map as well as for none.
 _STOP_REASONS: dict[str, str | None] = {"stop": "stop", "max_tokens": "length", "model_length": "length",
-                                        "content_filter": "content_filter", "tool_calls": "tool_calls",
-                                        "unknown": None}
+                                        "content_filter": "content_filter", "tool_calls": "tool_calls"}
+#: The ``stop_details.type`` by which ``safeembodai/<backend>`` says "the backend reported no reason".
+NOT_REPORTED = "not_reported"
 
 
 def rng_state(rng: np.random.Generator) -> dict[str, Any]:
@@ -114,16 +116,21 @@ def prompt_from_messages(messages: list[Any]) -> tuple[Prompt, np.random.Generat
     return prompt, (rng_from_state(state) if state else None)
 
 
-def finish_reason(stop_reason: Any) -> str | None:
+def finish_reason(stop_reason: Any, stop_details: Any = None) -> str | None:
     """Inspect's stop reason in the words Algorithm 1 reads (:data:`_STOP_REASONS`).
 
-    ``unknown`` is Inspect's "the provider did not say": not reported (None), accepted unless the
-    contract requires a reason. A reason Inspect does not define is passed on as it came, and
-    :func:`~safeembodai_core.models.read_reply` refuses it.
+    ``unknown`` is refused: Inspect's own providers give it both when the provider said nothing and
+    when it said something Inspect has no name for (an ``error``, say), so it cannot be read as a
+    normal end. Only ``safeembodai/<backend>``'s ``unknown`` with ``stop_details`` of type
+    :data:`NOT_REPORTED` -- a backend that reports no reason, as under ``ablate`` -- is "not
+    reported" (None: accepted unless the contract requires a reason). A reason Inspect does not
+    define is passed on as it came, and :func:`~safeembodai_core.models.read_reply` refuses it.
     """
     if stop_reason is None:
         return None
     reason = str(getattr(stop_reason, "value", stop_reason))
+    if reason == "unknown" and getattr(stop_details, "type", None) == NOT_REPORTED:
+        return None
     return _STOP_REASONS.get(reason, reason)
 
 
@@ -166,7 +173,7 @@ def backend_reply(output: Any, started: float) -> BackendReply:
                          completion_tokens=usage.output_tokens if usage else 0),
         latency_s=output.time or (time.perf_counter() - started),
         model=output.model or "",
-        finish_reason=None if first is None else finish_reason(first.stop_reason),
+        finish_reason=None if first is None else finish_reason(first.stop_reason, getattr(first, "stop_details", None)),
         reasoning=None if first is None else reasoning_text(first.message),
         choices=len(output.choices),
     )

@@ -14,7 +14,7 @@ The backend's whole reply crosses Inspect: its reasoning as a ``ContentReasoning
 finish reason as Inspect's stop reason (:func:`stop_reason`), chosen so the solver's reading
 (:func:`.bridge.backend_reply`, then :func:`~safeembodai_core.models.read_reply`) refuses what the
 loop refuses under ``ablate``: a reason Inspect has no name for (``"error"``, ``"stop\\u200b"``)
-becomes ``content_filter``, never ``stop`` or ``unknown`` (which reads back as "not reported").
+becomes ``content_filter``, never ``stop``; no reason is ``unknown`` marked as not reported.
 """
 
 from __future__ import annotations
@@ -32,15 +32,15 @@ from ...components import BackendReply, BuildContext
 from ...errors import SafeEmbodAIError
 from ...models.reply import NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason
 from ...quoting import quote_untrusted
-from .bridge import prompt_from_messages
+from .bridge import NOT_REPORTED, prompt_from_messages
 
 #: The backend's finish reasons (normalised: :func:`~safeembodai_core.models.reply.normal_finish_reason`)
-#: that Inspect has a stop reason for. A normal end is ``stop``; not reported is ``unknown``.
+#: that Inspect has a stop reason for. A normal end is ``stop``; not reported is ``unknown`` with
+#: ``stop_details`` of type ``not_reported`` (a plain ``unknown`` is refused by the solver).
 _STOP = {"length": "max_tokens", "max_tokens": "max_tokens", "model_length": "model_length",
          "content_filter": "content_filter", "tool_calls": "tool_calls"}
 #: Inspect's stop reason for any other abnormal finish reason (``"error"``, ``"stop\u200b"``, ...):
-#: Inspect has no "other", and ``unknown`` reads back as "not reported", which is accepted, so the
-#: nearest refused one -- "the provider stopped it before a normal end". The reason as the backend
+#: Inspect has no "other", and ``unknown`` is what "not reported" crosses as, so the nearest refused one -- "the provider stopped it before a normal end". The reason as the backend
 #: sent it rides along in the choice's ``stop_details`` (``type`` ``finish_reason``).
 ABNORMAL_STOP = "content_filter"
 
@@ -60,8 +60,8 @@ def stop_reason(reply: BackendReply) -> tuple[str, StopDetails | None]:
         why = reply.envelope_error or f"the reply held {reply.choices} choices"
         return ABNORMAL_STOP, StopDetails(type="refused_reply", explanation=quote_untrusted(why, 300))
     normal = normal_finish_reason(reply.finish_reason)
-    if normal is None:
-        return "unknown", None
+    if normal is None:  # "unknown" alone would read back as refused: say it was not reported
+        return "unknown", StopDetails(type=NOT_REPORTED, explanation="the backend reports no finish reason")
     if normal in NORMAL_FINISH_REASONS:
         return "stop", None
     if normal in _STOP:
