@@ -31,3 +31,20 @@ def flatland_observation(plugins, seed=0, turn_to_can=None, obstacles=0):
             rotate -= step
         observation = world.observe()
     return world, observation
+
+
+def one_trial_steps(plugins, data, arm, condition="no_attack", environment="flatland"):
+    """Trial 0 of the scenario ``data`` (a dict, as YAML would give it) in one cell: its step records."""
+    import yaml
+
+    from safeembodai_core.runner import ScenarioRunner, trial_spec
+    from safeembodai_core.scenario import parse_scenario
+
+    scenario = parse_scenario(yaml.safe_dump(data), "<test>", registry=plugins.registry)
+    runner = ScenarioRunner(scenario, plugins)
+    try:
+        spec = trial_spec(scenario, environment, arm, condition, 0)
+        runner.run(spec)
+        return runner.state.steps(spec.trial_id)
+    finally:
+        runner.close()

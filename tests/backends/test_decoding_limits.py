@@ -8,14 +8,12 @@ import json
 
 import numpy as np
 import pytest
-import yaml
 
+from backend_helpers import one_trial_steps
 from fake_openai import Reply, Status
 from safeembodai_core.errors import BackendError, ComponentError
 from safeembodai_core.models import ControlLimits, Prompt, TextPart, parse_response
 from safeembodai_core.models.response import schema_outline
-from safeembodai_core.runner import ScenarioRunner, trial_spec
-from safeembodai_core.scenario import parse_scenario
 from safeembodai_core.testing import answer, straight, turn
 from safeembodai_plugins.backends.messages import bounded_number, decoding_schema, response_format
 
@@ -92,14 +90,7 @@ def test_a_trial_sends_the_scenarios_limits_and_records_differing_retries(built_
                                  "failure_threshold": 3}},
         "conditions": {"no_attack": {}},
     }
-    scenario = parse_scenario(yaml.safe_dump(data), "<test>", registry=built_plugins.registry)
-    runner = ScenarioRunner(scenario, built_plugins)
-    try:
-        spec = trial_spec(scenario, "flatland", "safeembodai", "no_attack", 0)
-        runner.run(spec)
-        [step] = runner.state.steps(spec.trial_id)
-    finally:
-        runner.close()
+    [step] = one_trial_steps(built_plugins, data, "safeembodai")
     bodies = [r.body for r in fake_server.requests]
     assert len(bodies) == 3 and [a.accepted for a in step.attempts] == [False, False, True]
     for body in bodies:

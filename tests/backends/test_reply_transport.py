@@ -13,8 +13,8 @@ import json
 
 import numpy as np
 import pytest
-import yaml
 
+from backend_helpers import one_trial_steps
 from fake_openai import DROP, Envelope, FakeOpenAI, Raw, Redirect, Reply, Status, choice
 from safeembodai_core.errors import BackendError, ComponentError
 from safeembodai_core.models import Prompt, TextPart, read_reply
@@ -130,8 +130,6 @@ def test_duplicate_keys_in_the_envelope_refuse_the_reply_and_the_record_keeps_th
 
 
 def test_a_refused_envelope_is_recorded_with_its_body_and_origin_in_a_trial(built_plugins, fake_server, fake_key):
-    from safeembodai_core.runner import ScenarioRunner, trial_spec
-    from safeembodai_core.scenario import parse_scenario
 
     twice = _body('{"role": "assistant", "content": %s, "content": %s}' % (json.dumps(OTHER), json.dumps(GOOD)))
     fake_server.push(Raw(twice))
@@ -140,14 +138,7 @@ def test_a_refused_envelope_is_recorded_with_its_body_and_origin_in_a_trial(buil
             "backend": {"use": "gpt-4o", "options": {"api_base": fake_server.url, "api_key_env": "SAFEEMBODAI_TEST_KEY",
                                                       "backoff_s": 0.0, "timeout_s": 5.0}},
             "arms": {"safe": {"security_prefix": True, "safety_validation": True}}, "conditions": {"no_attack": {}}}
-    scenario = parse_scenario(yaml.safe_dump(data), "<test>", registry=built_plugins.registry)
-    runner = ScenarioRunner(scenario, built_plugins)
-    try:
-        spec = trial_spec(scenario, "flatland", "safe", "no_attack", 0)
-        runner.run(spec)
-        [step] = runner.state.steps(spec.trial_id)
-    finally:
-        runner.close()
+    [step] = one_trial_steps(built_plugins, data, "safe")
     first, second = step.attempts
     assert "refused as a whole" in first.parse_error and "content" in first.parse_error
     assert first.raw_text == twice and first.origin == _origin(fake_server)
