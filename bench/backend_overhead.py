@@ -8,6 +8,9 @@ with keep-alive and Nagle off):
 * litellm call: ``gpt-4o`` backend ``complete()`` (litellm + openai SDK + our retry wrapper);
 * framework: perception (camera PNG + LiDAR picture drawn and encoded), prompt building, parsing
   and validating the answer -- everything of Algorithm 1 except the call itself;
+* the reading: the answer text alone (``parse_response``) against the whole reply -- the server's
+  body read strictly (``reply_from_chat_completion``), a reasoning block, then ``read_reply`` --
+  and building a ``gpt-4o`` backend (its own recording openai client), once per trial;
 
 then the ratios framework / raw HTTP and (framework + litellm) / raw HTTP, and the mock pilot's
 steps per second on flatland (a whole control step each: world, perception, prompt, mock,
@@ -38,7 +41,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "backends
 from fake_openai import FakeOpenAI, Reply  # noqa: E402
 
 from safeembodai_core.logs import configure_logging  # noqa: E402
-from safeembodai_core.models import PromptRequest, parse_response  # noqa: E402
+from safeembodai_core.models import PromptRequest, parse_response, read_reply  # noqa: E402
+from safeembodai_core.models.chat_completion import reply_from_chat_completion  # noqa: E402
 from safeembodai_core.plugins import load_plugins  # noqa: E402
 from safeembodai_core.runner import ScenarioRunner  # noqa: E402
 from safeembodai_core.scenario import parse_scenario  # noqa: E402
@@ -102,6 +106,25 @@ def overhead(calls: int) -> None:
     print(f"framework around the call:    {framework_ms:8.2f} ms  (perceive + build + parse + validate)")
     print(f"ratio framework / raw HTTP:   {framework_ms / raw_ms:8.1f}x")
     print(f"ratio (framework + litellm) / raw HTTP: {(framework_ms + litellm_ms) / raw_ms:.1f}x")
+    reading(calls, registry)
+
+
+def reading(calls: int, registry) -> None:
+    """The strict reading of the answer text alone and of the whole reply; building a backend."""
+    content = f"<think>Turn towards the can, then drive on.</think>\n{ANSWER}"
+    body = json.dumps({"id": "c", "object": "chat.completion", "created": 0, "model": "m",
+                       "choices": [{"index": 0, "message": {"role": "assistant", "content": content,
+                                                            "reasoning_content": "short thought"},
+                                    "finish_reason": "stop"}],
+                       "usage": {"prompt_tokens": 1000, "completion_tokens": 150}})
+    text_ms = median_ms(lambda: parse_response(ANSWER), calls * 10)
+    whole_ms = median_ms(lambda: read_reply(reply_from_chat_completion(body)), calls * 10)
+    print(f"reading the answer text alone:  {text_ms:8.3f} ms")
+    print(f"reading the whole reply:        {whole_ms:8.3f} ms  (envelope + reasoning + text: "
+          f"{whole_ms / text_ms:.1f}x the text alone)")
+    options = {"api_base": "http://127.0.0.1:9/v1", "api_key_env": "SAFEEMBODAI_BENCH_KEY"}
+    build_ms = median_ms(lambda: registry.build("llm_backend", "gpt-4o", options).close(), max(5, calls // 5))
+    print(f"building a gpt-4o backend:      {build_ms:8.2f} ms  (once per trial: its recording openai client)")
 
 
 def _scenario(plugins, env: str, trials: int, counting: str, conditions: dict | None = None):
