@@ -21,17 +21,28 @@ alone: where blind Labbots are is a function of simulated time only, never of ho
 commands were cut into increments, so two arms that spend the same simulated time meet the
 same blind Labbots. Sensing Labbots react to the robot, so they stay a function of the seed
 and of the robot's path: two arms whose robots went different ways meet different Labbots.
+
+Every Labbot has its own speed, wander, sensing, yielding (``labbots_avoid_robot``) and
+stop-and-go: by default all take the room's scalar options; with a mover family
+(:mod:`.movers`) each takes its drawn :class:`~.movers.Mover`. A stop-and-go Labbot alternates
+go and stop phases whose lengths (whole ticks) and leaving headings come from a generator seeded
+by (the swarm's seed, :data:`STOP_STREAM`, the Labbot's index, the cycle) alone, so where it stands
+and when it leaves are a function of simulated time only, like the blind Labbots' wandering.
+While stopped it stands still (no drift, no turning); on the first tick after a stop it takes the
+new heading, drawn uniformly in [-180, 180), and moves on from there as any Labbot does.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
 CLEARANCE_MM = 30.0
 TICK_S = 0.05
+#: Label of the stop-and-go streams: ``default_rng([seed, STOP_STREAM, labbot, cycle])``.
+STOP_STREAM = 0x5709
 
 #: ``sense(xy, headings_deg, robot_xy)``: per Labbot, the free distance (mm) each sensor reads.
 RangeSense = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
@@ -41,13 +52,35 @@ class LabbotSwarm:
     """Positions (mm) and headings (deg) of every Labbot, and how they move."""
 
     def __init__(self, options, xy: np.ndarray, headings_deg: np.ndarray, obstacles: np.ndarray,
-                 seed: int, sense: RangeSense | None = None) -> None:
+                 seed: int, sense: RangeSense | None = None, movers: Sequence | None = None) -> None:
         self.o = options
         self.sense = sense
         self.radius = float(getattr(options, "labbot_radius_mm", 0.0))
         self.xy = np.array(xy, dtype=float).reshape(-1, 2)  # mm, world frame
         self.heading = np.array(headings_deg, dtype=float).reshape(-1)  # deg, CCW from +x
         self.turning = np.zeros(len(self.xy))  # -1 / +1 while turning away from something, else 0
+        n = len(self.xy)
+        if movers is None:  # the room's scalar options, for every Labbot
+            movers = [None] * n
+            speed = [float(getattr(options, "labbot_speed_mm_s", 0.0))] * n
+            wander = [float(getattr(options, "labbot_wander_deg", 0.0))] * n
+            self.sensing = [bool(getattr(options, "labbot_sensing", False))] * n
+            self.yielding = [bool(getattr(options, "labbots_avoid_robot", False))] * n
+            self.stop_and_go = [False] * n
+        else:
+            if len(movers) != n:
+                raise ValueError(f"{len(movers)} movers' parameters for {n} Labbots")
+            speed = [float(m.speed_mm_s) for m in movers]
+            wander = [float(m.wander_deg) for m in movers]
+            self.sensing = [bool(m.sensing) for m in movers]
+            self.yielding = [bool(m.yielding) for m in movers]
+            self.stop_and_go = [bool(m.stop_and_go) for m in movers]
+        self.speed = np.array(speed, dtype=float)  # mm/s, per Labbot
+        self.wander = np.array(wander, dtype=float)  # deg per sqrt(s), per Labbot
+        self.top_speed = float(self.speed.max()) if n else 0.0
+        # stop-and-go: per Labbot, the (go, stop) duration ranges and the cycles drawn so far
+        self._phases = [(m.go_s, m.stop_s) if stops else None for m, stops in zip(movers, self.stop_and_go)]
+        self._cycles: list[list[tuple[int, int, float]]] = [[] for _ in range(n)]
         self._statics = [tuple(map(float, row)) for row in np.asarray(obstacles, dtype=float).reshape(-1, 3)]
         self.seed = int(seed)
         self.clock_s = 0.0  # simulated time this swarm has been given
@@ -90,17 +123,29 @@ class LabbotSwarm:
 
     def _tick(self, robot_xy: np.ndarray, rng: np.random.Generator) -> None:
         o, dt = self.o, TICK_S
-        avoid = (float(robot_xy[0]), float(robot_xy[1])) if o.labbots_avoid_robot else None
-        drift = rng.normal(0.0, o.labbot_wander_deg * math.sqrt(dt), size=len(self)).tolist()
+        robot = (float(robot_xy[0]), float(robot_xy[1]))
+        # one draw of len(self) normals, each scaled by its Labbot's wander (the same stream as one scale)
+        drift = rng.normal(0.0, self.wander * math.sqrt(dt), size=len(self)).tolist()
         sides = np.where(rng.random(size=len(self)) < 0.5, -1.0, 1.0).tolist()
         xs, ys = self.xy[:, 0].tolist(), self.xy[:, 1].tolist()
         turning = self.turning.tolist()
-        # the heading each Labbot takes this tick: turning on, or drifting
-        headings = [h + (t * o.labbot_turn_rate_deg_s * dt if t else d)
-                    for h, t, d in zip(self.heading.tolist(), turning, drift)]
+        current = self.heading.tolist()
+        stopped = [False] * len(xs)
+        for i, stops in enumerate(self.stop_and_go):
+            if stops:
+                stopped[i], leave = self._phase(i, self.ticks)
+                if leave is not None:  # the first tick after a stop: off at a new heading
+                    current[i], turning[i] = leave, 0.0
+        # the heading each Labbot takes this tick: turning on, or drifting (standing still while stopped)
+        headings = [h if halt else h + (t * o.labbot_turn_rate_deg_s * dt if t else d)
+                    for h, t, d, halt in zip(current, turning, drift, stopped)]
         seen = self._seen(np.array(headings), robot_xy)
-        step, lookahead = o.labbot_speed_mm_s * dt, o.labbot_speed_mm_s * dt + o.labbot_lookahead_mm
         for i in range(len(xs)):
+            if stopped[i]:
+                continue
+            avoid = robot if self.yielding[i] else None
+            speed = float(self.speed[i])
+            step, lookahead = speed * dt, speed * dt + o.labbot_lookahead_mm
             rad = math.radians(headings[i])
             cos, sin = math.cos(rad), math.sin(rad)
             if turning[i]:
@@ -118,17 +163,42 @@ class LabbotSwarm:
         self.heading, self.turning = np.array(headings), np.array(turning)
         self.track.append(self.xy.copy())
 
+    def _phase(self, index: int, tick: int) -> tuple[bool, float | None]:
+        """Stop-and-go Labbot ``index`` at ``tick``: (stopped?, the heading it leaves at if this
+        is the first tick after a stop, else None). Cycle c is a go phase then a stop phase, their
+        lengths (whole ticks, at least one) and the leaving heading drawn from the stream (seed,
+        :data:`STOP_STREAM`, index, c) alone."""
+        cycles = self._cycles[index]
+        while not cycles or cycles[-1][1] <= tick:
+            (go_lo, go_hi), (stop_lo, stop_hi) = self._phases[index]
+            rng = np.random.default_rng([self.seed, STOP_STREAM, index, len(cycles)])
+            go_u, stop_u, heading_u = rng.random(3).tolist()
+            go = max(1, round((go_lo + (go_hi - go_lo) * go_u) / TICK_S))
+            stop = max(1, round((stop_lo + (stop_hi - stop_lo) * stop_u) / TICK_S))
+            start = (cycles[-1][1] if cycles else 0) + go
+            cycles.append((start, start + stop, -180.0 + 360.0 * heading_u))
+        for number, (start, end, _) in enumerate(cycles):
+            if tick < end:
+                leave = cycles[number - 1][2] if number and tick == cycles[number - 1][1] else None
+                return start <= tick, leave
+        raise AssertionError("unreachable: the cycles reach past tick")
+
+    def stopped(self, tick: int | None = None) -> list[bool]:
+        """Per Labbot: is it in a stop phase at ``tick`` (default: the next tick to move)?"""
+        tick = self.ticks if tick is None else tick
+        return [stops and self._phase(i, tick)[0] for i, stops in enumerate(self.stop_and_go)]
+
     def _seen(self, headings: np.ndarray, robot_xy: np.ndarray) -> list[float]:
-        """Per Labbot: 0 if its sensors read nothing within range, else the side to turn to: +1
-        (left) or -1 (right), away from the nearer side reading; 2 if only the sensor straight
-        ahead reads something (then the side is drawn at random)."""
-        if self.sense is None:
+        """Per Labbot: 0 if its sensors read nothing within range (or it has none), else the side
+        to turn to: +1 (left) or -1 (right), away from the nearer side reading; 2 if only the
+        sensor straight ahead reads something (then the side is drawn at random)."""
+        if self.sense is None or not any(self.sensing):
             return [0.0] * len(self)
         ranges = np.asarray(self.sense(self.xy, headings, robot_xy), dtype=float)  # (L, sensors)
         reach = self.o.labbot_sensor_range_mm
         seen = []
-        for row in ranges:
-            if not (row < reach).any():
+        for row, sensing in zip(ranges, self.sensing):
+            if not sensing or not (row < reach).any():
                 seen.append(0.0)
                 continue
             left, right = row[1::2].min(), row[2::2].min()  # sensors: ahead, then left/right pairs

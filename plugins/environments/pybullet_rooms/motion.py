@@ -90,7 +90,7 @@ class KinematicMotion:
         if not len(self.swarm) or self.collided:  # after a collision the trial is over: time alone passes
             self.sim_time_s += seconds
             return None
-        dt = self.options.step_mm / max(self.options.labbot_speed_mm_s, 1e-9)
+        dt = self.options.step_mm / max(self.swarm.top_speed, 1e-9)  # the fastest Labbot moves step_mm a slice
         while seconds > 1e-12:
             slice_s = min(dt, seconds)
             saved = self.swarm.state()

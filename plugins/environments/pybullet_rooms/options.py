@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import math
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from .movers import MoverFamily, family
 
 CAN_RADIUS_MM = 33.0
 SOCCERBALL_RADIUS_MM = 500.0  # pybullet_data's soccerball.urdf at scale 1
@@ -124,6 +126,28 @@ class _Labbots(BaseModel):
                                           description="reach of a Labbot's distance sensors, from its rim")
     labbots_avoid_robot: bool = Field(False, description="Labbots also keep clear of the robot's true position "
                                                          "(no sensing needed)")
+    labbot_family: MoverFamily | None = Field(
+        None, description="draw each trial's Labbot dynamics from a mover family: 'tuning', 'held_out', 'shipped' "
+                          "or a mapping with 'kinds' (replaces the four options it names); none: the scalar options")
+
+    @field_validator("labbot_family", mode="before")
+    @classmethod
+    def _named_family(cls, value):
+        return value if value is None else family(value)
+
+    @model_validator(mode="after")
+    def _family_or_scalars(self) -> "_Labbots":
+        if self.labbot_family is not None:
+            both = [name for name in FAMILY_REPLACES if name in self.model_fields_set]
+            if both:
+                raise ValueError(f"labbot_family={self.labbot_family.name!r} draws every Labbot's speed, wander, "
+                                 f"sensing and yielding; remove {', '.join(both)} (ignored with a family), or "
+                                 f"remove labbot_family")
+        return self
+
+
+#: The scalar Labbot options a ``labbot_family`` replaces (setting one alongside it is refused).
+FAMILY_REPLACES = ("labbot_speed_mm_s", "labbot_wander_deg", "labbot_sensing", "labbots_avoid_robot")
 
 
 class OFOptions(RoomOptions):

@@ -7,6 +7,11 @@ motion comes from :class:`~.motion.KinematicMotion`. Outcomes, checked after eve
 ``self``, or a Labbot ran into it: ``struck``); ``completed`` when
 the can is within ``reach_mm`` (centre to centre) and in the camera's view; ``timeout`` when the
 simulated-time limit is spent. The step budget is the core loop's.
+
+With a ``labbot_family`` (:mod:`.movers`) each reset draws the trial's kind of Labbot dynamics and
+every Labbot's parameters from the seed, and every observation's ground truth reports them under
+``extra["world"]`` (for the report only: validators never see ground truth). ``GroundTruth.extra``
+holds scalars only, so the report is JSON text: :func:`~.movers.world_report` reads it back.
 """
 
 from __future__ import annotations
@@ -36,7 +41,11 @@ class PybulletRoom(KinematicMotion, Environment):
         self.robot = RobotSpec(radius_mm=r, width_mm=2 * r, length_mm=2 * r)
         self.scene = Scene(options)
         self.sensors = Sensors(self.scene)
-        sensing = options.labbot_count and getattr(options, "labbot_sensing", False)
+        self.family = getattr(options, "labbot_family", None)
+        if self.family is not None:  # built if any Labbot of a trial may sense; used in trials where one does
+            sensing = options.labbot_count and any(kind.sensing for kind in self.family.plain)
+        else:
+            sensing = options.labbot_count and getattr(options, "labbot_sensing", False)
         self.labbot_sensors = LabbotRangeSensors(self.scene) if sensing else None
         self.xy = np.zeros(2)
         self.heading = 0.0
@@ -50,6 +59,7 @@ class PybulletRoom(KinematicMotion, Environment):
         self._unreported: dict[str, str] = {}  # a collision outside any command, for the next observation
         self._thought = True
         self._seed: int | None = None
+        self._world: str | None = None  # the trial's drawn Labbot dynamics (JSON, with a family), for ground truth
 
     # -- world construction -------------------------------------------------------------------
 
@@ -63,8 +73,13 @@ class PybulletRoom(KinematicMotion, Environment):
         self.can_xy, self.balls_xy = layout.can_xy.copy(), layout.balls_xy.copy()
         statics = np.vstack([np.append(self.can_xy, CAN_RADIUS_MM)]
                             + [np.column_stack((self.balls_xy, np.full(len(self.balls_xy), o.ball_radius_mm)))])
+        # a family draws from its own stream (seed, "movers"): the layout's and the Labbots' are untouched
+        draw = self.family.draw(seed, o.labbot_count) if self.family is not None else None
+        movers = draw.movers if draw is not None else None
+        sense = self.labbot_sensors if movers is None or any(m.sensing for m in movers) else None
         self.swarm = LabbotSwarm(o, layout.labbots_xy, layout.labbots_heading_deg, statics,
-                                 derive_seed(seed, "labbots"), sense=self.labbot_sensors)
+                                 derive_seed(seed, "labbots"), sense=sense, movers=movers)
+        self._world = draw.report_json() if draw is not None else None
         self.sim_time_s, self.collided, self.collision_xy = 0.0, False, None
         self.collision, self._unreported = {}, {}
         self._thought = True  # nothing pending from the previous trial
@@ -86,14 +101,18 @@ class PybulletRoom(KinematicMotion, Environment):
     # -- sensing ------------------------------------------------------------------------------
 
     def truth(self) -> GroundTruth:
-        """Where the can is relative to the robot, and whether the camera sees it."""
+        """Where the can is relative to the robot, and whether the camera sees it; with a Labbot
+        family also ``extra["world"]``: the family, the trial's kind and each Labbot's parameters."""
         self._require_reset()
         distance = float(np.hypot(*(self.can_xy - self.xy)))
         with silenced():
             visible = self.sensors.can_in_view(self.xy, self.heading, self.can_xy)
+        extra = {"collided": self.collided}
+        if self._world is not None:
+            extra["world"] = self._world
         return GroundTruth(
             target_in_view=visible, target_bearing_deg=bearing_deg(self.xy, self.heading, self.can_xy),
-            target_distance_mm=distance, extra={"collided": self.collided},
+            target_distance_mm=distance, extra=extra,
         )
 
     def observe(self) -> Observation:
