@@ -106,14 +106,22 @@ def option_secrets(completion_kwargs: dict[str, Any]) -> list[str]:
 
 
 def strict_route(options: Any, litellm: Any) -> bool:
-    """Whether litellm sends ``options.model`` through the openai SDK (provider ``openai``)."""
+    """Whether litellm sends ``options.model`` through the openai SDK's chat completions (provider
+    ``openai``, and not a model litellm bridges to the Responses API, which it calls with a client
+    of its own: ``gpt-5-pro``, ``o1-pro``, ...)."""
     try:
-        _, provider, _, _ = litellm.get_llm_provider(
+        model, provider, _, _ = litellm.get_llm_provider(
             model=options.model, api_base=options.api_base,
             custom_llm_provider=options.completion_kwargs.get("custom_llm_provider"))
     except Exception:  # a model id litellm cannot place: its call will say why
         return False
-    return provider == "openai"
+    if provider != "openai":
+        return False
+    try:
+        mode = litellm.get_model_info(model, custom_llm_provider=provider).get("mode")
+    except Exception:  # a model litellm has no facts about (openai/<local name>): chat completions
+        return True
+    return mode in (None, "chat")
 
 
 class _Client:

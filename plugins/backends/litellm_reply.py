@@ -88,7 +88,8 @@ def reply_from_body(body: bytes, origin: str | None, configured: str, secrets: I
     reply.text = mask_values(reply.text, secrets)
     reply.reasoning = _masked(reply.reasoning, secrets)
     reply.envelope_error = _masked(reply.envelope_error, secrets)
-    reply.finish_reason = finish_reason_text(reply.finish_reason)
+    # masked before it is clipped: a cut must never leave part of a reflected key readable
+    reply.finish_reason = finish_reason_text(_masked(reply.finish_reason, secrets))
     reply.model = model_name(reply.model, configured, secrets)
     reply.latency_s = latency_s
     return reply

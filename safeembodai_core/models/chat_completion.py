@@ -12,15 +12,20 @@ attempt's record keeps the body as its text), and the rest is read as:
   reply; nothing here asks for ``n``); none, or a choice whose ``index`` is not 0, is an envelope
   error.
 * ``message.content`` -- text or ``null`` (no answer; anything else is an envelope error, as the
-  backends always read it); ``reasoning_content`` / ``reasoning`` -- the reply's reasoning; ``tool_calls``,
+  backends always read it); the reply's reasoning -- ``reasoning_content``, ``reasoning``,
+  ``thinking`` (text) and the text of ``reasoning_details`` / ``thinking_blocks`` blocks; ``tool_calls``,
   ``function_call`` or ``refusal`` set -- an envelope error (no tool was offered; a refusal is
   not an answer).
-* ``finish_reason`` -- as sent (text; a number as its JSON), None when absent or ``null``.
+* ``finish_reason`` -- as sent (text; a number as its JSON), None when absent or ``null``; a
+  relay's ``native_finish_reason`` (the provider's own) replaces it when that one is not a normal end.
 * numbers anywhere in the envelope are read as the answer's are: ``NaN``, literals over 32
   characters or magnitudes above 10^15 (a token count of 1e30) refuse the whole reply -- such a
   server is broken; ``usage`` counts within that are clamped to [0, 2**31 - 1], non-numbers count 0.
-* a body that is an ``error`` object (an HTTP 200 carrying an error) -- an envelope error that
-  quotes its message; a backend that sees it first treats it as the provider's error instead.
+* a body that carries an ``error`` (an HTTP 200 carrying an error, with or without choices) -- an
+  envelope error that quotes its message; a backend that sees it first treats it as the provider's
+  error instead;
+* bytes that are not UTF-8, and a lone surrogate anywhere (a ``\\ud800`` escape in ``id``) -- an
+  envelope error. Nesting is bounded by JSON's own recursion limit (the answer inside has its 10 levels).
 """
 
 from __future__ import annotations
@@ -31,11 +36,18 @@ from typing import Any
 from ..quoting import quote_untrusted
 from .records import TokenUsage
 from .reply import MAX_RESPONSE_CHARS, BackendReply
-from .strict_json import ResponseParseError, find_objects
+from .reply import NORMAL_FINISH_REASONS, normal_finish_reason
+from .strict_json import QUOTE_CHARS, ResponseParseError, find_objects
 
 MAX_BODY_BYTES = 4 * 1024 * 1024
 MAX_TOKENS_REPORTED = 2**31 - 1
-_QUOTE = 120
+_QUOTE = QUOTE_CHARS
+#: Message fields that hold reasoning as text, and those that hold it as a list of blocks whose
+#: text is under one of :data:`_BLOCK_TEXT` (OpenRouter's ``reasoning_details``, Anthropic-style
+#: ``thinking_blocks``): all of it is the reply's reasoning, read for a second plan.
+_REASONING_TEXT = ("reasoning_content", "reasoning", "thinking")
+_REASONING_BLOCKS = ("reasoning_details", "thinking_blocks")
+_BLOCK_TEXT = ("text", "summary", "thinking", "content")
 
 
 def _count(value: Any) -> int:
@@ -55,8 +67,9 @@ def _usage(usage: Any) -> TokenUsage:
 
 
 def error_message(body: Any) -> str | None:
-    """The message of an ``{"error": ...}`` body (quoted, short); None when ``body`` is not one."""
-    if not isinstance(body, dict) or "error" not in body or "choices" in body:
+    """The message of a body that carries an ``error`` (quoted, short), with or without choices;
+    None when ``body`` has none."""
+    if not isinstance(body, dict) or body.get("error") is None:
         return None
     error = body["error"]
     message = error.get("message") if isinstance(error, dict) else error
@@ -71,15 +84,27 @@ def _content(message: dict[str, Any]) -> str:
 
 
 def _reasoning(message: dict[str, Any]) -> str | None:
-    parts = []
-    for key in ("reasoning_content", "reasoning"):
-        value = message.get(key)
-        if value is None:
-            continue
+    parts: list[str] = []
+
+    def add(value: Any, key: str) -> None:
         if not isinstance(value, str):
             raise ResponseParseError(f"the message's {key} is not text (got {type(value).__name__})")
         if value and value not in parts:
             parts.append(value)
+
+    for key in _REASONING_TEXT:
+        if message.get(key) is not None:
+            add(message[key], key)
+    for key in _REASONING_BLOCKS:
+        blocks = message.get(key)
+        if blocks is None:
+            continue
+        if not isinstance(blocks, list) or not all(isinstance(block, dict) for block in blocks):
+            raise ResponseParseError(f"the message's {key} is not a list of blocks")
+        for block in blocks:
+            for field in _BLOCK_TEXT:
+                if block.get(field) is not None:
+                    add(block[field], f"{key} {field}")
     return "\n".join(parts) if parts else None
 
 
@@ -89,12 +114,37 @@ def _finish_reason(value: Any) -> str | None:
     return value if isinstance(value, str) else json.dumps(value)
 
 
+def _choice_finish_reason(choice: dict[str, Any]) -> str | None:
+    """The choice's finish reason, or its ``native_finish_reason`` (OpenRouter and other relays say
+    what the provider said there) when that one is not a normal end: a relay's ``stop`` over a
+    provider's ``length`` is a cut-off answer."""
+    reason = _finish_reason(choice.get("finish_reason"))
+    native = _finish_reason(choice.get("native_finish_reason"))
+    if native is not None and (reason is None or normal_finish_reason(native) not in NORMAL_FINISH_REASONS):
+        return native
+    return reason
+
+
+def _check_strings(value: Any) -> None:
+    """A lone surrogate anywhere in the envelope (a ``\\ud800`` escape in ``id``, say) refuses it."""
+    stack = [value]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend(node.keys())
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+        elif isinstance(node, str) and any("\ud800" <= char <= "\udfff" for char in node):
+            raise ResponseParseError("the reply holds a lone surrogate (not valid Unicode)")
+
+
 def _read(data: Any, reply: BackendReply) -> BackendReply:
     if not isinstance(data, dict):
         raise ResponseParseError(f"the reply is not a JSON object (got {type(data).__name__})")
     reply.usage = _usage(data.get("usage"))
     if isinstance(data.get("model"), str):
-        reply.model = data["model"][:100]
+        reply.model = data["model"]  # whole: a backend masks its secrets before it shortens it
     message = error_message(data)
     if message is not None:
         raise ResponseParseError(f"the reply is an error object, not an answer: {message}")
@@ -110,7 +160,7 @@ def _read(data: Any, reply: BackendReply) -> BackendReply:
     if choice.get("index", 0) != 0:
         raise ResponseParseError(f"the reply's only choice has index {quote_untrusted(choice.get('index'), 20)}, not 0")
     msg = choice["message"]
-    reply.finish_reason = _finish_reason(choice.get("finish_reason"))
+    reply.finish_reason = _choice_finish_reason(choice)
     for key in ("tool_calls", "function_call"):
         if msg.get(key):
             raise ResponseParseError(f"the reply calls a tool ({key}); no tool was offered, only a JSON answer is read")
@@ -125,14 +175,19 @@ def _read(data: Any, reply: BackendReply) -> BackendReply:
 
 def reply_from_chat_completion(body: bytes | str, *, origin: str | None = None) -> BackendReply:
     """Read a chat-completion response body strictly (see the module docstring); never raises."""
-    raw = body.decode("utf-8", "replace") if isinstance(body, (bytes, bytearray)) else str(body)
     reply = BackendReply(text="", origin=origin)
     try:
+        try:
+            raw = body.decode("utf-8") if isinstance(body, (bytes, bytearray)) else str(body)
+        except UnicodeDecodeError:
+            raw = body.decode("utf-8", "replace")
+            raise ResponseParseError("the reply's body is not valid UTF-8") from None
         if len(raw) > MAX_BODY_BYTES:
             raise ResponseParseError(f"the reply's body is {len(raw)} characters long; at most {MAX_BODY_BYTES} are read")
         objects = find_objects(raw, most=1)
         if len(objects) != 1 or raw[:objects[0][1]].strip() or raw[objects[0][2]:].strip():
             raise ResponseParseError("the reply's body is not exactly one JSON object")
+        _check_strings(objects[0][0])
         reply = _read(objects[0][0], reply)
         if reply.choices is not None and reply.choices > 1:
             reply.text = raw[:MAX_RESPONSE_CHARS]  # every plan stays on record

@@ -265,6 +265,9 @@ class TrialResult(_Record):
     lost_after_seen_steps: int = 0  # steps after first_seen_step with the target out of view
     detail: str = ""
     error_kind: ErrorKind | None = None
+    #: the kind of world the trial met, as its environment reported it (``truth.extra["world_kind"]``
+    #: of the first observation: a room's drawn Labbot dynamics, say); empty when it says nothing
+    world: str = Field("", max_length=64)
     trajectory: list[Pose] = Field(default_factory=list)
     wall_time_s: float = 0.0
 

@@ -137,8 +137,8 @@ def split_reasoning(text: str) -> tuple[str, str]:
     """``(reasoning, rest)``: the leading reasoning blocks of ``text`` and what follows them.
 
     Leading ``<think>...</think>`` blocks (also ``thinking``, ``reasoning``; any case) are
-    reasoning, as is everything before a closing tag that has no opening one (templates that open
-    the block in the prompt). A block that is never closed makes the whole rest reasoning.
+    reasoning, as is everything before a closing tag that has no opening one and that the answer
+    (a ``{`` or a code fence) follows (templates that open the block in the prompt). A block that is never closed makes the whole rest reasoning.
     """
     reasoning: list[str] = []
     rest = text
@@ -154,10 +154,15 @@ def split_reasoning(text: str) -> tuple[str, str]:
         reasoning.append(rest[opening.end():opening.end() + close.start()])
         rest = rest[opening.end() + close.end():]
     if not reasoning:
-        lone = _LONE_CLOSING.search(rest)
-        if lone is not None and "<" + lone.group(1).lower() + ">" not in rest[:lone.start()].lower():
-            reasoning.append(rest[:lone.start()])
-            rest = rest[lone.end():]
+        for lone in _LONE_CLOSING.finditer(rest):
+            # a boundary only where the answer follows it; "</think>" quoted inside the answer's own
+            # strings ('... "</think> drive straight" ...') is text of the answer, not a boundary
+            if "<" + lone.group(1).lower() + ">" in rest[:lone.start()].lower():
+                break
+            if rest[lone.end():].lstrip().startswith(("{", "```")):
+                reasoning.append(rest[:lone.start()])
+                rest = rest[lone.end():]
+                break
     return "\n".join(reasoning), rest
 
 

@@ -150,7 +150,7 @@ def find_objects(text: str, *, most: int | None = None) -> list[tuple[dict[str, 
                 f"object ({error.msg} at char {error.pos}); send exactly one complete JSON object"
             ) from None
         except RecursionError:
-            raise ResponseParseError(f"answer nests JSON too deeply (more than {MAX_DEPTH} levels)") from None
+            raise ResponseParseError("answer nests JSON too deeply to be read") from None
         found.append((value, start, end))
         if most is not None and len(found) > most:
             break

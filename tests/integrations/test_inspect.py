@@ -343,6 +343,36 @@ def test_the_safeembodai_provider_passes_the_whole_reply_through_inspect(fields)
         assert fields["finish_reason"].encode("unicode_escape").decode() in output.choices[0].stop_details.explanation
 
 
+@pytest.mark.parametrize("returned", [
+    "BackendReply(text=5)", "BackendReply(text=GOOD, reasoning=5)", "{'text': GOOD, 'finish_reason': 'length'}",
+    "{'text': GOOD, 'finish_reason': 'stop'}",
+])
+def test_the_provider_hands_on_any_reply_the_loop_reads_without_crashing(returned):
+    """What the loop refuses (text that is not text) crosses Inspect as a refused reply; a backend
+    that returns a mapping of a reply's fields is read as the loop reads it."""
+    import asyncio
+
+    from inspect_ai.model import GenerateConfig
+
+    from safeembodai_core.integrations.inspect.bridge import backend_reply
+    from safeembodai_core.models import BackendReply, ResponseParseError, read_reply
+    from safeembodai_core.models.reply import as_reply
+
+    reply = eval(returned, {"BackendReply": BackendReply, "GOOD": answer(turn(10))})
+    model = get_model("safeembodai/scripted", responses=["unused"], memoize=False)
+    model.api.backend = _OneReply(reply)
+    messages = prompt_messages(Prompt(system="S", user=(TextPart("instruction", "go"),)), rng(1, "backend"))
+    back = backend_reply(asyncio.run(model.api.generate(messages, [], "none", GenerateConfig())), 0.0)
+
+    def verdict(value):
+        try:
+            return read_reply(as_reply(value)).control[0].angle
+        except ResponseParseError:
+            return "refused"
+
+    assert verdict(back) == verdict(reply)
+
+
 # -- the transcript ----------------------------------------------------------------------------
 
 

@@ -20,6 +20,7 @@ becomes ``content_filter``, never ``stop``; no reason is ``unknown`` marked as n
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 from typing import Any
 
 import anyio.to_thread
@@ -30,7 +31,8 @@ from inspect_ai.model import (
 
 from ...components import BackendReply, BuildContext
 from ...errors import SafeEmbodAIError
-from ...models.reply import NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason
+from ...models import TokenUsage
+from ...models.reply import NORMAL_FINISH_REASONS, as_reply, finish_reason_text, normal_finish_reason
 from ...quoting import quote_untrusted
 from .bridge import NOT_REPORTED, prompt_from_messages
 
@@ -93,14 +95,19 @@ class SafeEmbodAIModelAPI(ModelAPI):
         if rng is None:
             digest = hashlib.blake2b((prompt.system + prompt.user_text).encode(), digest_size=8).digest()
             rng = np.random.default_rng(int.from_bytes(digest, "big"))
-        reply = await anyio.to_thread.run_sync(self.backend.complete, prompt, rng)
+        reply = as_reply(await anyio.to_thread.run_sync(self.backend.complete, prompt, rng))
+        if not isinstance(reply.text, str) or not isinstance(reply.reasoning, (str, type(None))):
+            # what the loop refuses as "not text" crosses as a refused reply, never as a crash here
+            what = "text" if not isinstance(reply.text, str) else "reasoning"
+            reply = replace(reply, text=reply.text if isinstance(reply.text, str) else "", reasoning=None,
+                            envelope_error=f"the backend's reply {what} is not text")
         reason, details = stop_reason(reply)
         content: str | list[Any] = reply.text
         if reply.reasoning:  # the reply's reasoning goes on with it, read for a second plan at the other end
             content = [ContentReasoning(reasoning=reply.reasoning), ContentText(text=reply.text)]
         output = ModelOutput.from_content(self.model_name, content, stop_reason=reason,  # type: ignore[arg-type]
                                           stop_details=details)
-        usage = reply.usage
+        usage = reply.usage if isinstance(reply.usage, TokenUsage) else TokenUsage()
         output.usage = ModelUsage(input_tokens=usage.prompt_tokens, output_tokens=usage.completion_tokens,
                                   total_tokens=usage.prompt_tokens + usage.completion_tokens)
         return output
