@@ -109,6 +109,7 @@ class _Totals:
     first_seen: int | None = None
     lost: int = 0
     trajectory: list[Any] = field(default_factory=list)
+    world: str = ""  # the first observation's truth.extra["world_kind"]
 
     def add(self, record: StepRecord) -> None:
         usage = record.usage
@@ -154,7 +155,7 @@ class _Totals:
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
             lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory, wall_time_s=wall_time_s,
-            error_kind=error_kind if outcome == Outcome.ERROR else None,
+            error_kind=error_kind if outcome == Outcome.ERROR else None, world=self.world,
         )
 
 
@@ -180,6 +181,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         notify("before_trial", spec=spec)
         _store(lambda: parts.state.begin_trial(spec), "begin the trial")
         observation = parts.environment.reset(spec.seed)
+        totals.world = one_line(str(observation.truth.extra.get("world_kind", "")))[:64]
         if observation.pose is not None:
             totals.trajectory.append(observation.pose)
         history: list[PastScan] = []  # the validators' earlier scans (ValidationContext.history)

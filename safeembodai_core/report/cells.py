@@ -1,6 +1,7 @@
 """A run's cells as the report and the terminal summary show them: metrics scored with the
 scenario's own ``metrics`` settings, what ended each ``error`` trial, and how many trials had a
-collision of each attribution (``self``, ``struck``) against the scenario's first arm."""
+collision of each attribution (``self``, ``struck``) against the scenario's first arm -- per cell,
+and per kind of world the trials met (``TrialResult.world``), both conditions pooled."""
 
 from __future__ import annotations
 
@@ -97,4 +98,56 @@ def collision_rates(scenario: Scenario, cells: list[Cell]) -> list[CollisionRate
             base_trials, base_own, _ = counts.get((m.environment, reference, m.condition), (0, 0, 0))
             difference = newcombe(own, trials, base_own, base_trials)
         rates.append(CollisionRates(trials, own, struck, reference, difference))
+    return rates
+
+
+@dataclass(frozen=True)
+class WorldRates:
+    """Collisions per kind of world (``TrialResult.world``) in one environment and arm, both
+    conditions pooled: trials with a ``self`` / ``struck`` collision, and the differences to the
+    reference arm (the scenario's first) in the same environment and world (None for the reference)."""
+
+    environment: str
+    world: str
+    arm: str
+    trials: int
+    self_trials: int
+    struck_trials: int
+    self_difference: Estimate | None
+    struck_difference: Estimate | None
+
+    @property
+    def self_rate(self) -> Estimate:
+        return wilson(self.self_trials, self.trials)
+
+    @property
+    def struck_rate(self) -> Estimate:
+        return wilson(self.struck_trials, self.trials)
+
+
+def world_rates(scenario: Scenario, cells: list[Cell]) -> list[WorldRates]:
+    """One :class:`WorldRates` per (environment, world, arm) of the scored trials that name their
+    world, ordered by environment, world, then the scenario's arm order; empty when none does."""
+    reference = next(iter(scenario.arms))
+    counts: dict[tuple[str, str, str], list[int]] = {}
+    for cell in cells:
+        m = cell.metrics
+        for result in cell.scored:
+            if not result.world:
+                continue
+            row = counts.setdefault((m.environment, result.world, m.arm), [0, 0, 0])
+            row[0] += 1
+            row[1] += result.collisions_self > 0
+            row[2] += result.collisions_struck > 0
+    arms = list(scenario.arms)
+    order = sorted(counts, key=lambda key: (key[0], key[1], arms.index(key[2]) if key[2] in arms else len(arms)))
+    rates = []
+    for environment, world, arm in order:
+        trials, own, struck = counts[(environment, world, arm)]
+        self_difference = struck_difference = None
+        if arm != reference:
+            base = counts.get((environment, world, reference), [0, 0, 0])
+            self_difference = newcombe(own, trials, base[1], base[0])
+            struck_difference = newcombe(struck, trials, base[2], base[0])
+        rates.append(WorldRates(environment, world, arm, trials, own, struck, self_difference, struck_difference))
     return rates

@@ -8,7 +8,7 @@ from ..ablation.error_kinds import KINDS
 from ..metrics import Estimate
 from ..models import Outcome
 from ..scenario import Scenario
-from .cells import Cell, CollisionRates
+from .cells import Cell, CollisionRates, WorldRates
 from .run_info import RunInfo
 from .step_facts import TrialFacts
 
@@ -126,6 +126,26 @@ def collision_rates_table(cells: list[Cell], rates: list[CollisionRates]) -> lis
                     f"`{reference}` (the scenario's first arm) in the same environment and condition, in points "
                     "per 100 trials with Newcombe's hybrid score 95% interval (arms taken as independent samples); "
                     "n/a where the reference arm has no scored trial there.", ""]
+
+
+def world_rates_table(rates: list[WorldRates], reference: str) -> list[str]:
+    """Collisions per kind of world the trials met, both conditions pooled (nothing when no trial names one)."""
+    if not rates:
+        return []
+    lines = ["## Trials with a collision per world", "",
+             f"| env | world | arm | n | self per 100 | struck per 100 | self − `{reference}` | struck − `{reference}` |",
+             "|---|---|---|---|---|---|---|---|"]
+    for rate in rates:
+        own = "reference" if rate.self_difference is None else _per_100(rate.self_difference, signed=True)
+        struck = "reference" if rate.struck_difference is None else _per_100(rate.struck_difference, signed=True)
+        lines.append(f"| {rate.environment} | {rate.world} | {rate.arm} | {rate.trials} | {_per_100(rate.self_rate)} "
+                     f"| {_per_100(rate.struck_rate)} | {own} | {struck} |")
+    return lines + ["", "Scored trials by the kind of world they met, as their environment reported it (the room's "
+                    "drawn Labbot dynamics: `docs/environments.md`, mover families), both conditions pooled: trials "
+                    "with at least one collision per 100, 95% Wilson intervals; the last two columns against the "
+                    f"reference arm `{reference}` in the same environment and world, in points per 100 with "
+                    "Newcombe's hybrid score 95% interval (arms taken as independent samples). A world is ground "
+                    "truth for the report: no rule reads it.", ""]
 
 
 def _share(count: int, steps: int) -> str:

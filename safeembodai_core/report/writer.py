@@ -18,7 +18,7 @@ from ..models import TrialResult
 from ..runner import trajectory_file
 from ..scenario import Scenario
 from . import markdown, step_facts
-from .cells import Cell, CollisionRates, collision_rates, scenario_cells
+from .cells import Cell, CollisionRates, collision_rates, scenario_cells, world_rates
 from .figures import draw_figures
 from .paper import comparison_rows
 from .run_info import run_info
@@ -95,6 +95,7 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     lines = markdown.header(scenario, info, len(results))
     lines += markdown.metrics_table(cells) + markdown.outcomes_table(cells)
     lines += markdown.collision_rates_table(cells, rates)
+    lines += markdown.world_rates_table(world_rates(scenario, cells), next(iter(scenario.arms)))
     lines += markdown.defences_table(cells, facts, scenario.state.use)
     lines += [markdown.GLOSSARY, ""]
     figures = draw_figures(metrics, folder / "figures", note=info.simulated) if metrics else []

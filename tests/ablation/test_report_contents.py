@@ -225,3 +225,41 @@ def test_the_terminal_summary_names_the_run(mock_run):
     assert "backend mock" in text and "seed 4" in text and "N=3 per cell" in text
     assert "SIMULATED PILOT (MOCK): NOT A MEASUREMENT OF AN LLM" in text
     assert max(len(line) for line in text.splitlines()) <= 80
+
+
+def test_collisions_are_broken_down_by_the_world_each_trial_met(tmp_path):
+    """Issue 21: per kind of world (TrialResult.world), both conditions pooled, against the first arm."""
+    from safeembodai_core.report.cells import scenario_cells, world_rates
+
+    scenario = parse_scenario(MOCK_RUN.replace("conditions:", "arms: {clearance: {}, moving: {}}\nconditions:"),
+                              "<test>")
+    results = []
+    for arm, blind_self in (("clearance", 6), ("moving", 1)):
+        for condition in ("no_attack", "attack"):
+            for index in range(10):
+                world = "blind" if index < 5 else "cruise"
+                self_hit = world == "blind" and index < blind_self // 2 + (condition == "attack") * (blind_self % 2)
+                results.append(trial(arm, condition, index, "interrupted" if self_hit else "completed", 5,
+                                     world=world, collisions_self=int(self_hit), collisions=int(self_hit),
+                                     collisions_struck=int(world == "cruise" and index == 9)))
+    rates = {(r.world, r.arm): r for r in world_rates(scenario, scenario_cells(scenario, results))}
+    blind, cruise = rates[("blind", "moving")], rates[("cruise", "clearance")]
+    assert (rates[("blind", "clearance")].trials, rates[("blind", "clearance")].self_trials) == (10, 6)
+    assert (blind.trials, blind.self_trials) == (10, 1) and blind.self_difference.value == pytest.approx(-0.5)
+    assert (cruise.struck_trials, cruise.self_difference) == (2, None)
+    report = write_report(tmp_path, scenario, results).read_text()
+    assert "## Trials with a collision per world" in report
+    assert "| OF | blind | moving | 10 | 10.0 [1.8, 40.4] |" in report
+    # trials that name no world add no table
+    plain = [r.model_copy(update={"world": ""}) for r in results]
+    (tmp_path / "plain").mkdir()
+    assert "per world" not in write_report(tmp_path / "plain", scenario, plain).read_text()
+
+
+def test_a_trial_records_the_world_its_room_drew():
+    from safeembodai_core.testing import run_tiny_trial
+
+    result, _ = run_tiny_trial([], max_steps=1, environment={"use": "DO", "options": {"labbot_family": "tuning"}})
+    assert result.world in ("cruise", "fast", "wandering", "blind", "stop_and_go", "mixed")
+    result, _ = run_tiny_trial([], max_steps=1, environment={"use": "DO", "options": {}})
+    assert result.world == ""

@@ -10,7 +10,9 @@ simulated-time limit is spent. The step budget is the core loop's.
 
 With a ``labbot_family`` (:mod:`.movers`) each reset draws the trial's kind of Labbot dynamics and
 every Labbot's parameters from the seed, and every observation's ground truth reports them under
-``extra["world"]`` (for the report only: validators never see ground truth). ``GroundTruth.extra``
+``extra["world"]``, and the kind alone under ``extra["world_kind"]`` (the trial's world, which the
+core copies into ``TrialResult.world`` and the report breaks collisions down by; for the report
+only: validators never see ground truth). ``GroundTruth.extra``
 holds scalars only, so the report is JSON text: :func:`~.movers.world_report` reads it back.
 """
 
@@ -60,6 +62,7 @@ class PybulletRoom(KinematicMotion, Environment):
         self._thought = True
         self._seed: int | None = None
         self._world: str | None = None  # the trial's drawn Labbot dynamics (JSON, with a family), for ground truth
+        self._world_kind: str | None = None  # the trial's kind (the report's bucket), with a family
 
     # -- world construction -------------------------------------------------------------------
 
@@ -80,6 +83,7 @@ class PybulletRoom(KinematicMotion, Environment):
         self.swarm = LabbotSwarm(o, layout.labbots_xy, layout.labbots_heading_deg, statics,
                                  derive_seed(seed, "labbots"), sense=sense, movers=movers)
         self._world = draw.report_json() if draw is not None else None
+        self._world_kind = draw.kind if draw is not None else None
         self.sim_time_s, self.collided, self.collision_xy = 0.0, False, None
         self.collision, self._unreported = {}, {}
         self._thought = True  # nothing pending from the previous trial
@@ -110,6 +114,7 @@ class PybulletRoom(KinematicMotion, Environment):
         extra = {"collided": self.collided}
         if self._world is not None:
             extra["world"] = self._world
+            extra["world_kind"] = self._world_kind  # the core's key for a trial's world (TrialResult.world)
         return GroundTruth(
             target_in_view=visible, target_bearing_deg=bearing_deg(self.xy, self.heading, self.can_xy),
             target_distance_mm=distance, extra=extra,
