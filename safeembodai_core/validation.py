@@ -76,6 +76,8 @@ class ValidationContext:
       library users who pass none.
     * ``earlier_signals``: the signals of the plan judged before this one (what ``offset`` sums
       up, in order): a rule about time needs their durations, which ``offset`` cannot give.
+    * ``later_signals``: the plan's signals after this one, in order (empty for its last signal):
+      a rule about where the plan leaves the robot judges that once, with the last signal.
     """
 
     scan: LidarScan | None
@@ -86,6 +88,7 @@ class ValidationContext:
     sim_time_s: float | None = None
     history: tuple[PastScan, ...] = ()
     earlier_signals: tuple[ControlSignal, ...] = ()
+    later_signals: tuple[ControlSignal, ...] = ()
 
     def advanced(self, signal: ControlSignal) -> "ValidationContext":
         """The context after ``signal`` is executed exactly as commanded."""
@@ -247,8 +250,10 @@ def validate_plan(
 ) -> list[Verdict]:
     """Judge each signal of a plan with every rule, advancing the planned pose between signals."""
     rules = list(rules)
+    signals = list(signals)
     verdicts: list[Verdict] = []
     for index, signal in enumerate(signals):
+        context = replace(context, later_signals=tuple(signals[index + 1:]))
         for name, rule in rules:
             try:
                 verdict = rule.validate(signal, context)

@@ -120,8 +120,18 @@ class MovingObstaclesOptions(BaseModel):
     unknown_speed_mm_s: float = Field(150.0, ge=0, le=5000, allow_inf_nan=False, description=(
         "speed, in any direction, assumed for a mover whose earlier position was not seen"))
     wander_deg: float = Field(25.0, ge=0, le=180, allow_inf_nan=False, description=(
-        "a mover's heading drifts as a random walk of this many degrees per square-root second "
-        "(0: straight courses; pybullet rooms' Labbots: 25)"))
+        "a mover's heading drifts as a random walk of this many degrees per square-root second: the "
+        "prior, until the mover's own chords say otherwise (history_scans) (0: straight courses)"))
+    history_scans: int = Field(0, ge=0, le=16, description=(
+        "earlier pairs of scans each mover is followed through to learn its cruising speed and wander "
+        "(0: the last two scans only, nothing learned)"))
+    prior_weight_s: float = Field(4.0, ge=0, le=600, allow_inf_nan=False, description=(
+        "how much the wander_deg prior weighs against a mover's own chords, in seconds of evidence"))
+    park_check: bool = Field(False, description=(
+        "refuse a plan that leaves the robot on a mover's course (its measured velocity held), when a "
+        "short step aside leaves it off every course (false: where a plan leaves the robot is not judged)"))
+    park_horizon_s: float = Field(3.0, ge=0, le=120, allow_inf_nan=False, description=(
+        "how long after a plan ends the robot is taken to stand where it left it, beyond the think time"))
     cruise_speed_mm_s: float | None = Field(None, gt=0, le=5000, allow_inf_nan=False, description=(
         "movers move at this speed when they move: scans are paired by the chord it gives, courses "
         "run at least this fast, and a shorter chord fans that share of them (a turn or a stop); "

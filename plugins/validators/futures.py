@@ -77,18 +77,27 @@ class WanderingFutures:
             self._noise[0] = 0.0  # course 0 is the measured course: no wander, the measured speed
         return self._noise[:, :columns]
 
+    def wander_deg(self, blob: Blob) -> float:
+        """The mover's wander: what its track taught (:mod:`.learning`), else the settings'."""
+        return self.s.wander_deg if blob.wander_deg is None else blob.wander_deg
+
+    def cruise_mm_s(self, blob: Blob) -> float | None:
+        """The mover's cruising speed: what its track taught, else the settings' (None: not known)."""
+        return self.s.cruise_speed_mm_s if blob.cruise_mm_s is None else blob.cruise_mm_s
+
     def turned_share(self, blob: Blob) -> float:
         """With a cruising speed: the share of a mover's courses that start after a turn, 1 - the
         measured speed over the chord speed a cruising, wandering mover reaches in all but
         ``TURN_QUANTILE`` of cases (so a mover that only wandered is read as turned that rarely);
         1 for a chord shorter than ``still_mm``; 0 without a cruising speed, or for an unknown velocity."""
         s = self.s
-        if s.cruise_speed_mm_s is None or blob.velocity is None:
+        cruise = self.cruise_mm_s(blob)
+        if cruise is None or blob.velocity is None:
             return 0.0
         measured = float(np.hypot(*blob.velocity))
         if measured * blob.span_s < s.still_mm:
             return 1.0
-        least = s.cruise_speed_mm_s * chord_share_quantile(s.wander_deg, blob.span_s, TURN_QUANTILE)
+        least = cruise * chord_share_quantile(self.wander_deg(blob), blob.span_s, TURN_QUANTILE)
         return float(np.clip(1.0 - measured / least, 0.0, 1.0)) if least > 0 else 0.0
 
     def _turned(self, blob: Blob) -> np.ndarray:
@@ -110,20 +119,20 @@ class WanderingFutures:
         steps = int(math.ceil(float(times.max(initial=0.0)) / s.step_s)) + 1
         noise = self._normals(steps + 1)
         measured = 0.0 if blob.velocity is None else float(np.hypot(*blob.velocity))
-        cruise = s.cruise_speed_mm_s
+        cruise, wander = self.cruise_mm_s(blob), self.wander_deg(blob)
         if blob.velocity is None:
             # no velocity: courses fanned evenly all the way round
             speed = s.unknown_speed_mm_s
             start = np.linspace(-math.pi, math.pi, s.count, endpoint=False)
         else:
-            spread = math.radians(s.wander_deg) * math.sqrt(max(blob.span_s, 0.0) / 3.0)
+            spread = math.radians(wander) * math.sqrt(max(blob.span_s, 0.0) / 3.0)
             start = math.atan2(blob.velocity[1], blob.velocity[0]) + spread * noise[:, 0]
             speed = measured
             if cruise is not None:
                 speed = np.full((s.count, 1, 1), max(measured, cruise))
                 speed[0] = measured  # course 0: the measured course
                 start = np.where(self._turned(blob), self._turn_heading, start)
-        drift = math.radians(s.wander_deg) * math.sqrt(s.step_s) * noise[:, 1:steps]
+        drift = math.radians(wander) * math.sqrt(s.step_s) * noise[:, 1:steps]
         heading = start[:, None] + np.concatenate((np.zeros((s.count, 1)), np.cumsum(drift, axis=1)), axis=1)
         step = speed * s.step_s * np.stack((np.cos(heading), np.sin(heading)), axis=-1)  # (count, steps, 2)
         grid = blob.centre + np.concatenate((np.zeros((s.count, 1, 2)), np.cumsum(step, axis=1)), axis=1)

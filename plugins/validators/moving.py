@@ -31,7 +31,7 @@ What the rule assumes:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,6 +40,7 @@ from safeembodai_core.models import ControlSignal, Straight, Turn, Verdict
 from safeembodai_core.validation import ValidationContext
 
 from .futures import WanderingFutures, WanderSettings, yielding
+from .learning import LearningSettings, learn_movers
 from .rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 
@@ -87,7 +88,11 @@ class MovingObstaclesRule(Validator):
             wander_deg=options.wander_deg, count=options.futures, step_s=options.sample_s,
             unknown_speed_mm_s=options.unknown_speed_mm_s, cruise_speed_mm_s=options.cruise_speed_mm_s,
             still_mm=options.static_tolerance_mm, seed=options.seed))
+        self.learning = LearningSettings(prior_wander_deg=options.wander_deg, prior_weight_s=options.prior_weight_s,
+                                         max_speed_mm_s=options.max_obstacle_speed_mm_s,
+                                         still_mm=options.static_tolerance_mm)
         self._cache: tuple | None = None
+        self._pairs: dict[tuple[int, int], tuple] = {}  # earlier pairs of scans -> their movers
 
     # -- what the scans say ---------------------------------------------------------------------
 
@@ -107,9 +112,35 @@ class MovingObstaclesRule(Validator):
             past = usable[-1]
             blobs = find_movers(context.scan, context.start_pose, context.sim_time_s,
                                 past.scan, past.pose, past.sim_time_s, self.tracking)
+            if self.options.history_scans and blobs:
+                earlier, spans = self._earlier_movers(usable)
+                blobs = learn_movers(blobs, earlier, self.learning, spans)
         think = self.think_time_s(context)
         self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s), blobs, think)
         return blobs, think
+
+    def _earlier_movers(self, usable: list) -> tuple[list[list[Blob]], list[float]]:
+        """The movers of each earlier pair of consecutive scans, newest pair first (at most
+        ``history_scans`` pairs; a gap longer than ``max_scan_gap_s`` ends the chain). Pairs are
+        kept by their scans' identity, so each is found once per trial, not once per step."""
+        pairs: list[list[Blob]] = []
+        spans: list[float] = []
+        chain = usable[-(self.options.history_scans + 1):]
+        for older, newer in reversed(list(zip(chain, chain[1:]))):
+            if not 0 < newer.sim_time_s - older.sim_time_s <= self.options.max_scan_gap_s:
+                break
+            key = (id(newer.scan), id(older.scan))
+            found = self._pairs.get(key)
+            if found is None or found[0] is not newer.scan or found[1] is not older.scan:
+                movers = find_movers(newer.scan, newer.pose, newer.sim_time_s, older.scan, older.pose,
+                                     older.sim_time_s, self.tracking)
+                found = (newer.scan, older.scan, movers)
+                self._pairs[key] = found
+                if len(self._pairs) > 4 * (self.options.history_scans + 1):
+                    self._pairs.pop(next(iter(self._pairs)))
+            pairs.append(found[2])
+            spans.append(newer.sim_time_s - older.sim_time_s)
+        return pairs, spans
 
     def think_time_s(self, context: ValidationContext) -> float:
         """The option, or an estimate from the observation times: over consecutive observations,
@@ -210,18 +241,104 @@ class MovingObstaclesRule(Validator):
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
         checked_scan(context, self.name, self.options.expected_beams)
-        if isinstance(signal, Turn):
-            return Verdict(rule=self.name, valid=True, reason="a turn in place keeps the body where it is")
         if context.start_pose is None:
             return Verdict(rule=self.name, valid=True, reason="no pose: earlier scans cannot be compared")
         blobs, think = self.movers(context)
         if not blobs:
             return Verdict(rule=self.name, valid=True)
         start = self.start_s(context)
-        meeting = self.first_meeting(context, signal, blobs, start)
-        if meeting is None:
-            return Verdict(rule=self.name, valid=True)
-        return Verdict(rule=self.name, valid=False, reason=self._reason(signal, context, blobs, start, think, meeting))
+        if isinstance(signal, Straight):
+            meeting = self.first_meeting(context, signal, blobs, start)
+            if meeting is not None:
+                return Verdict(rule=self.name, valid=False,
+                               reason=self._reason(signal, context, blobs, start, think, meeting))
+        if self.options.park_check and not context.later_signals:
+            parked = self.parking(context, signal, blobs, start + self.duration_s(signal), think)
+            if parked is not None:
+                return Verdict(rule=self.name, valid=False, reason=parked)
+        if isinstance(signal, Turn):
+            return Verdict(rule=self.name, valid=True, reason="a turn in place keeps the body where it is")
+        return Verdict(rule=self.name, valid=True)
+
+    # -- where the plan leaves the robot --------------------------------------------------------
+
+    def parked_on(self, xy: np.ndarray, radius_mm: float, blobs: list[Blob], from_s: float,
+                  think: float) -> tuple[Blob, float] | None:
+        """The first mover whose course -- its measured velocity held, at its cruising speed when
+        one was learned -- reaches the body standing at ``xy`` (room frame) from ``from_s`` (s after
+        the scan) through the next think time and ``park_horizon_s``, and when (s after the scan);
+        None when none does. A mover of unknown velocity has no course to be on."""
+        o = self.options
+        times = np.arange(from_s, from_s + think + o.park_horizon_s + o.sample_s / 2, o.sample_s)
+        found: tuple[Blob, float] | None = None
+        for blob in blobs:
+            if blob.velocity is None:
+                continue
+            speed = float(np.hypot(*blob.velocity))
+            if speed * blob.span_s < o.static_tolerance_mm:
+                continue  # standing: no course
+            velocity = blob.velocity * max(1.0, (blob.cruise_mm_s or speed) / speed)
+            where = blob.centre + velocity * times[:, None]
+            reach = radius_mm + blob.radius_mm + o.margin_mm
+            hit = np.flatnonzero(np.hypot(*(where - xy).T) < reach)
+            if hit.size and (found is None or times[hit[0]] < found[1]):
+                found = (blob, float(times[hit[0]]))
+        return found
+
+    def parking(self, context: ValidationContext, signal: ControlSignal, blobs: list[Blob], end_s: float,
+                think: float) -> str | None:
+        """A reason to refuse the plan whose last signal is ``signal`` (ending ``end_s`` after the
+        scan): it leaves the robot on a mover's course before the next plan can move it, while a
+        short plan from where the step starts (:meth:`_step_aside`) leaves it off every course and
+        meets no mover's courses on the way. None when the plan may stand."""
+        final = context.advanced(signal).planned_pose
+        on = self.parked_on(np.array([final.x_mm, final.y_mm]), context.robot.radius_mm, blobs, end_s, think)
+        if on is None:
+            return None
+        aside = self._step_aside(context, blobs, think)
+        if aside is None:
+            return None
+        blob, when = on
+        pose = context.planned_pose
+        rad = math.radians(pose.heading_deg)
+        dx, dy = blob.centre[0] - pose.x_mm, blob.centre[1] - pose.y_mm
+        bearing = math.degrees(math.atan2(-dx * math.sin(rad) + dy * math.cos(rad), dx * math.cos(rad) + dy * math.sin(rad)))
+        advice = ", then ".join(step.describe() for step in aside)
+        return (f"{signal.describe()}: the plan leaves the robot on the course of a moving obstacle "
+                f"({math.hypot(dx, dy):.0f} mm away at {bearing:.0f} deg, {float(np.hypot(*blob.velocity)):.0f} mm/s), "
+                f"which reaches it {when:.1f} s after the scan if it keeps going; step out of its way instead, "
+                f"for example {advice}")
+
+    def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float) -> list[ControlSignal] | None:
+        """The first short plan from where the step starts -- a turn of 89 or 60 degrees either way
+        then a straight forward, or a straight backward or forward, 200 or 390 mm, clear of the
+        scan by the clearance rule's default distance -- whose motion meets no mover's courses and
+        whose end lies on no mover's course (:meth:`parked_on`); None if there is none."""
+        from . import DEFAULT_SAFETY_DISTANCE_MM
+
+        base = replace(context, offset=(0.0, 0.0, 0.0), earlier_signals=(), later_signals=())
+        think_start = self.movers(context)[1]
+        top = context.limits.max_distance_mm - 1.0
+        for turn_deg in (89.0, -89.0, 60.0, -60.0, 180.0, 0.0):
+            turned = [] if turn_deg in (0.0, 180.0) else \
+                [Turn(command="turn", direction="left" if turn_deg > 0 else "right",
+                      angle=min(abs(turn_deg), context.limits.max_angle_deg - 1.0))]
+            here = base.advanced(turned[0]) if turned else base
+            reading = here.nearest_in_sector(180.0 if turn_deg == 180.0 else 0.0, 30.0)
+            free = math.inf if reading is None else reading.distance_mm - DEFAULT_SAFETY_DISTANCE_MM
+            start = think_start + sum(self.duration_s(t) for t in turned)
+            for distance in (200.0, min(390.0, top)):
+                if distance > free:
+                    break
+                straight = Straight(command="straight", direction="backward" if turn_deg == 180.0 else "forward",
+                                    distance=distance)
+                if self.first_meeting(here, straight, blobs, start) is not None:
+                    continue
+                end = here.advanced(straight).planned_pose
+                if self.parked_on(np.array([end.x_mm, end.y_mm]), context.robot.radius_mm, blobs,
+                                  start + self.duration_s(straight), think) is None:
+                    return [*turned, straight]
+        return None
 
     # -- the reason -----------------------------------------------------------------------------
 
@@ -247,8 +364,12 @@ class MovingObstaclesRule(Validator):
             course = math.degrees(math.atan2(blob.velocity[1], blob.velocity[0])) - pose.heading_deg
             motion = f"heading {(course + 180.0) % 360.0 - 180.0:.0f} deg at {speed:.0f} mm/s"
             turned = self.futures.turned_courses(blob)
+            cruise = self.futures.cruise_mm_s(blob)
+            if blob.cruise_mm_s is not None:
+                motion += (f"; followed over {blob.chords} pair{'s' if blob.chords != 1 else ''} of scans: cruising "
+                           f"up to {blob.cruise_mm_s:.0f} mm/s, wandering {blob.wander_deg:.0f} deg/sqrt(s)")
             if turned:
-                motion += (f"; slower than a mover cruising at {o.cruise_speed_mm_s:g} mm/s: it may have turned or "
+                motion += (f"; slower than its cruising {cruise:.0f} mm/s: it may have turned or "
                            f"stopped, {turned} of its courses go any way")
         safe = self._safe_distance(signal, context, blobs, start)
         if safe >= 1:

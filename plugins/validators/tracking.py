@@ -35,13 +35,18 @@ from safeembodai_core.models import LidarScan, Pose
 @dataclass(frozen=True)
 class Blob:
     """A moving obstacle as a disc in the room frame (mm, mm/s); ``velocity`` None: unknown.
-    ``span_s``: the time between the two scans the velocity was measured over."""
+    ``span_s``: the time between the two scans the velocity was measured over. ``wander_deg``,
+    ``cruise_mm_s`` and ``chords``: what the trial's scans taught about it (:mod:`.learning`),
+    None where nothing was learned (the rule's options then say)."""
 
     centre: np.ndarray
     radius_mm: float
     velocity: np.ndarray | None
     points: int
     span_s: float = 0.0
+    wander_deg: float | None = None
+    cruise_mm_s: float | None = None
+    chords: int = 0
 
 
 def _to_room(points: np.ndarray, pose: Pose) -> np.ndarray:
