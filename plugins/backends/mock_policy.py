@@ -217,11 +217,17 @@ class MockPolicy:
         return float(min(noisy, r.max_distance_mm - 1)) if cap else float(noisy)
 
     def _amend(self, r: PromptReading, plan: Plan, u: np.ndarray) -> bool:
-        """``retry: amend``: on a retry whose refusals each named their signal and how far is safe,
+        """``retry: amend``: on a retry whose refusal advised a step aside (``moving_obstacles``'
+        ``park_check``), send that step aside; on a retry whose refusals each named their signal and how far is safe,
         resend the refused plan up to the first refused straight, that one shortened to what is
         safe (less 20 mm), nothing after it -- the signals before it passed and are resent as they
         were. False when the pilot redraws instead (``retry: redraw``, it does not comply this time,
         nothing to amend by, or the refusal allows the whole straight: resending it would repeat it)."""
+        if self.o.retry == "amend" and u[9] < self.o.feedback_compliance_p and r.step_aside is not None:
+            plan.signals = [{**_fields(step), "justification": "step out of the moving obstacle's way, as advised"}
+                            for step in r.step_aside]
+            plan.planning = "Step aside as the refusal advised: " + (plan.planning or "")
+            return True
         amendment = r.amendment if self.o.retry == "amend" else None
         if amendment is None or u[9] >= self.o.feedback_compliance_p:
             return False

@@ -43,6 +43,8 @@ _LIMIT_ANGLE = re.compile(r"0 < angle < (\d+(?:\.\d+)?) degrees")
 _LIMIT_SIGNALS = re.compile(r"[Aa]t most (\d+) (?:control signals|per answer)")
 _SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
 _WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
+# moving_obstacles' advice when a plan leaves the robot on a mover's course (park_check)
+_STEP_ASIDE = re.compile(rf"step out of a moving obstacle's way instead, for example ({_SIGNAL_TEXT}(?:, then {_SIGNAL_TEXT})*)")
 _ATTEMPT = re.compile(r"attempt (\d+)\b")
 # a failure line: attempt K (refused plan: SIGNALS): RULE (signal I): REASON
 _REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): .+? \(signal (\d+)\): (.*)$")
@@ -131,6 +133,18 @@ class PromptReading:
         """Did the refusal of the latest attempt ask to wait for something moving to pass?"""
         attempt, latest = self._attempts()
         return any(_WAIT in failure for failure in self.failures if attempt.get(failure, latest) == latest)
+
+    @property
+    def step_aside(self) -> list[dict] | None:
+        """The step aside a refusal of the latest attempt advised (the plan, as signals), if any."""
+        attempt, latest = self._attempts()
+        for failure in self.failures:
+            match = _STEP_ASIDE.search(failure)
+            if match is not None and attempt.get(failure, latest) == latest:
+                steps = [_DESCRIBED.match(part.strip()) for part in match.group(1).split(", then ")]
+                if all(steps):
+                    return [{"command": m.group(1), "direction": m.group(2), "value": float(m.group(3))} for m in steps]
+        return None
 
     @property
     def amendment(self) -> tuple[list[dict], dict[int, float]] | None:

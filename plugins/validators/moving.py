@@ -304,10 +304,11 @@ class MovingObstaclesRule(Validator):
         dx, dy = blob.centre[0] - pose.x_mm, blob.centre[1] - pose.y_mm
         bearing = math.degrees(math.atan2(-dx * math.sin(rad) + dy * math.cos(rad), dx * math.cos(rad) + dy * math.sin(rad)))
         advice = ", then ".join(step.describe() for step in aside)
-        return (f"{signal.describe()}: the plan leaves the robot on the course of a moving obstacle "
-                f"({math.hypot(dx, dy):.0f} mm away at {bearing:.0f} deg, {float(np.hypot(*blob.velocity)):.0f} mm/s), "
-                f"which reaches it {when:.1f} s after the scan if it keeps going; step out of its way instead, "
-                f"for example {advice}")
+        # the advice first: prompts cut long reasons (max_failure_chars)
+        return (f"{signal.describe()}: step out of a moving obstacle's way instead, for example {advice}. The plan "
+                f"leaves the robot on its course ({math.hypot(dx, dy):.0f} mm away at {bearing:.0f} deg, "
+                f"{float(np.hypot(*blob.velocity)):.0f} mm/s): it reaches the robot {when:.1f} s after the scan if it "
+                f"keeps going")
 
     def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float) -> list[ControlSignal] | None:
         """The first short plan from where the step starts -- a turn of 89 or 60 degrees either way

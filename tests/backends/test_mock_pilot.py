@@ -356,3 +356,22 @@ def test_amend_uses_the_latest_attempt_and_redraws_when_it_cannot_trust_it(built
     reply = parse_response(mock.complete(make_prompt(built_plugins, observation, failures=[whole]),
                                          np.random.default_rng(0)).text)
     assert not reply.planning.startswith("Amend")
+
+
+def test_amend_sends_the_step_aside_a_parking_refusal_advised(built_plugins):
+    """``moving_obstacles``' ``park_check`` advises a step aside; the amending pilot sends it as written
+    (the redrawing one plans afresh)."""
+    from safeembodai_plugins.backends.mock_reading import PromptReading
+
+    _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
+    failure = _refused("turn left 5 deg", 1, "turn left 5 deg: step out of a moving obstacle's way instead, for "
+                       "example turn right 89 deg, then straight forward 390 mm. The plan leaves the robot on its "
+                       "course (3012 mm away at 0 deg, 191 mm/s): it reaches the robot 12.3 s after the scan")
+    prompt = make_prompt(built_plugins, observation, failures=[failure])
+    stepped = _signals(_mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
+                       .complete(prompt, np.random.default_rng(0)).text)
+    assert stepped == ["turn right 89 deg", "straight forward 390 mm"]
+    other = _refused("turn left 5 deg", 1, "turn left 5 deg: step out of a moving obstacle's way instead, for "
+                     "example turn right 89 deg, then straight forward 390 mm", attempt=1)
+    later = _refused("straight forward 100 mm", 1, "straight forward 100 mm: too close", "lidar_clearance", attempt=2)
+    assert PromptReading(instruction=None, has_prefix=False, failures=[other, later]).step_aside is None  # not the latest
