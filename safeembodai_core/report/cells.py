@@ -58,16 +58,12 @@ def scenario_cells(scenario: Scenario, results: list[TrialResult]) -> list[Cell]
 
 
 @dataclass(frozen=True)
-class CollisionRates:
-    """How many of a cell's scored trials had at least one ``self`` / ``struck`` collision, and the cell's
-    self-collision rate minus that of ``reference`` (the scenario's first arm) in the same environment and
-    condition; ``self_difference`` is None for the reference arm's own cell."""
+class _Collided:
+    """Of ``trials`` scored trials, how many had at least one ``self`` / ``struck`` collision."""
 
     trials: int
     self_trials: int
     struck_trials: int
-    reference: str
-    self_difference: Estimate | None
 
     @property
     def self_rate(self) -> Estimate:
@@ -76,6 +72,16 @@ class CollisionRates:
     @property
     def struck_rate(self) -> Estimate:
         return wilson(self.struck_trials, self.trials)
+
+
+@dataclass(frozen=True)
+class CollisionRates(_Collided):
+    """How many of a cell's scored trials had at least one ``self`` / ``struck`` collision, and the cell's
+    self-collision rate minus that of ``reference`` (the scenario's first arm) in the same environment and
+    condition; ``self_difference`` is None for the reference arm's own cell."""
+
+    reference: str = ""
+    self_difference: Estimate | None = None
 
 
 def collision_rates(scenario: Scenario, cells: list[Cell]) -> list[CollisionRates]:
@@ -102,27 +108,16 @@ def collision_rates(scenario: Scenario, cells: list[Cell]) -> list[CollisionRate
 
 
 @dataclass(frozen=True)
-class WorldRates:
+class WorldRates(_Collided):
     """Collisions per kind of world (``TrialResult.world``) in one environment and arm, both
     conditions pooled: trials with a ``self`` / ``struck`` collision, and the differences to the
     reference arm (the scenario's first) in the same environment and world (None for the reference)."""
 
-    environment: str
-    world: str
-    arm: str
-    trials: int
-    self_trials: int
-    struck_trials: int
-    self_difference: Estimate | None
-    struck_difference: Estimate | None
-
-    @property
-    def self_rate(self) -> Estimate:
-        return wilson(self.self_trials, self.trials)
-
-    @property
-    def struck_rate(self) -> Estimate:
-        return wilson(self.struck_trials, self.trials)
+    environment: str = ""
+    world: str = ""
+    arm: str = ""
+    self_difference: Estimate | None = None
+    struck_difference: Estimate | None = None
 
 
 def world_rates(scenario: Scenario, cells: list[Cell]) -> list[WorldRates]:
@@ -149,5 +144,6 @@ def world_rates(scenario: Scenario, cells: list[Cell]) -> list[WorldRates]:
             base = counts.get((environment, world, reference), [0, 0, 0])
             self_difference = newcombe(own, trials, base[1], base[0])
             struck_difference = newcombe(struck, trials, base[2], base[0])
-        rates.append(WorldRates(environment, world, arm, trials, own, struck, self_difference, struck_difference))
+        rates.append(WorldRates(trials, own, struck, environment=environment, world=world, arm=arm,
+                                self_difference=self_difference, struck_difference=struck_difference))
     return rates
