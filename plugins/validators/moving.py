@@ -318,7 +318,6 @@ class MovingObstaclesRule(Validator):
         from . import DEFAULT_SAFETY_DISTANCE_MM
 
         base = replace(context, offset=(0.0, 0.0, 0.0), earlier_signals=(), later_signals=())
-        think_start = self.movers(context)[1]
         top = context.limits.max_distance_mm - 1.0
         for turn_deg in (89.0, -89.0, 60.0, -60.0, 180.0, 0.0):
             turned = [] if turn_deg in (0.0, 180.0) else \
@@ -327,7 +326,7 @@ class MovingObstaclesRule(Validator):
             here = base.advanced(turned[0]) if turned else base
             reading = here.nearest_in_sector(180.0 if turn_deg == 180.0 else 0.0, 30.0)
             free = math.inf if reading is None else reading.distance_mm - DEFAULT_SAFETY_DISTANCE_MM
-            start = think_start + sum(self.duration_s(t) for t in turned)
+            start = think + sum(self.duration_s(t) for t in turned)  # the step aside runs after the think time
             for distance in (200.0, min(390.0, top)):
                 if distance > free:
                     break
