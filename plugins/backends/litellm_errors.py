@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Iterable
 
 from safeembodai_core.logs import mask_values, redact
+from safeembodai_core.models.chat_completion import error_text
 
 from .litellm_call import CallTimedOut, TooManyHungCalls
 
@@ -146,11 +147,7 @@ def _error_only_message(body: bytes | None) -> str | None:
         return None
     if not isinstance(data, dict) or "error" not in data or "choices" in data:
         return None
-    error = data["error"]
-    message = error.get("message") if isinstance(error, dict) else error
-    if message is None or message == "":
-        return "(no message)"
-    return message if isinstance(message, str) else json.dumps(message)
+    return error_text(data) or "(no message)"
 
 
 def exchange_failure(recorder: Any, secrets: Iterable[str] = ()) -> Failure | None:

@@ -66,14 +66,23 @@ def _usage(usage: Any) -> TokenUsage:
                       completion_tokens=_count(usage.get("completion_tokens")))
 
 
-def error_message(body: Any) -> str | None:
-    """The message of a body that carries an ``error`` (quoted, short), with or without choices;
-    None when ``body`` has none."""
+def error_text(body: Any) -> str | None:
+    """The message of a decoded body that carries an ``error``, as the server wrote it (a message
+    that is not text as its JSON; ``(no message)`` when it has none), with or without choices; None
+    when ``body`` has no error. Untrusted: quote or scrub it before it is shown."""
     if not isinstance(body, dict) or body.get("error") is None:
         return None
     error = body["error"]
     message = error.get("message") if isinstance(error, dict) else error
-    return quote_untrusted(message if message is not None else "(no message)", _QUOTE)
+    if message is None or message == "":
+        return "(no message)"
+    return message if isinstance(message, str) else json.dumps(message)
+
+
+def error_message(body: Any) -> str | None:
+    """:func:`error_text`, quoted and short."""
+    text = error_text(body)
+    return None if text is None else quote_untrusted(text, _QUOTE)
 
 
 def _content(message: dict[str, Any]) -> str:
