@@ -36,7 +36,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from safeembodai_core.components import Validator
-from safeembodai_core.models import ControlSignal, Straight, Turn, Verdict
+from safeembodai_core.models import ControlSignal, Pose, Straight, Turn, Verdict
 from safeembodai_core.validation import ValidationContext
 
 from .futures import WanderingFutures, WanderSettings, yielding
@@ -45,6 +45,16 @@ from .rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 
 _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
+
+
+def seen_from(pose: Pose, point: np.ndarray) -> tuple[float, float]:
+    """``point`` (room frame) as the robot at ``pose`` sees it: distance (mm) and bearing (degrees,
+    counter-clockwise from its heading)."""
+    rad = math.radians(pose.heading_deg)
+    c, s = math.cos(rad), math.sin(rad)
+    dx, dy = point[0] - pose.x_mm, point[1] - pose.y_mm
+    x, y = dx * c + dy * s, -dx * s + dy * c
+    return math.hypot(x, y), math.degrees(math.atan2(y, x))
 
 
 @dataclass(frozen=True)
@@ -299,14 +309,11 @@ class MovingObstaclesRule(Validator):
         if aside is None:
             return None
         blob, when = on
-        pose = context.planned_pose
-        rad = math.radians(pose.heading_deg)
-        dx, dy = blob.centre[0] - pose.x_mm, blob.centre[1] - pose.y_mm
-        bearing = math.degrees(math.atan2(-dx * math.sin(rad) + dy * math.cos(rad), dx * math.cos(rad) + dy * math.sin(rad)))
+        distance, bearing = seen_from(context.planned_pose, blob.centre)
         advice = ", then ".join(step.describe() for step in aside)
         # the advice first: prompts cut long reasons (max_failure_chars)
         return (f"{signal.describe()}: step out of a moving obstacle's way instead, for example {advice}. The plan "
-                f"leaves the robot on its course ({math.hypot(dx, dy):.0f} mm away at {bearing:.0f} deg, "
+                f"leaves the robot on its course ({distance:.0f} mm away at {bearing:.0f} deg, "
                 f"{float(np.hypot(*blob.velocity)):.0f} mm/s): it reaches the robot {when:.1f} s after the scan if it "
                 f"keeps going")
 
@@ -348,15 +355,7 @@ class MovingObstaclesRule(Validator):
         blob = meeting.blob
         pose = context.planned_pose
         direction, _ = direction_words(signal)
-        rad = math.radians(pose.heading_deg)
-        c, s = math.cos(rad), math.sin(rad)
-
-        def local(point: np.ndarray) -> tuple[float, float]:
-            dx, dy = point[0] - pose.x_mm, point[1] - pose.y_mm
-            x, y = dx * c + dy * s, -dx * s + dy * c
-            return math.hypot(x, y), math.degrees(math.atan2(y, x))
-
-        now_d, now_b = local(blob.centre)
+        now_d, now_b = seen_from(pose, blob.centre)
         if blob.velocity is None:
             motion = f"velocity unknown (where it was not seen), taken as {o.unknown_speed_mm_s:g} mm/s any way"
         else:
