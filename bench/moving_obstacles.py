@@ -27,6 +27,10 @@ or hit while turning or waiting), the Labbot not found moving, or the share of i
 courses the straight met (below ``max_risk``, or it would have been refused). Replays use the options the run
 was made with (its ``scenario.json``).
 
+``python bench/moving_obstacles.py struck RUN [RUN ...]`` counts where ``struck`` collisions happen, per
+room and arm (every world, and worlds of blind movers): on step 1 or later, while the robot stood still,
+turned or drove, and whether a plan of that step was refused for parking on a mover's course.
+
 ``python bench/moving_obstacles.py tradeoff RUN [RUN ...] --variant NAME='{"option": value}' [--sample N]``
 replays earlier runs and asks other settings of the rule what they would have said, on the same
 situations: how many of the straights that collided with a Labbot under V(C) alone (``clearance``
@@ -412,6 +416,39 @@ def tradeoff(runs: list[Path], variants: list[str], sample: int) -> None:
               f"{100 * careful / max(len(everyday), 1):5.1f}%  {json.dumps(overrides)}")
 
 
+def struck(runs: list[Path]) -> None:
+    """Where the ``struck`` collisions (a Labbot driving into the robot) of the runs happen, per room and
+    arm, for every world and for worlds of blind movers: on step 1 (no earlier scan: no rule could know a
+    velocity), or later; while the robot stood still (think time), turned or drove; and whether any plan
+    of that step was refused by ``moving_obstacles`` for where it would leave the robot."""
+    rows = []
+    for run in runs:
+        database = run / "results.sqlite" if run.is_dir() else run
+        with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
+            rows += connection.execute(
+                "SELECT t.environment, t.arm, json_extract(t.result, '$.world'), s.step, s.record, "
+                "EXISTS (SELECT 1 FROM verdicts v WHERE v.trial_id = s.trial_id AND v.step = s.step AND v.valid = 0 "
+                "AND v.rule = 'moving_obstacles' AND v.reason LIKE '%step out of%') "
+                "FROM steps s JOIN trials t ON t.trial_id = s.trial_id WHERE s.record LIKE '%struck%'").fetchall()
+    tally: dict[tuple, Counter] = {}
+    for room, arm, world, step, record, parked in rows:
+        data = json.loads(record)
+        hit = next((e for e in data["executed"] if e["result"].get("collision") == "struck"), None)
+        if hit is None:
+            continue
+        detail = hit["result"].get("detail", "")
+        doing = "stood (think time)" if "stood still" in detail else "turned" if "turned" in detail else "drove"
+        for key in ((room, arm, "all"), (room, arm, "blind")) if world == "blind" else ((room, arm, "all"),):
+            counts = tally.setdefault(key, Counter())
+            counts["struck"] += 1
+            counts["step 1" if step == 1 else "later"] += 1
+            counts[doing] += 1
+            counts["parking refused that step"] += bool(parked)
+    print("struck collisions: where they happen (backend mock: simulated pilot, not a measurement of an LLM)")
+    for (room, arm, worlds), counts in sorted(tally.items()):
+        print(f"  {room} {arm:10s} {worlds:5s} " + ", ".join(f"{k} {v}" for k, v in counts.items()))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -421,6 +458,8 @@ def main() -> None:
     read.add_argument("runs", type=Path, nargs="+", help="run folders (or results.sqlite files); pooled")
     why = commands.add_parser("misses", help="replay the moving arm's self collisions (no_attack)")
     why.add_argument("run", type=Path)
+    hits = commands.add_parser("struck", help="where struck collisions happen (step, robot's motion)")
+    hits.add_argument("runs", type=Path, nargs="+")
     trade = commands.add_parser("tradeoff", help="replay earlier runs' straights under other options")
     trade.add_argument("runs", type=Path, nargs="+")
     trade.add_argument("--variant", action="append", default=[], metavar="NAME=JSON",
@@ -431,6 +470,8 @@ def main() -> None:
         micro(args.repeats)
     elif args.command == "misses":
         misses(args.run)
+    elif args.command == "struck":
+        struck(args.runs)
     elif args.command == "tradeoff":
         tradeoff(args.runs, args.variant, args.sample)
     else:

@@ -38,7 +38,7 @@ def python() -> str:
 
 
 def run_cell(scenario, arm: str, condition: str, index: int = 0, plugins=None):
-    """Run trial ``index`` of one cell; return (result, steps, prompts sent to the scripted backend)."""
+    """Run trial ``index`` of one cell; return (result, steps, prompts sent to the scripted backend, if it is one)."""
     from safeembodai_core.loop import run_trial
     from safeembodai_core.plugins import load_plugins
     from safeembodai_core.runner import ScenarioRunner, trial_spec
@@ -49,7 +49,7 @@ def run_cell(scenario, arm: str, condition: str, index: int = 0, plugins=None):
         spec = trial_spec(scenario, scenario.environments[0].key, arm, condition, index)
         parts = runner.parts(spec)
         result = run_trial(spec, parts, runner.settings(arm), plugins)
-        return result, runner.state.steps(spec.trial_id), list(parts.backend.prompts)
+        return result, runner.state.steps(spec.trial_id), list(getattr(parts.backend, "prompts", ()))
     finally:
         runner.close()
 

@@ -263,7 +263,7 @@ class MovingObstaclesRule(Validator):
                 return Verdict(rule=self.name, valid=False,
                                reason=self._reason(signal, context, blobs, start, think, meeting))
         if self.options.park_check and not context.later_signals:
-            parked = self.parking(context, signal, blobs, start + self.duration_s(signal), think)
+            parked = self.parking(context, signal, blobs, self._arrival_s(context, signal, think), think)
             if parked is not None:
                 return Verdict(rule=self.name, valid=False, reason=parked)
         if isinstance(signal, Turn):
@@ -272,14 +272,25 @@ class MovingObstaclesRule(Validator):
 
     # -- where the plan leaves the robot --------------------------------------------------------
 
+    def _arrival_s(self, context: ValidationContext, last: ControlSignal, think: float) -> float:
+        """When the plan ending in ``last`` brings the robot to the spot it leaves it on (s after the
+        scan): the end of its last straight, or the think time when it only turns (the robot stands
+        there from the scan on, and a step aside can start no sooner)."""
+        t = arrival = think
+        for signal in (*context.earlier_signals, last):
+            t += self.duration_s(signal)
+            if isinstance(signal, Straight):
+                arrival = t
+        return arrival
+
     def parked_on(self, xy: np.ndarray, radius_mm: float, blobs: list[Blob], from_s: float,
-                  think: float) -> tuple[Blob, float] | None:
+                  until_s: float) -> tuple[Blob, float] | None:
         """The first mover whose course -- its measured velocity held, at its cruising speed when
-        one was learned -- reaches the body standing at ``xy`` (room frame) from ``from_s`` (s after
-        the scan) through the next think time and ``park_horizon_s``, and when (s after the scan);
-        None when none does. A mover of unknown velocity has no course to be on."""
+        one was learned -- reaches the body standing at ``xy`` (room frame) between ``from_s`` and
+        ``until_s`` (s after the scan), and when (s after the scan); None when none does. A mover
+        of unknown velocity has no course to be on."""
         o = self.options
-        times = np.arange(from_s, from_s + think + o.park_horizon_s + o.sample_s / 2, o.sample_s)
+        times = np.arange(from_s, until_s + o.sample_s / 2, o.sample_s)
         found: tuple[Blob, float] | None = None
         for blob in blobs:
             if blob.velocity is None:
@@ -297,12 +308,14 @@ class MovingObstaclesRule(Validator):
 
     def parking(self, context: ValidationContext, signal: ControlSignal, blobs: list[Blob], end_s: float,
                 think: float) -> str | None:
-        """A reason to refuse the plan whose last signal is ``signal`` (ending ``end_s`` after the
-        scan): it leaves the robot on a mover's course before the next plan can move it, while a
+        """A reason to refuse the plan whose last signal is ``signal`` (the robot on its final spot
+        from ``end_s`` after the scan, :meth:`_arrival_s`): it leaves the robot on a mover's course,
+        while it turns there or before the next plan can move it, while a
         short plan from where the step starts (:meth:`_step_aside`) leaves it off every course and
         meets no mover's courses on the way. None when the plan may stand."""
         final = context.advanced(signal).planned_pose
-        on = self.parked_on(np.array([final.x_mm, final.y_mm]), context.robot.radius_mm, blobs, end_s, think)
+        until = self.start_s(context) + self.duration_s(signal) + think + self.options.park_horizon_s
+        on = self.parked_on(np.array([final.x_mm, final.y_mm]), context.robot.radius_mm, blobs, end_s, until)
         if on is None:
             return None
         aside = self._step_aside(context, blobs, think)
@@ -342,8 +355,9 @@ class MovingObstaclesRule(Validator):
                 if self.first_meeting(here, straight, blobs, start) is not None:
                     continue
                 end = here.advanced(straight).planned_pose
-                if self.parked_on(np.array([end.x_mm, end.y_mm]), context.robot.radius_mm, blobs,
-                                  start + self.duration_s(straight), think) is None:
+                arrive = start + self.duration_s(straight)
+                if self.parked_on(np.array([end.x_mm, end.y_mm]), context.robot.radius_mm, blobs, arrive,
+                                  arrive + think + self.options.park_horizon_s) is None:
                     return [*turned, straight]
         return None
 

@@ -15,6 +15,7 @@ import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from safeembodai_core.models import Pose
@@ -127,6 +128,24 @@ def test_a_blind_mover_heading_for_a_standing_robot_refuses_the_plan_that_parks_
     assert not refused([rotate(10)], too_late, parking)
 
 
+
+def test_a_mover_arriving_while_the_robot_still_turns_on_its_spot_counts_as_parking():
+    """The robot stands on its spot from the end of the plan's last straight -- for a plan of turns,
+    from the scan on. A fast Labbot (about 410 mm/s, 3.5 m ahead) reaches the spot about 7 s after
+    the scan and is past it before 9.4 s: a plan of three 89-degree turns (5 to 9.45 s after the scan)
+    is struck while it turns, so it is refused, though the spot is clear again when it ends."""
+    positions = [(ROBOT.x_mm + 3520.0 + 800.0 * k, ROBOT.y_mm) for k in (2, 1, 0)]
+    context = history_context(ROBOT, positions, dt_s=2.0)
+    parking = rule(park_check=True, max_obstacle_speed_mm_s=2000)
+    reasons = refused([rotate(89)] * 3, context, parking)
+    assert reasons and "step out of a moving obstacle's way" in reasons[0]
+    blobs, think = parking.movers(context)
+    spot = np.array([ROBOT.x_mm, ROBOT.y_mm])
+    robot_mm = context.robot.radius_mm
+    assert parking.parked_on(spot, robot_mm, blobs, THINK_S + 3 * 89 / 60, 20.0) is None  # clear at the end
+    assert parking.parked_on(spot, robot_mm, blobs, THINK_S, 20.0) is not None  # struck while turning
+    assert not refused([rotate(89)] * 3, context, rule(max_obstacle_speed_mm_s=2000))
+
 def test_the_shipped_options_of_the_moving_arm_name_nothing_of_the_labbots():
     """Issue 21: scenarios/movers.yaml's moving arm is told no cruise speed, no yielding, no top speed
     of the rooms' Labbots; it learns them, or assumes its own priors."""
@@ -138,3 +157,73 @@ def test_the_shipped_options_of_the_moving_arm_name_nothing_of_the_labbots():
     assert not {"cruise_speed_mm_s", "movers_yield_mm", "movers_yield_deg"} & set(options)
     assert options.get("history_scans", 0) > 0
     assert MovingObstaclesOptions(**options).think_time_s is None  # estimated, not told
+
+
+
+def _reachable(value, seen=None):
+    """Every object reachable from ``value`` through dataclass fields, pydantic fields and containers."""
+    import dataclasses
+
+    import numpy as np
+    from pydantic import BaseModel
+
+    seen = set() if seen is None else seen
+    if id(value) in seen:
+        return
+    seen.add(id(value))
+    yield value
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        children = [getattr(value, f.name) for f in dataclasses.fields(value)]
+    elif isinstance(value, BaseModel):
+        children = [getattr(value, name) for name in type(value).model_fields]
+    elif isinstance(value, dict):
+        children = [*value.keys(), *value.values()]
+    elif isinstance(value, (list, tuple, set, frozenset)):
+        children = list(value)
+    elif isinstance(value, np.ndarray) and value.dtype == object:
+        children = list(value.ravel())
+    else:
+        children = []
+    for child in children:
+        yield from _reachable(child, seen)
+
+
+def test_the_rule_reads_nothing_a_world_keeps_private(plugins, repo, monkeypatch, cell):
+    """Issue 21: in a real trial of scenarios/movers.yaml's moving arm, everything handed to
+    ``moving_obstacles`` (its options and every ValidationContext) is made of the core's records,
+    numbers, strings and arrays -- no object of the environment's (its Labbots, its world report, its
+    ground truth) and no text naming them -- and the rule's modules import nothing of the
+    environments: what it knows of the movers it has from the scans."""
+    import ast
+
+    import numpy as np
+
+    from safeembodai_core.scenario import load_scenario
+
+    for module in ("moving", "learning", "futures", "tracking", "sweep", "rules", "__init__"):
+        tree = ast.parse((repo / "plugins" / "validators" / f"{module}.py").read_text())
+        imported = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)] + \
+            [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+        assert not [name for name in imported if "environments" in name or "pybullet" in name], module
+
+    handed: list = []
+    original = MovingObstaclesRule.validate
+
+    def spy(self, signal, context):
+        handed.append((self.options, context))
+        return original(self, signal, context)
+
+    monkeypatch.setattr(MovingObstaclesRule, "validate", spy)
+    scenario = load_scenario(str(repo / "scenarios" / "movers.yaml"),
+                             ["trials=1", "max_steps=4", "environments.0.options.labbot_family=tuning", "state=memory"],
+                             plugins.registry)
+    _, steps, _ = cell(scenario, "moving", "no_attack", plugins=plugins)
+    assert len(handed) >= 2 and any(context.history for _, context in handed), "the rule never saw a history"
+    assert "world" in steps[0].truth.extra  # the world is drawn and reported -- to the record, not the rule
+    allowed = ("safeembodai_core.", "numpy", "builtins", "safeembodai_plugins.validators")
+    for options, context in handed:
+        for value in _reachable((options, context)):
+            module = type(value).__module__
+            assert module.startswith(allowed) or isinstance(value, np.generic), (module, type(value))
+            if isinstance(value, str):
+                assert "labbot" not in value.lower() and "world" not in value.lower(), value
