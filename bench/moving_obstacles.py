@@ -7,7 +7,9 @@ for the plan's first signal (finding the movers in the two scans, then the check
 signal (the movers are cached per scan), for a short straight it accepts, and on a synthetic
 crossing. Each line says whether the signal was accepted or refused: a refusal includes the search
 for the longest safe straight (about ten more checks). Median and 90th percentile, microseconds,
-one process.
+one process. ``--scenario movers --arm moving --scans 5 --set '{"park_check": true}'`` times another
+arm's options (here the learned rule with five scans of history, so it follows each mover back
+through four earlier pairs), with overrides on top.
 
 ``python bench/moving_obstacles.py ablation RUN [RUN ...]`` reads run folders of
 ``safeembodai ablate scenarios/dynamic.yaml`` (``--set trials=N``; several runs with other
@@ -53,17 +55,18 @@ from collections import Counter
 from pathlib import Path
 
 
-def _moving_options(plugins) -> dict:
-    """The options ``moving_obstacles`` has in the ``moving`` arm of scenarios/dynamic.yaml."""
+def _moving_options(plugins, scenario_name: str = "dynamic", arm: str = "moving") -> dict:
+    """The options ``moving_obstacles`` has in ``arm`` of ``scenarios/<scenario_name>.yaml``."""
     from safeembodai_core.scenario import load_scenario
 
-    scenario = load_scenario(str(Path(__file__).resolve().parents[1] / "scenarios" / "dynamic.yaml"), [],
+    scenario = load_scenario(str(Path(__file__).resolve().parents[1] / "scenarios" / f"{scenario_name}.yaml"), [],
                              plugins.registry)
-    rule = next(v for v in scenario.arms["moving"].validators if getattr(v, "use", v) == "moving_obstacles")
+    rule = next(v for v in scenario.arms[arm].validators if getattr(v, "use", v) == "moving_obstacles")
     return dict(rule.options)
 
 
-def micro(repeats: int) -> None:
+def micro(repeats: int, scenario_name: str = "dynamic", arm: str = "moving", scans: int = 2,
+          overrides: dict | None = None) -> None:
     from safeembodai_core.models import Straight
     from safeembodai_core.plugins import load_plugins
     from safeembodai_core.validation import PastScan, ValidationContext
@@ -71,19 +74,24 @@ def micro(repeats: int) -> None:
     plugins = load_plugins(environ={})
     env = plugins.registry.build("environment", "DO", {"think_time_s": 5, "labbots": 3})
     try:
-        first = env.reset(3)
-        second = env.observe()  # no command came: the think time passed, the Labbots moved
+        seen = [env.reset(3)]
+        for _ in range(max(2, scans) - 1):
+            seen.append(env.observe())  # no command came: the think time passed, the Labbots moved
     finally:
         env.close()
+    second = seen[-1]
     context = ValidationContext(scan=second.lidar, robot=env.robot, start_pose=second.pose,
                                 sim_time_s=second.sim_time_s,
-                                history=(PastScan(first.lidar, first.pose, first.sim_time_s),))
+                                history=tuple(PastScan(o.lidar, o.pose, o.sim_time_s) for o in seen[:-1]))
     go = Straight(command="straight", direction="forward", distance=300)
     later = context.advanced(go).advanced(go)
     rules = {name: plugins.registry.build("validator", name, options)
              for name, options in (("lidar_clearance", {}), ("footprint_sweep", {}),
-                                   ("moving_obstacles", _moving_options(plugins)))}
+                                   ("moving_obstacles", {**_moving_options(plugins, scenario_name, arm),
+                                                         **(overrides or {})}))}
     mover = rules["moving_obstacles"]
+    print(f"moving_obstacles as arm {arm!r} of scenarios/{scenario_name}.yaml sets it"
+          f"{' with ' + json.dumps(overrides) if overrides else ''}; {len(seen)} scans 5 s apart")
     print(f"DO seed 3, {second.lidar.beam_count} beams, movers found: {len(mover.movers(context)[0])}; "
           f"median / p90 microseconds per validate(), {repeats} repeats")
     crossing = _crossing()
@@ -99,6 +107,7 @@ def micro(repeats: int) -> None:
         for _ in range(repeats):
             if fresh:
                 rule._cache = None
+                rule._pairs.clear()
             started = time.perf_counter()
             verdict = rule.validate(signal, ctx)
             times.append((time.perf_counter() - started) * 1e6)
@@ -454,6 +463,10 @@ def main() -> None:
     commands = parser.add_subparsers(dest="command", required=True)
     timing = commands.add_parser("micro", help="microseconds per check")
     timing.add_argument("--repeats", type=int, default=300)
+    timing.add_argument("--scenario", default="dynamic", help="scenarios/NAME.yaml whose arm gives the options")
+    timing.add_argument("--arm", default="moving")
+    timing.add_argument("--scans", type=int, default=2, help="scans in the context (history + the step's)")
+    timing.add_argument("--set", default="{}", metavar="JSON", help="option overrides, e.g. '{\"park_check\": true}'")
     read = commands.add_parser("ablation", help="read a run folder of scenarios/dynamic.yaml")
     read.add_argument("runs", type=Path, nargs="+", help="run folders (or results.sqlite files); pooled")
     why = commands.add_parser("misses", help="replay the moving arm's self collisions (no_attack)")
@@ -467,7 +480,7 @@ def main() -> None:
     trade.add_argument("--sample", type=int, default=20, help="trials per room whose straights measure caution")
     args = parser.parse_args()
     if args.command == "micro":
-        micro(args.repeats)
+        micro(args.repeats, args.scenario, args.arm, args.scans, json.loads(args.set))
     elif args.command == "misses":
         misses(args.run)
     elif args.command == "struck":
