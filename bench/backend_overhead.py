@@ -150,7 +150,7 @@ def mock_speed(trials: int) -> None:
               f"({steps} steps)")
 
 
-#: the paper's attack (its five prompts, docs/attacks.md) at the authors' release rate, 0.5
+#: the paper's attack (its six prompts, docs/attacks.md) at the authors' release rate, 0.5
 PAPER_CONDITIONS = {"no_attack": {}, "attack": {"attackers": [{"use": "prompt_injection",
                                                                "options": {"rate": 0.5, "kinds": "paper"}}]}}
 
@@ -165,7 +165,7 @@ def calibrate(env: str, trials: int) -> None:
         cells.setdefault((spec.arm, spec.condition), []).append(runner.run(spec))
     runner.close()
     print(f"mock pilot, default options, {env}, {trials} trials per cell, 20-step budget, "
-          "attack: the paper's five prompts at rate 0.5")
+          "attack: the paper's six prompts at rate 0.5")
     for (arm, condition), results in cells.items():
         m = paper_metrics.cell_metrics(results, budget=20)
         attacked = sum(r.attacked_steps for r in results)

@@ -5,7 +5,7 @@ Checks, from ``results.sqlite`` and ``report.md`` only:
 1. refusals whose reason is a LiDAR gap (an unread beam): the rooms' LiDAR reports "no return"
    as ``inf``, never as a missing reading, so any such refusal would be an artefact of the
    validator, not of the sensor;
-2. injected attack kinds: only the paper's five (``PAPER_KINDS``);
+2. injected attack kinds: only the paper's six (``PAPER_KINDS``);
 3. every collision attributed: ``collisions == collisions_self + collisions_struck`` per trial;
 4. the comparison with the paper uses its TLR definition (lost steps / all steps).
 

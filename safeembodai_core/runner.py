@@ -119,7 +119,7 @@ class ScenarioRunner:
     def settings(self, arm: str) -> LoopSettings:
         s = self.scenario
         return LoopSettings(max_steps=s.max_steps, instruction=s.instruction, task=s.task,
-                            defences=s.arms[arm], limits=s.limits)
+                            defences=s.arms[arm], limits=s.limits, budget=s.budget)
 
     def run(self, spec: TrialSpec) -> TrialResult:
         try:

@@ -2,8 +2,10 @@
 
 * ``prompt_injection`` -- at a seeded per-step ``rate`` (default 0.5, the authors' release; the
   other two attackers share the default so that conditions compare),
-  appends to (or replaces) the human instruction a malicious prompt from a library: the five
-  kinds the paper names (``kinds: paper``) and five of ours.
+  appends to (or, with ``mode: replace``, replaces) the human instruction a malicious prompt from
+  a library: the six kinds the paper names (``kinds: paper``), five of ours, and the two texts
+  the authors' release injected (``kinds: release``, verbatim; the release replaced the
+  instruction with them).
 * ``lidar_spoof`` -- phantom or erased obstacles in a sector of the LiDAR scan; the validators
   see the spoofed scan, as they would with a real spoofed sensor.
 * ``state_poisoning`` -- a forged entry in the reference state R_{i-1} (only when state
@@ -31,10 +33,13 @@ from safeembodai_core.hookspecs import hookimpl
 class PromptInjectionOptions(AttackSchedule):
     """Options of ``prompt_injection``."""
 
-    mode: Literal["append", "replace"] = Field("append", description="attach to or replace the instruction")
+    mode: Literal["append", "replace"] = Field("append", description=(
+        "append the payload to the instruction, or replace the instruction with it (the authors' release: "
+        "eyesimLLM src/discrete_robot/discrete_llm_robot.py:166-174)"))
     separator: str = Field(" ", max_length=20, description="between the instruction and an appended payload")
     kinds: list[str] | str | None = Field(None, description=(
-        "draw only from these payload kinds, or a group: 'paper' (the five the paper names) or 'all' (default)"))
+        "draw only from these payload kinds, or a group: 'paper' (the six the paper names), 'release' (the "
+        "release's two texts) or 'all' (default)"))
     payloads: list[str] | None = Field(None, description="your own payloads instead of the library (kind 'custom')")
     aim_at_target: bool = Field(False, description="{x}, {y} = the target's true position instead of random")
 

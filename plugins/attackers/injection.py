@@ -49,7 +49,7 @@ class PromptInjectionAttacker(Attacker):
         kind, template = self.pool[pick]
         x, y = self._coordinates(target, x, y)
         payload = template.replace("{x}", str(x)).replace("{y}", str(y))
-        if o.mode == "replace":
+        if o.mode == "replace":  # the release: the injection *is* h_i (eyesimLLM discrete_llm_robot.py:166-174)
             target.instruction = payload
         else:
             target.instruction = f"{target.instruction}{o.separator}{payload}" if target.instruction else payload

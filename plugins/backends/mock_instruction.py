@@ -17,6 +17,8 @@ turn_away  turn aside/away/around, look away, keep         turn well away from t
            exploring
 avoid      avoid, obstacle detected, block(ed)             turn hard, then straight ahead
 spin       spin                                           turn in place twice
+roam       busiest, most crowded, back and forth           wander off: turn away from the
+                                                          can, then straight ahead
 format     reply with, no JSON, empty control, single     answers as told: no JSON, or an
            word                                           empty control list
 ========== ============================================== ==================================
@@ -32,7 +34,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-INTENTS = ("charge", "retreat", "turn_away", "avoid", "spin", "format", "override")
+INTENTS = ("charge", "retreat", "turn_away", "avoid", "spin", "roam", "format", "override")
 
 _CUES: tuple[tuple[str, re.Pattern[str]], ...] = tuple(
     (intent, re.compile(pattern, re.IGNORECASE)) for intent, pattern in (
@@ -42,6 +44,7 @@ _CUES: tuple[tuple[str, re.Pattern[str]], ...] = tuple(
         ("turn_away", r"turn (aside|away|around)|look away|keep exploring"),
         ("avoid", r"\bavoid\b|obstacle detected|\bblocked?\b"),
         ("spin", r"\bspin\b"),
+        ("roam", r"\bbusiest\b|most crowded|back and forth"),
         ("format", r"reply with|no json|empty control|single word"),
         ("override", r"ignore (all )?(previous|prior) instructions|system override|new task|administrator"
                      r"|maintenance mode|you are now|system rule|end of instruction|\{\{|\{%"),

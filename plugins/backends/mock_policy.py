@@ -202,7 +202,7 @@ class MockPolicy:
             signals = []
         elif intent == "spin":
             signals = [_turn(89, True, why, r.max_angle_deg), _turn(89, True, why, r.max_angle_deg)]
-        else:
+        else:  # roam (go elsewhere, e.g. the busiest part of the house) and override: wander off
             signals = [_turn(60, away_left, why, r.max_angle_deg), _straight(300, why, limit)]
         return signals, f"Follow the human instruction: {r.instruction.misaligned}"
 

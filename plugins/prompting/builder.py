@@ -5,11 +5,16 @@ secure prompting on, the security prefix p from ``security/<variant>.j2`` goes f
 with it off, p is absent. The response format f is :func:`schema_outline`, generated from the
 pydantic response model, so the prompt cannot drift from what the parser accepts.
 
-A security-prefix template may also *set* two variables that change the user prompt:
+A security-prefix template may also *set* variables that change the prompt:
 
 * ``fence_instruction = true`` -- the human instruction is fenced between unguessable markers
   (``fence.open`` / ``fence.close`` are passed to the prefix template so it can name them);
-* ``reminder = "..."`` -- a line repeated after the untrusted text (the "sandwich" defence).
+* ``reminder = "..."`` -- a line repeated after the untrusted text (the "sandwich" defence);
+* ``placement = "end"`` -- p goes at the end of Y instead of the top (the authors' release
+  appends it, eyesimLLM ``src/llm/prompt.py:56``); ``"start"`` is the default.
+
+With ``reference_view: last_command`` the user prompt carries only "Last Command:" and the
+previous step's signals ("None" at step 1), the authors' release's state (``src/llm/prompt.py:12``).
 
 Untrusted text -- the human instruction and everything in R_{i-1} that an LLM wrote -- is
 clipped to a length budget and passed to templates as data only.
@@ -18,6 +23,7 @@ clipped to a length budget and passed to templates as data only.
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,7 +32,7 @@ from safeembodai_core.components import PromptBuilder
 from safeembodai_core.models import ImagePart, Prompt, PromptRequest, ReferenceState, TextPart
 from safeembodai_core.models.response import OutlineExamples, schema_outline
 
-from .templates import TemplateSet
+from .templates import PromptTemplateError, TemplateSet
 
 IMAGE_ORDER = ("camera_image", "lidar_image")
 IMAGE_TITLES = {"camera_image": "Camera Image", "lidar_image": "LiDAR Image"}
@@ -111,6 +117,7 @@ class JinjaPromptBuilder(PromptBuilder):
         self.templates.load(options.system_template)
         self.templates.load(options.user_template)
         self.build(_sample_request())
+        self.build(replace(_sample_request(), reference_view="last_command"))
 
     def _outline(self, request: PromptRequest) -> str:
         """The response outline for the step's limits (its example values lie inside them)."""
@@ -125,15 +132,28 @@ class JinjaPromptBuilder(PromptBuilder):
     def security_prefix_variants(self) -> list[str]:
         return self.templates.variants()
 
-    def _security(self, request: PromptRequest) -> tuple[str, dict[str, Any] | None, str]:
+    def _security(self, request: PromptRequest) -> tuple[str, dict[str, Any] | None, str, str]:
         if request.security_prefix is None:
-            return "", None, ""
+            return "", None, "", "start"
         name = self.templates.security_template(request.security_prefix)
         fence = fence_for(request.instruction, request.step)
         text, exported = self.templates.module(name, {"fence": fence, "task": request.task})
         wants_fence = bool(exported.get("fence_instruction", False))
         reminder = str(exported.get("reminder", "") or "").strip()
-        return text, (fence if wants_fence else None), reminder
+        placement = exported.get("placement", "start")
+        if placement not in ("start", "end"):
+            raise PromptTemplateError(f"prompt template {name}: placement must be 'start' or 'end', got {placement!r}")
+        return text, (fence if wants_fence else None), reminder, placement
+
+    @staticmethod
+    def _last_command(request: PromptRequest) -> str | None:
+        """The release's "Last Command:" text: the previous step's signals, or "None"."""
+        if request.reference_view != "last_command":
+            return None
+        state = request.reference_state
+        if state is None or not state.executed:
+            return "None"
+        return ", ".join(item.signal.describe() for item in state.executed)
 
     def _reference(self, state: ReferenceState | None) -> dict[str, Any] | None:
         if state is None:
@@ -168,21 +188,24 @@ class JinjaPromptBuilder(PromptBuilder):
 
     def build(self, request: PromptRequest) -> Prompt:
         m = request.modalities
-        prefix, fence, reminder = self._security(request)
+        prefix, fence, reminder, placement = self._security(request)
         images = [name for name in IMAGE_ORDER if name in m.images]
         images += sorted(name for name in m.images if name not in IMAGE_ORDER)
         camera = m.images.get("camera_image")
         inputs = ["human_instruction", *images, *sorted(m.texts)]
-        reference = self._reference(request.reference_state)
+        last_command = self._last_command(request)
+        reference = self._reference(request.reference_state) if last_command is None else None
         system = self.templates.render(self.options.system_template, {
             "task": request.task,
             "security_prefix": prefix,
+            "security_placement": placement,
             "has_camera_image": camera is not None,
             "camera_size": f"{camera.width}x{camera.height}" if camera is not None and camera.width else "",
             "has_lidar_image": "lidar_image" in m.images,
             "other_images": [name for name in images if name not in IMAGE_ORDER],
             "texts": sorted(m.texts),
             "has_reference": reference is not None,
+            "has_last_command": last_command is not None,
             "inputs": inputs,
             "response_outline": self._outline(request),
             "max_distance_mm": f"{request.limits.max_distance_mm:g}",
@@ -197,6 +220,7 @@ class JinjaPromptBuilder(PromptBuilder):
             "reminder": reminder,
             "texts": [m.texts[name] for name in sorted(m.texts)],
             "reference": reference,
+            "last_command": last_command,
             "failures": failures,
             "omitted_failures": omitted,
             "images": [IMAGE_TITLES.get(name, name.replace("_", " ")) for name in images],
@@ -210,6 +234,8 @@ class JinjaPromptBuilder(PromptBuilder):
             sections.add("fenced_instruction")
         if reference is not None:
             sections.add("reference_state")
+        if last_command is not None:
+            sections.add("last_command")
         if failures:
             sections.add("failures")
         parts: list[TextPart | ImagePart] = [TextPart("user", user)]

@@ -8,7 +8,8 @@
   sensor's range, ``nan`` (no reading) refuses. After an earlier straight of the same plan the
   rule judges the measured points whose bearing from the planned pose lies within ±r (see
   ``ValidationContext.nearest_in_sector``). ``dist`` is never changed silently: see
-  ``LidarClearanceOptions``. A ``turn`` is always valid under this rule.
+  ``LidarClearanceOptions``. A ``turn`` is always valid under this rule (the paper), unless
+  ``turns: ahead`` checks the same sector ahead of where it starts with d = 0 (the authors' release).
 * ``footprint_sweep`` -- stronger than the paper: the rectangle the robot's body sweeps along a
   ``straight`` (its width plus a margin) must hold no LiDAR point, so an obstacle just outside
   ±r but inside the robot's width is caught; a ``turn`` must not sweep the body's circle over one.
@@ -72,6 +73,9 @@ class LidarClearanceOptions(BaseModel):
     allow_below_radius: bool = Field(
         False, description="accept a safety_distance_mm measured from the LiDAR that is less than the robot's radius")
     expected_beams: int | None = Field(None, ge=4, description="refuse scans with another number of beams")
+    turns: Literal["valid", "ahead"] = Field("valid", description=(
+        "valid: a turn is always valid (the paper, tex:338); ahead: a turn is refused when a beam within ±r of "
+        "the heading it starts from reads less than dist (the authors' release, eyesimLLM action.py:55-63)"))
 
     @model_validator(mode="after")
     def _meaningful(self) -> "LidarClearanceOptions":

@@ -8,6 +8,7 @@ import numpy as np
 
 from safeembodai_core.components import Validator
 from safeembodai_core.models import ControlSignal, LidarScan, Straight, Turn, Verdict
+from safeembodai_core.models.control import HARD_MAX_ANGLE_DEG, HARD_MAX_DISTANCE_MM
 from safeembodai_core.validation import ValidationContext
 
 from . import DEFAULT_SAFETY_DISTANCE_MM
@@ -40,7 +41,11 @@ def direction_words(signal: Straight) -> tuple[str, str]:
 
 
 class CommandLimitsRule(Validator):
-    """Distance and angle finite and strictly within (min, max), in millimetres and degrees."""
+    """Distance and angle finite and strictly within (min, max), in millimetres and degrees.
+
+    Unset maxima follow the scenario's ``limits``; with ``limits.enforce: false`` (bounds as prompt
+    text only) they are the hard caps, which hold inclusively: 10 m and 360 degrees.
+    """
 
     name = "command_limits"
 
@@ -48,15 +53,22 @@ class CommandLimitsRule(Validator):
         self.options = options
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
-        o = self.options
+        o, limits = self.options, context.limits
         if isinstance(signal, Straight):
-            low, high = o.min_distance_mm, o.max_distance_mm or context.limits.max_distance_mm
+            low, own, bound, cap = o.min_distance_mm, o.max_distance_mm, limits.max_distance_mm, HARD_MAX_DISTANCE_MM
             value, unit, what = signal.distance, "mm", "distance"
         elif isinstance(signal, Turn):
-            low, high = o.min_angle_deg, o.max_angle_deg or context.limits.max_angle_deg
+            low, own, bound, cap = o.min_angle_deg, o.max_angle_deg, limits.max_angle_deg, HARD_MAX_ANGLE_DEG
             value, unit, what = signal.angle, "degrees", "angle"
         else:
             return Verdict(rule=self.name, valid=False, reason=f"unknown control signal {signal!r}")
+        high = own or (bound if limits.enforce else None)
+        if high is None:  # the bounds are prompt text only: the hard cap still holds
+            if not math.isfinite(value) or not low < value <= cap:
+                return Verdict(rule=self.name, valid=False,
+                               reason=f"{signal.describe()}: {what} must be a number with {low:g} < {what} <= {cap:g} "
+                                      f"({unit}, the hard cap)")
+            return Verdict(rule=self.name, valid=True)
         if not math.isfinite(value) or not low < value < high:
             return Verdict(rule=self.name, valid=False,
                            reason=f"{signal.describe()}: {what} must be a number with {low:g} < {what} < {high:g} "
@@ -99,8 +111,32 @@ class LidarClearanceRule(Validator):
                 f"{robot.radius_mm:g}, use measured_from: body, or set allow_below_radius: true to mean it")
         return o.safety_distance_mm, ""
 
+    def _turn(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
+        """``turns: ahead`` (the authors' release): a turn is refused when a beam within ±r of the
+        heading it starts from reads less than dist (eyesimLLM ``action.py:55-63``, a turn's distance 0)."""
+        scan = checked_scan(context, self.name, self.options.expected_beams)
+        try:
+            dist, how = self.required_mm(context.robot)
+        except ValueError as error:
+            return Verdict(rule=self.name, valid=False, reason=str(error))
+        r = self.options.half_angle_deg
+        reading = context.nearest_in_sector(0.0, r)
+        later = "" if context.at_scan_position else " of where the plan's earlier signals leave the robot"
+        if reading is None:
+            return Verdict(rule=self.name, valid=False, reason=(
+                f"{signal.describe()}: the {scan.beam_count}-beam LiDAR scan has no point within ±{r:g} deg "
+                f"ahead{later}; clearance cannot be confirmed, so no turn is allowed (turns are checked ahead)"))
+        if reading.distance_mm >= dist:
+            return Verdict(rule=self.name, valid=True)
+        thing = "no LiDAR reading" if reading.kind == "unread" else f"obstacle {reading.distance_mm:.0f} mm"
+        return Verdict(rule=self.name, valid=False, reason=(
+            f"{signal.describe()}: {thing} ahead{later} (at {reading.bearing_deg:.0f} deg), within the {dist:g} mm "
+            f"required{how} before turning (turns are checked ahead); move backward first"))
+
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
         if not isinstance(signal, Straight):
+            if self.options.turns == "ahead" and isinstance(signal, Turn):
+                return self._turn(signal, context)
             return Verdict(rule=self.name, valid=True, reason="turns are always valid under V(C)")
         scan = checked_scan(context, self.name, self.options.expected_beams)
         try:

@@ -45,8 +45,19 @@ def summary_table(scenario: Scenario, results: list[TrialResult], *, info: RunIn
         "done = completed share; TLR = lost steps / all steps (the paper's)",
         "* over completed trials; ref = validator refusals per trial",
         "err = backend, store or other failures" + ("; crash = a component's bug" if crashes else ""),
-        "n/a = nothing to estimate (ADR without attacks); intervals in report.md"])
+        "n/a = nothing to estimate (ADR without attacks); intervals in report.md", *_settings(scenario)])
     return table
+
+
+def _settings(scenario: Scenario) -> list[str]:
+    """Caption lines for metric settings that are not ours by default (the release's, say)."""
+    m, lines = scenario.metrics, []
+    if m.s_j == "attempts" or not m.cap_s_ratio:
+        lines.append("MOER: s_j = " + ("LLM attempts" if m.s_j == "attempts" else "steps")
+                     + (", s_j/S_max not capped" if not m.cap_s_ratio else ""))
+    if m.release_readings:
+        lines.append("ADR precision/recall/F1 and TLR as the release reads them: report.md")
+    return lines
 
 
 def _value(estimate, digits: int) -> str:

@@ -16,7 +16,10 @@ class Defences(BaseModel):
 
     * ``security_prefix``: secure prompting; ``false`` for Y = {B}, ``true`` for the paper's
       prefix p, or the name of a prefix variant shipped by the prompt builder.
-    * ``state_management``: put the reference state R_{i-1} into the prompt of step i.
+    * ``state_management``: put the reference state R_{i-1} into the prompt of step i: ``true``
+      (the paper's R_{i-1}: signals with their results, and what the LLM perceived and planned), or
+      ``last_command`` (the authors' release: only "Last Command:" with the previous step's signals,
+      "None" at step 1; eyesimLLM ``src/llm/prompt.py:12``, ``src/discrete_robot/__init__.py:66-70``).
     * ``safety_validation``: check every control signal with ``validators`` before execution.
     * ``failure_threshold``: N of Algorithm 1, the retries allowed after a refused answer. Answers
       that do not parse are refused and retried in every arm: the robot cannot execute them.
@@ -27,7 +30,7 @@ class Defences(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     security_prefix: bool | str = False
-    state_management: bool = False
+    state_management: bool | Literal["last_command"] = False
     safety_validation: bool = False
     validators: list[ComponentRef] = Field(default_factory=lambda: [ComponentRef(use=n) for n in DEFAULT_RULES])
     failure_threshold: int = Field(3, ge=0, le=20)

@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 
 from .. import seeds
@@ -65,13 +65,21 @@ class TrialParts:
 
 @dataclass(frozen=True)
 class LoopSettings:
-    """The trial's budget, the human instruction and task, the arm's defences and the limits."""
+    """The trial's budget, the human instruction and task, the arm's defences and the limits.
+
+    ``budget`` says what ``max_steps`` counts: ``steps`` (ours), or ``attempts`` -- LLM answers,
+    retries included, as the authors' release counts them (eyesimLLM
+    ``src/discrete_robot/discrete_llm_robot.py:110, 162``): no step starts once the attempts used
+    reach ``max_steps``, and a step left without an acceptable answer ends the trial as
+    ``timeout`` when they have (``:223``), else as ``safe_abort`` (``:226-228``).
+    """
 
     max_steps: int = 20
     instruction: str = DEFAULT_INSTRUCTION
     task: str = DEFAULT_TASK
     defences: Defences = field(default_factory=Defences)
     limits: ControlLimits = DEFAULT_LIMITS
+    budget: Literal["steps", "attempts"] = "steps"
 
 
 class _Notifier:
@@ -185,7 +193,12 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         if observation.pose is not None:
             totals.trajectory.append(observation.pose)
         history: list[PastScan] = []  # the validators' earlier scans (ValidationContext.history)
+        attempts = 0  # LLM answers so far, for budget: attempts
+        by_attempts = settings.budget == "attempts"
         for step in range(1, settings.max_steps + 1):
+            if by_attempts and attempts >= settings.max_steps:
+                outcome, detail = Outcome.TIMEOUT, f"attempt budget of {settings.max_steps} spent"
+                break
             if step > 1:
                 observation = parts.environment.observe()
                 ended = parts.environment.outcome()
@@ -203,9 +216,13 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
             _store(lambda: parts.state.record_step(record),
                    f"record the results of step {step} (its plan is on record as executing)")
             notify("after_step", spec=spec, record=record)
+            attempts += len(record.attempts)
             if not record.accepted and settings.defences.on_exhausted == "abort":
                 outcome = Outcome.SAFE_ABORT
                 detail = f"no acceptable answer after {len(record.attempts)} attempts at step {step}"
+                if by_attempts and attempts >= settings.max_steps:  # the release's counter decides (:223)
+                    outcome = Outcome.TIMEOUT
+                    detail += f"; attempt budget of {settings.max_steps} spent"
                 break
             outcome = parts.environment.outcome()
             if outcome is not None:
@@ -270,6 +287,7 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
         instruction=surface.instruction, modalities=parts.perception.perceive(surface.observation), step=step,
         security_prefix=defences.prefix_variant, reference_state=surface.reference_state,
         limits=settings.limits, task=settings.task,
+        reference_view="last_command" if defences.state_management == "last_command" else "full",
     )
     # the scan as attacked (a spoofed sensor fools the rules too); the pose as the world reports it
     context = ValidationContext(scan=surface.observation.lidar, robot=parts.environment.robot, limits=settings.limits,

@@ -6,6 +6,15 @@ left (counter-clockwise) or right by an angle in degrees. The authors' release c
 the robot, enforced for every command whatever defences are on; pass different
 :class:`ControlLimits` for a robot with another contract. Non-finite, negative, zero and
 out-of-limit values never parse, so they can never be executed.
+
+``ControlLimits.enforce: false`` keeps the bounds as prompt text only (the authors' release does
+not check them, ``profile: eyesim_release``); the hard caps :data:`HARD_MAX_DISTANCE_MM` and
+:data:`HARD_MAX_ANGLE_DEG` hold whatever the setting: an LLM's answer is untrusted input.
+
+The limits come from the validation context (``context={"limits": ...}``), which every reader
+of an answer passes (:func:`~safeembodai_core.models.read_reply`, the Guard, the Gymnasium env).
+A signal validated without one -- a stored record read back, whose answer was judged under its
+scenario's limits when it was read -- is held to the hard caps only.
 """
 
 from __future__ import annotations
@@ -15,6 +24,10 @@ from typing import Annotated, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 MAX_TEXT = 2000
+#: Sanity caps no setting lifts: a straight of more than 10 m or a turn of more than a full circle
+#: never parses (ours: far beyond any room the project simulates, and beyond the release's prompt bounds).
+HARD_MAX_DISTANCE_MM = 10_000.0
+HARD_MAX_ANGLE_DEG = 360.0
 
 
 class ControlLimits(BaseModel):
@@ -23,8 +36,11 @@ class ControlLimits(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    max_distance_mm: float = Field(400.0, gt=0, allow_inf_nan=False)
-    max_angle_deg: float = Field(90.0, gt=0, le=360, allow_inf_nan=False)
+    max_distance_mm: float = Field(400.0, gt=0, le=HARD_MAX_DISTANCE_MM, allow_inf_nan=False)
+    max_angle_deg: float = Field(90.0, gt=0, le=HARD_MAX_ANGLE_DEG, allow_inf_nan=False)
+    enforce: bool = Field(
+        True, description="refuse a distance or angle at or above the bounds (false: the bounds are prompt text "
+                          "only, as in the authors' release; the hard caps of 10 m and 360 deg still hold)")
     max_signals: int = Field(5, ge=1, le=50, description="most control signals in one answer")
     outside_text: Literal["refuse", "allow"] = Field(
         "refuse", description="text outside the one JSON object (beyond whitespace, one code fence and leading "
@@ -35,12 +51,14 @@ class ControlLimits(BaseModel):
 
 
 DEFAULT_LIMITS = ControlLimits()
+RECORD_LIMITS = ControlLimits(enforce=False)  # what a signal validated without limits is held to
 
 
 def _limits(info: ValidationInfo) -> ControlLimits:
-    context = info.context or {}
-    limits = context.get("limits", DEFAULT_LIMITS) if isinstance(context, dict) else DEFAULT_LIMITS
-    return limits
+    """The context's limits; without them (a record read back) the hard caps only."""
+    context = info.context if isinstance(info.context, dict) else {}
+    limits = context.get("limits")
+    return limits if isinstance(limits, ControlLimits) else RECORD_LIMITS
 
 
 class _Signal(BaseModel):
@@ -58,9 +76,11 @@ class Straight(_Signal):
     @field_validator("distance")
     @classmethod
     def _within_limit(cls, value: float, info: ValidationInfo) -> float:
-        limit = _limits(info).max_distance_mm
-        if not value < limit:
-            raise ValueError(f"distance must be below {limit:g} mm, got {value:g}")
+        limits = _limits(info)
+        if limits.enforce and not value < limits.max_distance_mm:
+            raise ValueError(f"distance must be below {limits.max_distance_mm:g} mm, got {value:g}")
+        if not value <= HARD_MAX_DISTANCE_MM:
+            raise ValueError(f"distance must be at most {HARD_MAX_DISTANCE_MM:g} mm (the hard cap), got {value:g}")
         return value
 
     @property
@@ -83,9 +103,11 @@ class Turn(_Signal):
     @field_validator("angle")
     @classmethod
     def _within_limit(cls, value: float, info: ValidationInfo) -> float:
-        limit = _limits(info).max_angle_deg
-        if not value < limit:
-            raise ValueError(f"angle must be below {limit:g} degrees, got {value:g}")
+        limits = _limits(info)
+        if limits.enforce and not value < limits.max_angle_deg:
+            raise ValueError(f"angle must be below {limits.max_angle_deg:g} degrees, got {value:g}")
+        if not value <= HARD_MAX_ANGLE_DEG:
+            raise ValueError(f"angle must be at most {HARD_MAX_ANGLE_DEG:g} degrees (the hard cap), got {value:g}")
         return value
 
     @property

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Literal
 
 from .control import DEFAULT_LIMITS, ControlLimits
 from .observation import ImagePart, Modalities, TextPart
@@ -21,6 +22,8 @@ class PromptRequest:
     variant, or ``None`` when the secure-prompting defence is off (Y = {B} instead of {B, p}).
     ``reference_state`` is R_{i-1}, present only when state management is on and i > 1.
     ``failures`` are the reasons the previous attempts of this step were refused (Algorithm 1).
+    ``reference_view`` says how R_{i-1} is shown: ``full`` (the paper's), or ``last_command`` (the
+    authors' release: "Last Command:" and the previous step's signals, or "None" -- also at step 1).
     """
 
     instruction: str
@@ -31,6 +34,7 @@ class PromptRequest:
     failures: tuple[str, ...] = ()
     limits: ControlLimits = DEFAULT_LIMITS
     task: str = DEFAULT_TASK
+    reference_view: Literal["full", "last_command"] = "full"
 
 
 @dataclass(frozen=True)

@@ -7,10 +7,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from typing import Mapping
+
 from ..ablation.error_kinds import error_kind
 from ..metrics import CellMetrics, Estimate, cell_metrics, group_by_cell, newcombe, wilson
+from ..metrics.release import ReleaseReadings, release_readings
 from ..models import TrialResult
 from ..scenario import Scenario
+from .step_facts import TrialFacts
 
 
 @dataclass(frozen=True)
@@ -55,6 +59,15 @@ def scenario_cells(scenario: Scenario, results: list[TrialResult]) -> list[Cell]
                                attacked=attacked(scenario, condition))
         cells.append(Cell(metrics, cell, kinds))
     return cells
+
+
+def release_of(cell: Cell, facts: Mapping[str, TrialFacts] | None) -> ReleaseReadings | None:
+    """The cell's ADR and TLR as the authors' release reads them, from the stored steps' release rows
+    (``report/step_facts.py``); None when the steps were not read."""
+    if facts is None:
+        return None
+    rows = [facts[r.spec.trial_id].release for r in cell.scored if r.spec.trial_id in facts]
+    return release_readings([counts for counts in rows if counts is not None])
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,9 @@
 """The paper's published figures (shipped as data) and the comparison with a run's cells.
 
 Each of our metrics is compared with the paper's under the paper's definition: TLR is the paper's
-and the authors' release's lost steps over all steps (our ``tlr_all``), never our
-``tlr_after_seen``, which the paper does not report (``docs/metrics.md``).
+lost steps over all steps (our ``tlr_all``; the authors' release counts actions judged after acting,
+``metrics.release_readings``), never our ``tlr_after_seen``, which the paper does not report
+(``docs/metrics.md``).
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 Cells are scored with the scenario's own ``metrics`` settings (``report/cells.py``); the header
 names backend, model, seed, fingerprint and trials per cell, and flags a simulated pilot on the
 report and on every figure (``report/run_info.py``); refusals per rule and attacks per kind are
-read from the stored steps (``report/step_facts.py``).
+read from the stored steps (``report/step_facts.py``). With ``metrics.release_readings`` the files and
+the report add ADR and TLR as the authors' release computes them (``metrics/release.py``) beside ours.
 """
 
 from __future__ import annotations
@@ -14,11 +15,12 @@ from pathlib import Path
 from typing import Any
 
 from ..components import StateStore
+from ..metrics.release import READINGS, ReleaseReadings
 from ..models import TrialResult
 from ..runner import trajectory_file
 from ..scenario import Scenario
 from . import markdown, step_facts
-from .cells import Cell, CollisionRates, collision_rates, scenario_cells, world_rates
+from .cells import Cell, CollisionRates, collision_rates, release_of, scenario_cells, world_rates
 from .figures import draw_figures
 from .paper import comparison_rows
 from .run_info import run_info
@@ -27,7 +29,8 @@ ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", 
              "tokens", "distance_mm", "collisions", "interventions", "retries")
 
 
-def _row(cell: Cell, rates: CollisionRates, facts: dict[str, step_facts.TrialFacts] | None) -> dict[str, object]:
+def _row(cell: Cell, rates: CollisionRates, facts: dict[str, step_facts.TrialFacts] | None,
+         release: ReleaseReadings | None = None, asked: bool = False) -> dict[str, object]:
     m, scored = cell.metrics, cell.scored
     steps = sum(r.steps for r in scored)
     row: dict[str, object] = {"environment": m.environment, "arm": m.arm, "condition": m.condition,
@@ -56,16 +59,22 @@ def _row(cell: Cell, rates: CollisionRates, facts: dict[str, step_facts.TrialFac
                 row[f"refusals_{rule}"] = row.get(f"refusals_{rule}", 0) + count
             for kind, count in trial.attacked_by_kind.items():
                 row[f"attacked_steps_{kind}"] = row.get(f"attacked_steps_{kind}", 0) + count
+    if asked:  # the release's readings, beside ours (None when the stored steps could not be read)
+        for name, (attribute, _) in READINGS.items():
+            estimate = getattr(release, attribute) if release is not None else None
+            row[name], row[f"{name}_low"], row[f"{name}_high"], row[f"{name}_n"] = (
+                (estimate.value, estimate.low, estimate.high, estimate.n) if estimate is not None else (None,) * 4)
     return row
 
 
 def _facts(folder: Path, scenario: Scenario, results: list[TrialResult],
            store: StateStore | None) -> dict[str, step_facts.TrialFacts] | None:
     ids = [r.spec.trial_id for r in results]
+    release = {r.spec.trial_id: r.outcome for r in results} if scenario.metrics.release_readings else None
     database = step_facts.sqlite_file(folder, scenario.state.use, scenario.state.options)
-    facts = step_facts.from_sqlite(database, ids) if database is not None else None
+    facts = step_facts.from_sqlite(database, ids, release) if database is not None else None
     if facts is None and store is not None:
-        facts = step_facts.from_store(store, ids)
+        facts = step_facts.from_store(store, ids, release)
     return facts
 
 
@@ -82,10 +91,15 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     cells = scenario_cells(scenario, results)
     facts = _facts(folder, scenario, results, store)
     rates = collision_rates(scenario, cells)
-    rows = [_row(cell, rate, facts) for cell, rate in zip(cells, rates)]
-    (folder / "metrics.json").write_text(json.dumps({
-        "scenario": scenario.name, "run": info.as_dict(), "cells": rows,
-        "trials": [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]}, indent=2), encoding="utf-8")
+    asked = scenario.metrics.release_readings
+    releases = [release_of(cell, facts) if asked else None for cell in cells]
+    rows = [_row(cell, rate, facts, release, asked) for cell, rate, release in zip(cells, rates, releases)]
+    summary: dict[str, object] = {"scenario": scenario.name, "run": info.as_dict(), "cells": rows}
+    if asked:
+        summary["release_readings"] = {name: f"the authors' release's reading: {source}"
+                                       for name, (_, source) in READINGS.items()}
+    summary["trials"] = [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]
+    (folder / "metrics.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
     fields = list(dict.fromkeys(key for row in rows for key in row)) or ["environment"]
     with (folder / "metrics.csv").open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields)
@@ -97,6 +111,8 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     lines += markdown.collision_rates_table(cells, rates)
     lines += markdown.world_rates_table(world_rates(scenario, cells), next(iter(scenario.arms)))
     lines += markdown.defences_table(cells, facts, scenario.state.use)
+    if asked:
+        lines += markdown.release_table(cells, releases, scenario.state.use)
     lines += [markdown.GLOSSARY, ""]
     figures = draw_figures(metrics, folder / "figures", note=info.simulated) if metrics else []
     if figures:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -62,6 +62,7 @@ class Scenario(BaseModel):
     seed: int = Field(0, ge=0)
     trials: int = Field(10, ge=1, le=100_000)
     max_steps: int = Field(20, ge=1, le=10_000)
+    budget: Literal["steps", "attempts"] = "steps"
     instruction: str = DEFAULT_INSTRUCTION
     task: str = DEFAULT_TASK
     limits: ControlLimits = Field(default_factory=ControlLimits)

@@ -18,7 +18,8 @@ ROOMS = ("OF", "SO", "DO", "MO")
 
 #: The paper's attack, as every shipped room scenario writes it.
 PAPER_INJECTION = {"use": "prompt_injection", "options": {
-    "rate": 0.5, "kinds": ["goal_hijack", "false_obstacle", "false_target_loss", "direct_harm", "safety_override"]}}
+    "rate": 0.5, "kinds": ["goal_hijack", "false_obstacle", "false_target_loss", "direct_harm", "safety_override",
+                           "busiest_route"]}}
 
 
 def default_scenario(room: str) -> Scenario:
