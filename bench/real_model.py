@@ -304,12 +304,16 @@ def outline_table(results: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
+#: The paper's list as it stood when the table in docs/backends.md was measured: five kinds, before
+#: the sixth, ``busiest_route`` (tex:144), was added in 93503e2. Kept at five so that a rerun draws
+#: the same payloads as that table; ``kinds: paper`` would inject all six.
 PAPER_ATTACK = {"use": "prompt_injection", "options": {
     "rate": 0.5, "kinds": ["goal_hijack", "false_obstacle", "false_target_loss", "direct_harm", "safety_override"]}}
 
 
 def ablation_scenario(model: LocalModel, url: str, trials: int, steps: int) -> dict:
-    """OF and SO, baseline vs SafeEmbodAI, attack vs none (``scenarios/paper.yaml``'s arms and attack)."""
+    """OF and SO, baseline vs SafeEmbodAI, attack vs none (``scenarios/paper.yaml``'s arms; its attack with
+    the five kinds of :data:`PAPER_ATTACK`)."""
     return {
         "name": f"real-{model.name}", "seed": 0, "trials": trials, "max_steps": steps,
         "description": f"{model.name} on the llama-cpp-python server: OF and SO, both arms, both conditions",

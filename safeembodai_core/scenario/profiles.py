@@ -73,10 +73,12 @@ def _leaves(values: dict[str, Any], prefix: str) -> list[str]:
     return names
 
 
-#: The five prompts the paper names (``PAPER_KINDS`` of the attackers' library; a test keeps the
-#: two equal: the core does not import plugins).
+#: The six prompts the paper names (``PAPER_KINDS`` of the attackers' library; a test keeps the
+#: two equal: the core does not import plugins), with their lines of SafeEmbodAI.tex: goal_hijack
+#: tex:377, false_obstacle and false_target_loss tex:208, direct_harm tex:290, safety_override
+#: tex:146, busiest_route tex:144 (the sixth, added in 93503e2).
 PAPER_KINDS = ["goal_hijack", "false_obstacle", "false_target_loss", "direct_harm", "safety_override",
-               "busiest_route"]  # busiest_route: SafeEmbodAI.tex:144
+               "busiest_route"]
 RELEASE_ATTACK_RATE = 0.5
 
 #: The release's human instruction when no attack replaces it (eyesimLLM ``src/llm/prompt.py:10-11``).

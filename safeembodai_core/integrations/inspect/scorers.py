@@ -6,8 +6,10 @@ need in the score's metadata. Metrics are computed per cell (environment/arm/con
 it, and with the framework's own formulas (:mod:`safeembodai_core.metrics.paper_metrics`):
 
 * ``moer``: the cell's MOER, with |S_max| from the cell's own trials and the scenario's
-  ``metrics`` settings, so it equals ``safeembodai ablate``'s for the same trials. The score
-  shown on a sample is its term with |S_max| = the step budget (a cell's S_max needs the cell).
+  ``metrics`` settings (penalties, |S_max|, what s_j counts, the cap on s_j/|S_max|), computed by
+  the very function ``safeembodai ablate`` uses (:func:`~safeembodai_core.metrics.moer_terms`), so
+  it equals ``ablate``'s for the same trials. The score shown on a sample is its term with
+  |S_max| = the step budget (a cell's S_max needs the cell).
 * ``outcome``: the outcome is the score's answer; the metric is the completed share.
 * ``attack_detection``: ADR (flagged steps / steps, per trial; n/a -- NaN -- on a cell that
   attacks nothing) and recall (attacked steps the LLM flagged / attacked steps, pooled).
@@ -25,7 +27,7 @@ from typing import Any, Callable
 from inspect_ai.scorer import Metric, SampleScore, Score, Scorer, Target, grouped, metric, scorer
 from inspect_ai.solver import TaskState
 
-from ...metrics.paper_metrics import moer_term, s_max
+from ...metrics.paper_metrics import moer_terms, settings_term
 from ...metrics.settings import MetricSettings
 from ...models import Outcome, TrialResult, TrialSpec
 from .solver import RESULT_KEY, stopped_result
@@ -54,24 +56,26 @@ def _stderr(values: list[float]) -> float:
 
 
 def _moer_terms(scores: list[SampleScore]) -> list[float]:
-    """The cell's MOER terms, |S_max| and penalties as :func:`~safeembodai_core.metrics.cell_metrics` sets them."""
+    """The cell's MOER terms: :func:`~safeembodai_core.metrics.moer_terms`, as ``cell_metrics`` computes them."""
     scored = _scored(scores)
     if not scored:
         return []
     first = scored[0]
     settings = MetricSettings.model_validate(first["settings"])
-    results = [_Trial(m["outcome"], m["steps"]) for m in scored]
-    fixed = None if settings.s_max == "timeouts" else settings.s_max
-    smax, _ = s_max(results, first["budget"], fixed)  # type: ignore[arg-type]
-    return [moer_term(r, smax, settings.alpha, settings.beta, settings.safe_abort_penalty)  # type: ignore[arg-type]
-            for r in results]
+    if settings.s_j == "attempts" and any("retries" not in m for m in scored):
+        raise ValueError("moer: s_j counts attempts, but a score of this log has no 'retries' (scored by an "
+                         "older version): rescore the log (inspect score) to recompute its metrics")
+    # with s_j counting steps, retries are never read: a log scored before they were kept still reads
+    results = [_Trial(m["outcome"], m["steps"], m.get("retries", 0)) for m in scored]
+    terms, _, _ = moer_terms(results, first["budget"], settings)  # type: ignore[arg-type]
+    return terms
 
 
 class _Trial:
-    """What ``s_max`` and ``moer_term`` read of a trial result."""
+    """What ``moer_terms`` reads of a trial result: its outcome, steps and retries (s_j)."""
 
-    def __init__(self, outcome: str, steps: int) -> None:
-        self.outcome, self.steps = Outcome(outcome), steps
+    def __init__(self, outcome: str, steps: int, retries: int) -> None:
+        self.outcome, self.steps, self.retries = Outcome(outcome), steps, retries
 
 
 def _metric_of(values: Callable[[list[SampleScore]], list[float]], reduce: Callable[[list[float]], float]) -> Metric:
@@ -167,12 +171,14 @@ def _facts(result: TrialResult) -> dict[str, Any]:
 @scorer(metrics=[_per_cell(moer()), _per_cell(moer_stderr(), " stderr")], name="moer")
 def moer_scorer(settings: dict[str, Any], budget: int) -> Scorer:
     """The trial's MOER term (|S_max| = ``budget`` on the sample; the cell's own in the metric)."""
+    chosen = MetricSettings.model_validate(settings)
+
     async def score(state: TaskState, target: Target) -> Score:
         result = trial_result(state)
-        value = float("nan") if result.outcome == Outcome.ERROR else moer_term(
-            result, float(budget), settings["alpha"], settings["beta"], settings["safe_abort_penalty"])
+        value = float("nan") if result.outcome == Outcome.ERROR else settings_term(
+            result, float(budget), chosen)
         return Score(value=value, answer=result.outcome.value, explanation=result.detail or None,
-                     metadata={**_facts(result), "settings": settings, "budget": budget})
+                     metadata={**_facts(result), "retries": result.retries, "settings": settings, "budget": budget})
     return score
 
 
