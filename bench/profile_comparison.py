@@ -20,6 +20,9 @@ from pathlib import Path
 
 
 def _run(folder: Path) -> tuple[str, list[dict]]:
+    for name in ("scenario.json", "metrics.json"):
+        if not (folder / name).is_file():
+            sys.exit(f"{folder}: no {name} (not a run folder, or its run has not finished its report)")
     scenario = json.loads((folder / "scenario.json").read_text(encoding="utf-8"))["scenario"]
     profile = scenario.get("profile")
     name = profile.get("name") if isinstance(profile, dict) else profile
