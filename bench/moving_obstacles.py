@@ -157,6 +157,16 @@ def _results(runs: list[Path]):
     return results
 
 
+def _query(runs: list[Path], sql: str) -> list[tuple]:
+    """The rows ``sql`` gives in every run's database (read-only), pooled."""
+    rows: list[tuple] = []
+    for run in runs:
+        database = run / "results.sqlite" if run.is_dir() else run
+        with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
+            rows += connection.execute(sql).fetchall()
+    return rows
+
+
 def _labbot_self(result) -> bool:
     return result.collisions_self > 0 and "Labbot" in result.detail
 
@@ -217,16 +227,11 @@ def _where_completions_go(runs: list[Path]) -> None:
     """The ``moving`` arm's trials against the ``clearance`` trials of the same seed (same room,
     condition and index): with no ``moving_obstacles`` refusal the two are the same trial (the rule
     changed nothing); with one, how each ended."""
-    rows = []
-    for run in runs:
-        database = run / "results.sqlite" if run.is_dir() else run
-        with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
-            rows += connection.execute(
-                "SELECT m.environment, EXISTS (SELECT 1 FROM verdicts v WHERE v.trial_id = m.trial_id AND v.valid = 0 "
-                "AND v.rule = 'moving_obstacles'), m.outcome, c.outcome FROM trials m JOIN trials c ON "
-                "c.environment = m.environment AND c.condition = m.condition AND c.trial_index = m.trial_index "
-                "AND c.arm = 'clearance' WHERE m.arm = 'moving' AND m.outcome IS NOT NULL AND c.outcome IS NOT NULL"
-            ).fetchall()
+    rows = _query(
+        runs, "SELECT m.environment, EXISTS (SELECT 1 FROM verdicts v WHERE v.trial_id = m.trial_id AND v.valid = 0 "
+        "AND v.rule = 'moving_obstacles'), m.outcome, c.outcome FROM trials m JOIN trials c ON "
+        "c.environment = m.environment AND c.condition = m.condition AND c.trial_index = m.trial_index "
+        "AND c.arm = 'clearance' WHERE m.arm = 'moving' AND m.outcome IS NOT NULL AND c.outcome IS NOT NULL")
     if not rows:
         return
     print("\nthe moving arm against the clearance trial of the same seed (both conditions):")
@@ -430,15 +435,11 @@ def struck(runs: list[Path]) -> None:
     arm, for every world and for worlds of blind movers: on step 1 (no earlier scan: no rule could know a
     velocity), or later; while the robot stood still (think time), turned or drove; and whether any plan
     of that step was refused by ``moving_obstacles`` for where it would leave the robot."""
-    rows = []
-    for run in runs:
-        database = run / "results.sqlite" if run.is_dir() else run
-        with sqlite3.connect(f"file:{database}?mode=ro", uri=True) as connection:
-            rows += connection.execute(
-                "SELECT t.environment, t.arm, json_extract(t.result, '$.world'), s.step, s.record, "
-                "EXISTS (SELECT 1 FROM verdicts v WHERE v.trial_id = s.trial_id AND v.step = s.step AND v.valid = 0 "
-                "AND v.rule = 'moving_obstacles' AND v.reason LIKE '%step out of%') "
-                "FROM steps s JOIN trials t ON t.trial_id = s.trial_id WHERE s.record LIKE '%struck%'").fetchall()
+    rows = _query(
+        runs, "SELECT t.environment, t.arm, json_extract(t.result, '$.world'), s.step, s.record, "
+        "EXISTS (SELECT 1 FROM verdicts v WHERE v.trial_id = s.trial_id AND v.step = s.step AND v.valid = 0 "
+        "AND v.rule = 'moving_obstacles' AND v.reason LIKE '%step out of%') "
+        "FROM steps s JOIN trials t ON t.trial_id = s.trial_id WHERE s.record LIKE '%struck%'")
     tally: dict[tuple, Counter] = {}
     for room, arm, world, step, record, parked in rows:
         data = json.loads(record)

@@ -54,6 +54,24 @@ def run_cell(scenario, arm: str, condition: str, index: int = 0, plugins=None):
         runner.close()
 
 
+def ablate_into(scenario, plugins, path):
+    """Run every trial of ``scenario`` into the run folder ``path``: (scenario, plugins, path, results)."""
+    from safeembodai_core.ablation import Ablation, RunFolder
+
+    ablation = Ablation(scenario, plugins, RunFolder(path))
+    try:
+        results = ablation.run()
+    finally:
+        ablation.close()
+    return scenario, plugins, path, results
+
+
+@pytest.fixture(scope="session")
+def ablated():
+    """:func:`ablate_into`, for module-scoped fixtures that run a whole ablation once."""
+    return ablate_into
+
+
 @pytest.fixture
 def cell():
     """Run one trial of a scenario cell and keep the prompts the scripted backend received."""

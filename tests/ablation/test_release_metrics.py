@@ -11,7 +11,6 @@ import json
 import pytest
 from rich.console import Console
 
-from safeembodai_core.ablation import Ablation, RunFolder
 from safeembodai_core.cli.summary import summary_table
 from safeembodai_core.metrics import MetricSettings, cell_metrics, moer_term
 from safeembodai_core.metrics.release import ReleaseCounts, f1, precision, recall, release_readings, trial_counts
@@ -189,16 +188,10 @@ conditions:
 
 
 @pytest.fixture(scope="module")
-def release_run(tmp_path_factory):
+def release_run(tmp_path_factory, ablated):
     plugins = load_plugins(environ={})
     scenario = parse_scenario(RUN, "releaserun.yaml", registry=plugins.registry)
-    path = tmp_path_factory.mktemp("run") / "releaserun"
-    ablation = Ablation(scenario, plugins, RunFolder(path))
-    try:
-        results = ablation.run()
-    finally:
-        ablation.close()
-    return scenario, plugins, path, results
+    return ablated(scenario, plugins, tmp_path_factory.mktemp("run") / "releaserun")
 
 
 def test_the_report_shows_the_release_readings_only_when_asked(release_run):

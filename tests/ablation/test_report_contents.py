@@ -8,7 +8,6 @@ import json
 import pytest
 from rich.console import Console
 
-from safeembodai_core.ablation import Ablation, RunFolder
 from safeembodai_core.cli.summary import summary_table
 from safeembodai_core.metrics import cell_metrics
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
@@ -38,14 +37,14 @@ def trial(arm, condition, index, outcome, steps, **fields):
 
 
 @pytest.fixture(scope="module")
-def mock_run(tmp_path_factory):
+def mock_run(tmp_path_factory, ablated):
     plugins = load_plugins(environ={})
     scenario = parse_scenario(MOCK_RUN, "mockrun.yaml", registry=plugins.registry)
-    return _ablate(scenario, plugins, tmp_path_factory.mktemp("run") / "mockrun")
+    return ablated(scenario, plugins, tmp_path_factory.mktemp("run") / "mockrun")
 
 
 @pytest.fixture(scope="module")
-def scripted_run(tmp_path_factory):
+def scripted_run(tmp_path_factory, ablated):
     """quickstart: a scripted pilot that drives into obstacles, so lidar_clearance refuses."""
     from pathlib import Path
 
@@ -54,18 +53,7 @@ def scripted_run(tmp_path_factory):
     plugins = load_plugins(environ={})
     repo = Path(__file__).resolve().parents[2]
     scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=3", "max_steps=6"], plugins.registry)
-    return _ablate(scenario, plugins, tmp_path_factory.mktemp("run") / "quickstart")
-
-
-def _ablate(scenario, plugins, path):
-    """Run every trial of ``scenario`` into the run folder ``path``: (scenario, plugins, path, results)."""
-    ablation = Ablation(scenario, plugins, RunFolder(path))
-    try:
-        results = ablation.run()
-    finally:
-        ablation.close()
-    return scenario, plugins, path, results
-
+    return ablated(scenario, plugins, tmp_path_factory.mktemp("run") / "quickstart")
 
 def test_the_header_names_backend_seed_fingerprint_and_n_and_flags_the_simulated_pilot(mock_run):
     scenario, plugins, path, results = mock_run
