@@ -47,6 +47,7 @@ from .models.reply import as_reply
 from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
+from .ros import LaserScan
 from .validation import PastScan, ValidationContext, validate_plan
 
 _SIGNALS = TypeAdapter(list[ControlSignal])
@@ -124,7 +125,9 @@ class Guard:
 
     def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any, time_s: float | None) -> ValidationContext:
         scan = None
-        if lidar_mm is not None:
+        if isinstance(lidar_mm, LaserScan):
+            scan = lidar_mm.to_lidar_scan()  # ROS semantics and the sensor's mounting: safeembodai_core.ros
+        elif lidar_mm is not None:
             scan = lidar_mm if isinstance(lidar_mm, LidarScan) else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm)
         start = _pose(pose)
         if time_s is not None:
@@ -152,7 +155,10 @@ class Guard:
         """Validate ``commands`` (dicts as the LLM writes them, or signal models) in order.
 
         ``lidar_mm``: ranges in mm, beam k at k*360/N degrees counter-clockwise from the heading
-        (``inf`` = no return, ``nan`` = no reading), or a :class:`LidarScan`. ``pose``: where the
+        (``inf`` = no return, ``nan`` = no reading), or a :class:`LidarScan`, or a ROS 2 scan as a
+        :class:`~safeembodai_core.ros.LaserScan` (metres, any field of view and increment, the
+        sensor's mounting; ``LaserScan.from_ros(msg)`` for a decoded message): directions outside
+        its field of view are unknown, never free. ``pose``: where the
         robot is in your map's frame -- a :class:`~safeembodai_core.models.Pose` or
         ``(x_mm, y_mm, heading_deg)`` -- for rules about places (``context.start_pose``); None if
         unknown. ``time_s``: your robot's clock (seconds) when the scan was taken; with ``pose`` and
