@@ -47,7 +47,7 @@ from .models.reply import as_reply
 from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
-from .ros import LaserScan
+from .ros import LaserScan, Twist, arc_signals
 from .validation import PastScan, ValidationContext, validate_plan
 
 _SIGNALS = TypeAdapter(list[ControlSignal])
@@ -74,6 +74,28 @@ class GuardReport:
         if self.parse_error is not None:
             return [self.parse_error]
         return [v.line() for v in self.verdicts if not v.valid]
+
+
+@dataclass
+class TwistReport(GuardReport):
+    """:meth:`Guard.check_twist`'s outcome: the verdicts on the arc's pieces (``signals``), and the
+    longest time the command can be held safely (``safe_duration_s``, the asked duration when it
+    passes; 0 when not even the first piece passes)."""
+
+    twist: Twist | None = None
+    duration_s: float = 0.0
+    safe_duration_s: float = 0.0
+
+    @property
+    def reasons(self) -> list[str]:
+        """The refusal said for the command as a whole first, then each piece's, as in :meth:`GuardReport.reasons`."""
+        lines = GuardReport.reasons.fget(self)  # type: ignore[attr-defined]
+        if not lines or self.twist is None:
+            return lines
+        head = (f"twist linear.x {self.twist.linear_x:g} m/s, angular.z {self.twist.angular_z:g} rad/s for "
+                f"{self.duration_s:g} s: refused; at most {self.safe_duration_s:.2f} s is safe "
+                f"(the arc judged as {len(self.signals)} pieces)")
+        return [head, *lines]
 
 
 def _pose(pose: Any) -> Pose | None:
@@ -176,6 +198,36 @@ class Guard:
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=reason)])
         verdicts = validate_plan(signals, context, self.rules)
         return GuardReport(signals=signals, verdicts=verdicts)
+
+    def check_twist(self, twist: Any, duration_s: float, *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
+                    pose: Any = None, time_s: float | None = None, resolution_s: float = 0.05) -> TwistReport:
+        """Judge a velocity command held for ``duration_s`` seconds: the arc it sweeps, as the
+        contract's signals (:func:`~safeembodai_core.ros.arc_signals`), through the same rules as a
+        plan. ``twist``: a :class:`~safeembodai_core.ros.Twist`, a decoded ``geometry_msgs/Twist``
+        or a ``(linear_x m/s, angular_z rad/s)`` pair. A refusal says the longest duration, to
+        ``resolution_s``, whose arc every rule accepts (``safe_duration_s``). ``lidar_mm`` and the
+        rest are as for :meth:`check`. A non-finite or non-planar command raises ``ValueError``."""
+        if not isinstance(twist, Twist):
+            twist = Twist(*twist) if isinstance(twist, (tuple, list)) else Twist.from_ros(twist)
+        signals = arc_signals(twist, duration_s)
+        context = self._context(lidar_mm, max_range_mm, pose, time_s)
+
+        def judged(parts: list[Any]) -> list[Verdict]:
+            return validate_plan(parts, context, self.rules) if parts else []
+
+        verdicts = judged(signals)
+        report = TwistReport(signals=signals, verdicts=verdicts, twist=twist, duration_s=float(duration_s),
+                             safe_duration_s=float(duration_s))
+        if not report.valid:
+            low, high = 0.0, float(duration_s)  # the longest safe duration, by bisection on the same arc
+            while high - low > resolution_s:
+                middle = (low + high) / 2
+                if all(v.valid for v in judged(arc_signals(twist, middle))):
+                    low = middle
+                else:
+                    high = middle
+            report.safe_duration_s = low
+        return report
 
     def check_reply(
         self,

@@ -1,0 +1,90 @@
+"""``geometry_msgs/Twist`` held for a while, as the contract's signals (issue 23, part 2).
+
+A differential-drive robot driving ``linear.x`` (m/s) and turning ``angular.z`` (rad/s) for ``t``
+seconds sweeps an arc, not a straight line and a turn. :func:`arc_signals` writes the arc as the
+contract's signals -- short straights along the arc's chords, each between turns, the chords taken
+at the middle heading of their piece (at most ``step_mm`` and ``step_deg`` per piece) -- so that
+every rule judges the ground the body sweeps, piece by piece from where the earlier pieces leave
+it, with the same code as an LLM's plan. :class:`Twist` reads a command strictly: only a planar
+command (``linear.x``, ``angular.z``) can be judged; anything else, or a non-finite number, is an
+error, never a guess.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from ..models import Straight, Turn
+
+#: The longest straight and the largest turn of one piece of an arc.
+STEP_MM = 50.0
+STEP_DEG = 5.0
+
+
+def _finite(name: str, value: Any) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"Twist.{name} must be a number, got {value!r}") from None
+    if not math.isfinite(number):
+        raise ValueError(f"Twist.{name} must be finite, got {value!r}")
+    return number
+
+
+@dataclass(frozen=True)
+class Twist:
+    """A planar velocity command: forward speed (m/s, negative backwards) and turn rate (rad/s,
+    counter-clockwise), as ``geometry_msgs/Twist``'s ``linear.x`` and ``angular.z``."""
+
+    linear_x: float
+    angular_z: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "linear_x", _finite("linear_x", self.linear_x))
+        object.__setattr__(self, "angular_z", _finite("angular_z", self.angular_z))
+
+    @classmethod
+    def from_ros(cls, message: Any) -> Twist:
+        """A decoded ``geometry_msgs/msg/Twist`` (or a ``TwistStamped``'s ``twist``). A command with
+        sideways, vertical or roll/pitch parts is not a differential drive's: refused, not dropped."""
+        message = getattr(message, "twist", message)
+        try:
+            linear, angular = message.linear, message.angular
+            parts = {"linear.x": linear.x, "linear.y": linear.y, "linear.z": linear.z,
+                     "angular.x": angular.x, "angular.y": angular.y, "angular.z": angular.z}
+        except AttributeError:
+            raise ValueError(f"not a geometry_msgs/Twist: {type(message).__name__} has no linear/angular "
+                             "x, y, z") from None
+        for name in ("linear.y", "linear.z", "angular.x", "angular.y"):
+            if _finite(name, parts[name]) != 0.0:
+                raise ValueError(f"Twist {name} = {parts[name]!r}: only a planar command (linear.x, angular.z) can "
+                                 "be judged")
+        return cls(parts["linear.x"], parts["angular.z"])
+
+
+def arc_signals(twist: Twist, duration_s: float, step_mm: float = STEP_MM,
+                step_deg: float = STEP_DEG) -> list[Straight | Turn]:
+    """The arc ``twist`` sweeps in ``duration_s`` seconds as straights and turns (module docstring);
+    empty for a zero command or duration."""
+    duration_s = float(duration_s)
+    if not math.isfinite(duration_s) or duration_s < 0:
+        raise ValueError(f"duration_s must be a finite number of seconds >= 0, got {duration_s!r}")
+    distance = abs(twist.linear_x) * 1000.0 * duration_s
+    angle = math.degrees(twist.angular_z * duration_s)
+    pieces = max(1, math.ceil(distance / step_mm), math.ceil(abs(angle) / step_deg))
+    direction = "forward" if twist.linear_x >= 0 else "backward"
+    side = "left" if angle >= 0 else "right"
+
+    def turn(degrees: float) -> list[Straight | Turn]:
+        return [Turn(command="turn", direction=side, angle=abs(degrees))] if abs(degrees) > 1e-9 else []
+
+    def straight(millimetres: float) -> list[Straight | Turn]:
+        return [Straight(command="straight", direction=direction, distance=millimetres)] if millimetres > 1e-9 else []
+
+    signals: list[Straight | Turn] = turn(angle / pieces / 2)
+    for piece in range(pieces):
+        signals += straight(distance / pieces)
+        signals += turn(angle / pieces if piece < pieces - 1 else angle / pieces / 2)
+    return signals
