@@ -30,7 +30,8 @@ from ..models import LidarScan
 MAX_BEAMS = 7200
 
 
-def _number(owner: str, name: str, value: Any) -> float:
+def finite_number(owner: str, name: str, value: Any) -> float:
+    """``value`` as a finite float, or a ``ValueError`` naming ``owner.name``."""
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -51,7 +52,7 @@ class SensorMount:
 
     def __post_init__(self) -> None:
         for name in ("x_mm", "y_mm", "yaw_deg"):
-            object.__setattr__(self, name, _number("SensorMount", name, getattr(self, name)))
+            object.__setattr__(self, name, finite_number("SensorMount", name, getattr(self, name)))
 
     @property
     def offset_mm(self) -> float:
@@ -74,9 +75,9 @@ class LaserScan:
 
     def __post_init__(self) -> None:
         for name in ("angle_min", "angle_increment", "range_min", "range_max"):
-            object.__setattr__(self, name, _number("LaserScan", name, getattr(self, name)))
+            object.__setattr__(self, name, finite_number("LaserScan", name, getattr(self, name)))
         if self.angle_max is not None:
-            object.__setattr__(self, "angle_max", _number("LaserScan", "angle_max", self.angle_max))
+            object.__setattr__(self, "angle_max", finite_number("LaserScan", "angle_max", self.angle_max))
         if self.angle_increment == 0.0:
             raise ValueError("LaserScan.angle_increment must not be 0")
         if not 0.0 <= self.range_min < self.range_max:

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..models import Straight, Turn
+from .laser_scan import finite_number
 
 #: The longest straight and the largest turn of one piece of an arc.
 STEP_MM = 50.0
@@ -24,13 +25,7 @@ STEP_DEG = 5.0
 
 
 def _finite(name: str, value: Any) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"Twist.{name} must be a number, got {value!r}") from None
-    if not math.isfinite(number):
-        raise ValueError(f"Twist.{name} must be finite, got {value!r}")
-    return number
+    return finite_number("Twist", name, value)
 
 
 @dataclass(frozen=True)
