@@ -283,6 +283,11 @@ class MovingObstaclesRule(Validator):
                 arrival = t
         return arrival
 
+    def _standing_until(self, plan_end_s: float, think: float) -> float:
+        """Until when a plan ending ``plan_end_s`` after the scan leaves the robot where it ends: the
+        next think time, then ``park_horizon_s`` (about one turn and one straight of the next plan)."""
+        return plan_end_s + think + self.options.park_horizon_s
+
     def parked_on(self, xy: np.ndarray, radius_mm: float, blobs: list[Blob], from_s: float,
                   until_s: float) -> tuple[Blob, float] | None:
         """The first mover whose course -- its measured velocity held, at its cruising speed when
@@ -309,12 +314,12 @@ class MovingObstaclesRule(Validator):
     def parking(self, context: ValidationContext, signal: ControlSignal, blobs: list[Blob], end_s: float,
                 think: float) -> str | None:
         """A reason to refuse the plan whose last signal is ``signal`` (the robot on its final spot
-        from ``end_s`` after the scan, :meth:`_arrival_s`): it leaves the robot on a mover's course,
-        while it turns there or before the next plan can move it, while a
-        short plan from where the step starts (:meth:`_step_aside`) leaves it off every course and
-        meets no mover's courses on the way. None when the plan may stand."""
+        from ``end_s`` after the scan, :meth:`_arrival_s`): a mover's course reaches that spot before
+        the next plan can move the robot (:meth:`_standing_until`), and a short plan from where the
+        step starts (:meth:`_step_aside`) leaves it off every course and meets no mover's courses on
+        the way. None when the plan may stand."""
         final = context.advanced(signal).planned_pose
-        until = self.start_s(context) + self.duration_s(signal) + think + self.options.park_horizon_s
+        until = self._standing_until(self.start_s(context) + self.duration_s(signal), think)
         on = self.parked_on(np.array([final.x_mm, final.y_mm]), context.robot.radius_mm, blobs, end_s, until)
         if on is None:
             return None
@@ -357,7 +362,7 @@ class MovingObstaclesRule(Validator):
                 end = here.advanced(straight).planned_pose
                 arrive = start + self.duration_s(straight)
                 if self.parked_on(np.array([end.x_mm, end.y_mm]), context.robot.radius_mm, blobs, arrive,
-                                  arrive + think + self.options.park_horizon_s) is None:
+                                  self._standing_until(arrive, think)) is None:
                     return [*turned, straight]
         return None
 
