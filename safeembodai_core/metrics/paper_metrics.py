@@ -67,7 +67,7 @@ def s_j(result: TrialResult, count: str = "steps") -> int:
     our retries also count answers that could not be parsed, which would have crashed the release.
     """
     if count == "attempts":
-        return result.steps + getattr(result, "retries", 0)
+        return result.steps + result.retries
     return result.steps
 
 
