@@ -64,6 +64,29 @@ class RobotSpec:
     length_mm: float = 340.0
 
 
+@dataclass(frozen=True)
+class SceneObject:
+    """One thing in a simulated world, as a disc on the floor (world frame, millimetres): ``kind`` is
+    ``can``, ``ball``, ``labbot``, ``obstacle`` or a plugin's own word."""
+
+    kind: str
+    x_mm: float
+    y_mm: float
+    radius_mm: float
+    heading_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class WorldSnapshot:
+    """What a simulator knows of its world at one instant: its clock, the room's extent (a square
+    of ``room_mm`` from the origin, when it has one) and its objects. For pictures and exported
+    bags only: ground truth, which no defence may read."""
+
+    sim_time_s: float
+    objects: tuple[SceneObject, ...] = ()
+    room_mm: float | None = None
+
+
 class Environment(ABC):
     """A (simulated) world with one robot; owns its physics and its sensors."""
 
@@ -91,6 +114,11 @@ class Environment(ABC):
 
     def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
         """Optional: a top-down picture of the trial (room, obstacles, path, outcome)."""
+        return None
+
+    def snapshot(self) -> WorldSnapshot | None:
+        """Optional: the world now (clock and objects) for exported bags, without reading the
+        sensors or advancing anything; None when the environment cannot say."""
         return None
 
     def close(self) -> None:

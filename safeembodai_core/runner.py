@@ -66,6 +66,33 @@ def trajectory_file(run_dir: str | Path, trial_id: str) -> Path:
     return Path(run_dir) / "trajectories" / (trial_id.replace("/", "__") + ".png")
 
 
+#: A run folder whose ``bags/`` holds this file records a ROS 2 bag per trial as it ends (its text:
+#: the storage, ``mcap`` or ``sqlite3``); ``ablate --bags`` writes it.
+BAGS_DIR = "bags"
+BAG_STORAGE_FILE = "storage"
+
+
+def bag_file(run_dir: str | Path, trial_id: str) -> Path:
+    """Where the bag of ``trial_id`` goes in a run folder that records bags."""
+    return Path(run_dir) / BAGS_DIR / trial_id.replace("/", "__")
+
+
+def recorded_bag_storage(run_dir: str | Path | None) -> str | None:
+    """The bag storage a run folder asks for (``bags/storage``), or None when it records no bags."""
+    if run_dir is None:
+        return None
+    marker = Path(run_dir) / BAGS_DIR / BAG_STORAGE_FILE
+    try:
+        storage = marker.read_text(encoding="utf-8").strip()
+    except FileNotFoundError:
+        return None
+    except (OSError, UnicodeDecodeError) as error:
+        raise SafeEmbodAIError(f"{marker} is unreadable: {error}") from None
+    if storage not in ("mcap", "sqlite3"):
+        raise SafeEmbodAIError(f"{marker} says {storage[:40]!r}: it must say mcap or sqlite3")
+    return storage
+
+
 def trial_spec(scenario: Scenario, environment: str, arm: str, condition: str, index: int) -> TrialSpec:
     return TrialSpec(
         trial_id=f"{environment}/{arm}/{condition}/{index}",
@@ -83,6 +110,7 @@ class ScenarioRunner:
         self.plugins = plugins
         self.run_dir = str(run_dir) if run_dir is not None else None
         self.save_trajectories = save_trajectories and run_dir is not None
+        self.bag_storage = recorded_bag_storage(run_dir)  # a ROS 2 bag per trial, as it ends
         self._environments: dict[str, Any] = {}
         self._state = state
 
@@ -130,13 +158,40 @@ class ScenarioRunner:
             self.state.begin_trial(spec)
             self.state.end_trial(result)
             return result
+        capture = None
+        if self.bag_storage is not None:
+            from .loop.capture import TrialCapture
+
+            capture = TrialCapture()
+            parts.environment, parts.perception = capture.wrap(parts.environment, parts.perception)
         try:
             result = run_trial(spec, parts, self.settings(spec.arm), self.plugins)
         finally:
             parts.backend.close()
         if self.save_trajectories:
             self._save_trajectory(parts.environment, result)
+        if capture is not None:
+            self._save_bag(spec, capture, parts, result)
         return result
+
+    def _save_bag(self, spec: TrialSpec, capture: Any, parts: TrialParts, result: TrialResult) -> None:
+        """Write the trial's bag (``bags/<trial>``), replacing one a resumed run left of an earlier try.
+        A bag that cannot be written stops the run with an error naming it, as a picture does: the
+        trial's result is stored (``safeembodai export`` makes the bag again from the run folder)."""
+        from .ros.bag_export import write_bag
+
+        messages = self.bag_messages(spec, capture, self.state.steps(spec.trial_id), result, parts.environment.robot)
+        write_bag(bag_file(self.run_dir or ".", spec.trial_id), messages, self.bag_storage or "mcap", replace=True)
+
+    def bag_messages(self, spec: TrialSpec, capture: Any, records: list[Any], result: TrialResult | None,
+                     robot: Any) -> list[Any]:
+        """The bag of one trial (:func:`~safeembodai_core.ros.bag_export.trial_messages`), with the
+        scenario's word on the arm's defences and the limits in ``/safeembodai/trial``."""
+        from .ros.bag_export import trial_messages
+
+        about = {"scenario": self.scenario.name, "arm": self.scenario.arms[spec.arm].model_dump(mode="json"),
+                 "limits": self.scenario.limits.model_dump(mode="json")}
+        return trial_messages(spec, records, result, capture, robot, about)
 
     def trajectory_path(self, trial_id: str) -> Path:
         return trajectory_file(self.run_dir or ".", trial_id)

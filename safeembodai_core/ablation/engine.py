@@ -96,7 +96,8 @@ class Ablation:
     """One ablation run of ``scenario`` in ``folder``."""
 
     def __init__(self, scenario: Scenario, plugins: Plugins, folder: RunFolder, *, resume: bool = False,
-                 workers: int = 1, executor: str | None = None, address: str | None = None) -> None:
+                 workers: int = 1, executor: str | None = None, address: str | None = None,
+                 bags: str | None = None) -> None:
         self.scenario, self.plugins, self.folder = scenario, plugins, folder
         self.workers, self.address = workers, address
         self.executor_name = check_executor(scenario, plugins, workers=workers, executor=executor, address=address)
@@ -106,6 +107,8 @@ class Ablation:
             folder.start(scenario)
         self.lock = RunLock(folder.path)
         self.lock.acquire()
+        if bags is not None:
+            folder.record_bags(bags)  # before any runner: every worker's reads it from the folder
         self.runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
         try:
             pictures = folder.path / "trajectories"

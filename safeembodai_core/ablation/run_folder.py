@@ -69,6 +69,17 @@ class RunFolder:
         except OSError as error:
             raise SafeEmbodAIError(f"cannot write the run folder {self.path}: {error}") from None
 
+    def record_bags(self, storage: str) -> None:
+        """From now on, every trial that ends writes its ROS 2 bag into ``bags/`` (``mcap`` or ``sqlite3``)."""
+        from ..runner import BAG_STORAGE_FILE, BAGS_DIR
+
+        folder = self.path / BAGS_DIR
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / BAG_STORAGE_FILE).write_text(storage + "\n", encoding="utf-8")
+        except OSError as error:
+            raise SafeEmbodAIError(f"cannot write {folder}: {error.strerror or error}") from None
+
     def recorded_scenario(self) -> dict[str, Any]:
         target = self.path / SCENARIO_FILE
         try:

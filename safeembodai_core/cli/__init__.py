@@ -86,11 +86,13 @@ def _show_plugin_traces(level: str) -> None:
 
 def _register_builtin_commands() -> None:
     from .ablate_cmd import ablate
+    from .export_cmd import export
+    from .guard_bag_cmd import guard_bag
     from .plugins_cmd import plugins
     from .report_cmd import report
     from .run_cmd import run
 
-    for command in (plugins, run, ablate, report):
+    for command in (plugins, run, ablate, report, export, guard_bag):
         cli.add_command(command)
 
 

@@ -39,7 +39,10 @@ def _check_ray() -> None:
               help="Finish the missing trials of this run folder, with the scenario it recorded "
                    "(SCENARIO, if given, must be the same, overrides included).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and figures at the end.")
-def ablate(scenario_path, backend, seed, overrides, workers, executor, address, out_root, resume_dir, no_report) -> None:
+@click.option("--bags", type=click.Choice(["mcap", "sqlite3"]), default=None,
+              help="Also write each trial's ROS 2 bag into RUN/bags/ as it ends (docs/robots.md).")
+def ablate(scenario_path, backend, seed, overrides, workers, executor, address, out_root, resume_dir, no_report,
+           bags) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials.
 
     With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
@@ -73,7 +76,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     console = Console(emoji=False)
     with StopSignals() as stop:
         try:
-            results = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor, address)
+            results = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor, address, bags)
             console.print(summary_table(scenario, results, plugins=plugins))
             if not no_report:
                 from ..report import write_report
@@ -95,7 +98,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
         raise SafeEmbodAIError(f"{failed} -- once fixed, resume with --resume {folder.path}")
 
 
-def _run(console, scenario, plugins, folder, resume, workers, executor, address):
+def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None):
     from rich.markup import escape
 
     from ..ablation import Ablation
@@ -103,7 +106,8 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address)
     from .progress import AblationProgress
     from .run_cmd import plural
 
-    ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address)
+    ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address,
+                        bags=bags)
     try:
         pending = ablation.pending()
         cells = {(s.environment, s.arm, s.condition) for s in pending}

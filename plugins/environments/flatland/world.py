@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from safeembodai_core.components import Environment, RobotSpec
+from safeembodai_core.components import Environment, RobotSpec, SceneObject, WorldSnapshot
 from safeembodai_core.errors import EnvironmentError_
 from safeembodai_core.models import (
     ControlSignal,
@@ -106,6 +106,12 @@ class FlatlandWorld(Environment):
 
     def pose(self) -> Pose:
         return Pose(x_mm=float(self.position[0]), y_mm=float(self.position[1]), heading_deg=self.heading)
+
+    def snapshot(self) -> WorldSnapshot:
+        """The clock, the can and the obstacles now (ground truth, for exported bags)."""
+        objects = tuple(SceneObject("can" if index == CAN else "obstacle", float(x), float(y), float(r))
+                        for index, (x, y, r) in enumerate(self.circles))
+        return WorldSnapshot(sim_time_s=float(self.sim_time_s), objects=objects, room_mm=float(self.options.room_mm))
 
     # -- acting -------------------------------------------------------------------------------
 

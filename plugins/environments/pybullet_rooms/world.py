@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from safeembodai_core.components import Environment, RobotSpec
+from safeembodai_core.components import Environment, RobotSpec, SceneObject, WorldSnapshot
 from safeembodai_core.errors import EnvironmentError_
 from safeembodai_core.models import GroundTruth, LidarScan, Observation, Outcome, Pose
 from safeembodai_core.seeds import derive_seed
@@ -161,6 +161,17 @@ class PybulletRoom(KinematicMotion, Environment):
         from .picture import draw_trajectory
 
         return draw_trajectory(self, poses, outcome)
+
+    def snapshot(self) -> WorldSnapshot:
+        """The clock, the can, the balls and the Labbots now (ground truth, for exported bags)."""
+        self._require_reset()
+        o = self.options
+        objects = [SceneObject("can", float(self.can_xy[0]), float(self.can_xy[1]), CAN_RADIUS_MM)]
+        objects += [SceneObject("ball", float(x), float(y), o.ball_radius_mm) for x, y in self.balls_xy]
+        radius = getattr(o, "labbot_radius_mm", 0.0)
+        objects += [SceneObject("labbot", float(x), float(y), radius, float(h))
+                    for (x, y), h in zip(self.swarm.xy, self.swarm.heading)]
+        return WorldSnapshot(sim_time_s=float(self.sim_time_s), objects=tuple(objects), room_mm=float(o.room_mm))
 
     def close(self) -> None:
         self.scene.close()

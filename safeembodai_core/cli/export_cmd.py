@@ -1,0 +1,79 @@
+"""``safeembodai export RUN``: a run's trials as ROS 2 bags (MCAP or SQLite), for Foxglove, RViz
+and ``ros2 bag``.
+
+The run folder keeps answers, verdicts and commands but not sensor readings, so each trial is
+replayed from its recorded answers (:mod:`safeembodai_core.loop.replay`, no LLM called) and must
+agree with its record step by step; the bag is then written as a trial recorded with ``ablate
+--bags`` writes it (:mod:`safeembodai_core.ros.bag_export`).
+"""
+
+from __future__ import annotations
+
+import click
+
+FORMATS = {"mcap": "mcap", "sqlite": "sqlite3", "sqlite3": "sqlite3"}
+
+
+@click.command("export")
+@click.argument("run_dir", metavar="RUN", type=click.Path(file_okay=False, exists=True))
+@click.option("--trial", "trials", multiple=True, metavar="ID",
+              help="Full trial id (environment/arm/condition/index); repeatable. Default: every trial with a result.")
+@click.option("--format", "form", type=click.Choice(sorted(FORMATS)), default="mcap", show_default=True,
+              help="rosbag2 storage: mcap (Foxglove opens the .mcap inside) or sqlite3.")
+@click.option("--out", "out", type=click.Path(), required=True,
+              help="The bag folder (one --trial), or a folder to put one bag per trial in.")
+def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
+    """Write the trials of RUN as ROS 2 bags: scan, camera, pose, markers, commands and the LLM's words."""
+    from pathlib import Path
+
+    from rich.console import Console
+    from rich.progress import Progress
+
+    from ..errors import SafeEmbodAIError
+    from ..loop.replay import replay_trial
+    from ..ros.bag_export import write_bag
+    from ..runner import ScenarioRunner
+    from ..text_safety import terminal_markup
+    from .common import load_recorded
+
+    scenario, plugins = load_recorded(run_dir)
+    runner = ScenarioRunner(scenario, plugins, run_dir=run_dir)
+    console = Console(stderr=True, emoji=False)
+    try:
+        results = {r.spec.trial_id: r for r in runner.state.results()}
+        specs = {spec.trial_id: spec for spec in runner.specs()}
+        if trials:
+            unknown = [t for t in trials if t not in specs]
+            if unknown:
+                raise SafeEmbodAIError(f"--trial {unknown[0]!r} is not a trial of {run_dir} "
+                                       f"(ids look like {next(iter(specs))!r}; 'safeembodai show {run_dir}' lists them)")
+            chosen = list(dict.fromkeys(trials))
+        else:
+            chosen = [t for t in specs if t in results]
+            if not chosen:
+                raise SafeEmbodAIError(f"{run_dir} has no finished trial to export")
+        target = Path(out)
+        if len(chosen) > 1 or not trials:
+            if target.exists() and not target.is_dir():
+                raise SafeEmbodAIError(f"--out {out} is a file: give a folder for several bags")
+            paths = {t: target / t.replace("/", "__") for t in chosen}
+        else:
+            paths = {chosen[0]: target}
+        for trial_id, path in paths.items():
+            if path.exists():
+                raise SafeEmbodAIError(f"{path} exists: choose a new --out (a bag is never written over)")
+        with Progress(console=console, transient=True) as progress:
+            task = progress.add_task("replaying and writing bags", total=len(paths))
+            for trial_id, path in paths.items():
+                spec = specs[trial_id]
+                records = runner.state.steps(trial_id)
+                if not records:
+                    raise SafeEmbodAIError(f"trial {trial_id} has no recorded step in {run_dir}")
+                capture, replayed, _ = replay_trial(runner, spec, records)
+                environment = runner.environment(spec.environment)
+                messages = runner.bag_messages(spec, capture, records, results.get(trial_id), environment.robot)
+                write_bag(path, messages, FORMATS[form])
+                progress.advance(task)
+                console.print(f"{terminal_markup(trial_id)} -> {terminal_markup(str(path))}")
+    finally:
+        runner.close()

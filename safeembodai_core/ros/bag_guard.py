@@ -1,0 +1,253 @@
+"""A recorded robot through the guard: which commands of a ROS 2 bag would the guard have refused?
+
+:func:`guard_bag` reads a bag with ``rosbags`` (rosbag2 in MCAP or SQLite, or ROS 1), walks the
+command topic in log-time order and judges each command with the latest scan (and pose) logged
+before it, through :class:`~safeembodai_core.Guard` -- the same rules, the same code as a live check:
+
+* ``geometry_msgs/Twist`` or ``TwistStamped``: the arc the command sweeps while held until the next
+  command on the topic (at most ``max_hold_s``), or for ``hold_s`` when given
+  (:meth:`~safeembodai_core.Guard.check_twist`; a refusal says the longest safe duration);
+* ``std_msgs/String`` holding a plan as JSON -- ``{"control": [...]}`` as ``safeembodai export``
+  writes on ``/safeembodai/plan``, or the list of signals alone: judged as the LLM's plan
+  (:meth:`~safeembodai_core.Guard.check`); a plan that recorded no control (the answer did not
+  parse) is refused with the recorded reason.
+
+A scan is ``sensor_msgs/LaserScan`` (:class:`~safeembodai_core.ros.LaserScan`, with the sensor's
+``mount``). A pose topic, optional (``geometry_msgs/PoseStamped``, metres, one map frame), does two
+things: a command given after the robot moved on from its latest scan is judged with that scan as
+seen from where the robot now is (:func:`seen_from`: the old scan's beams re-binned, unseen
+directions unknown), and rules about motion get the earlier scans as history -- only from a scan
+taken where the robot stands, since a re-seen scan is no new look at the movers. Without a pose
+topic every command is judged with the latest scan as if the robot were where it took it. Bad input is an error naming the bag, the topic and the message -- a missing
+topic, a topic of another type, a scan with zero beams or a NaN increment, a Twist with NaN --
+and nothing is reported for a bag that has one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+from ..errors import SafeEmbodAIError
+from .laser_scan import LaserScan, SensorMount
+from .twist import Twist
+from . import messages as m
+
+SCAN_TYPES = ("sensor_msgs/msg/LaserScan",)
+TWIST_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
+PLAN_TYPES = ("std_msgs/msg/String",)
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped",)
+#: Most characters of a plan message read (a longer one is refused unread).
+MAX_PLAN_CHARS = 100_000
+
+
+class BagInputError(SafeEmbodAIError):
+    """The bag cannot be judged as asked (names the bag, topic and message at fault)."""
+
+
+@dataclass
+class CommandVerdict:
+    """The guard's verdict on one command of the bag."""
+
+    index: int  # the command's position on its topic, from 0
+    time_s: float  # its log time
+    kind: str  # "twist" or "plan"
+    command: dict[str, Any]
+    valid: bool
+    reasons: list[str] = field(default_factory=list)
+    scan_time_s: float | None = None  # the scan it was judged with (None: no scan logged before it)
+    safe_duration_s: float | None = None  # twists: the longest duration every rule accepts
+    recorded: dict[str, Any] | None = None  # plans exported by safeembodai: the verdict recorded in the trial
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class BagReport:
+    """What :func:`guard_bag` found: one verdict per command, and what it read."""
+
+    bag: str
+    scan_topic: str
+    cmd_topic: str
+    pose_topic: str | None
+    rules: list[str]
+    verdicts: list[CommandVerdict]
+
+    @property
+    def refused(self) -> list[CommandVerdict]:
+        return [v for v in self.verdicts if not v.valid]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"bag": self.bag, "scan_topic": self.scan_topic, "cmd_topic": self.cmd_topic,
+                "pose_topic": self.pose_topic, "rules": self.rules, "commands": len(self.verdicts),
+                "refused": len(self.refused), "verdicts": [v.as_dict() for v in self.verdicts]}
+
+
+def open_bag(path: str | Path) -> Any:
+    """An open ``rosbags`` reader of ``path`` (a rosbag2 folder, or a ROS 1 ``.bag``), or a clear error."""
+    from rosbags.highlevel import AnyReader
+
+    bag = Path(path)
+    if not bag.exists():
+        raise BagInputError(f"{bag}: no such bag")
+    try:
+        reader = AnyReader([bag], default_typestore=m.typestore())
+        reader.open()
+    except Exception as error:  # rosbags' own errors: not a bag, unreadable metadata, unknown storage
+        raise BagInputError(f"{bag}: cannot be read as a ROS bag ({type(error).__name__}: {error})") from None
+    return reader
+
+
+def _connection(reader: Any, bag: Path, topic: str, allowed: tuple[str, ...], role: str) -> list[Any]:
+    found = [c for c in reader.connections if c.topic == topic]
+    if not found:
+        topics = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
+        raise BagInputError(f"{bag}: no topic {topic!r} for the {role}; the bag has: {', '.join(topics) or 'none'}")
+    wrong = [c.msgtype for c in found if c.msgtype not in allowed]
+    if wrong:
+        raise BagInputError(f"{bag}: topic {topic!r} carries {wrong[0]}, not a {role} ({' or '.join(allowed)})")
+    return found
+
+
+def _plan(text: str) -> tuple[Any, dict[str, Any] | None]:
+    """The control list of a plan message, and what the export recorded of it (or None)."""
+    if len(text) > MAX_PLAN_CHARS:
+        raise ValueError(f"a plan message of {len(text)} characters (more than {MAX_PLAN_CHARS})")
+    try:
+        payload = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as error:
+        raise ValueError(f"not a JSON plan: {error}") from None
+    if isinstance(payload, list):
+        return payload, None
+    if isinstance(payload, dict) and "control" in payload:
+        recorded = {k: payload[k] for k in ("step", "attempt", "accepted", "parse_error", "verdicts") if k in payload}
+        return payload["control"], recorded or None
+    raise ValueError('a plan must be a JSON list of signals or an object with "control"')
+
+
+def _pose_of(message: Any) -> tuple[float, float, float]:
+    p = message.pose
+    values = (p.position.x * 1000.0, p.position.y * 1000.0, m.yaw_deg(p.orientation))
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"a non-finite pose {values}")
+    return values
+
+
+#: A robot that moved less than this since its scan (mm, degrees) is judged at the scan's pose.
+STILL_MM, STILL_DEG = 1.0, 0.1
+
+
+def seen_from(scan: LaserScan, scan_pose: tuple[float, float, float] | None,
+              pose: tuple[float, float, float] | None) -> tuple[LaserScan, bool]:
+    """``scan`` as the robot at ``pose`` sees it, when it was taken at ``scan_pose`` (both in one map
+    frame): the same beams from a sensor mounted where the old scan's sensor now is relative to the
+    robot (:meth:`LaserScan.to_lidar_scan` re-bins them; what it never saw stays unknown). Also
+    whether the robot is still where it scanned (then the scan is returned unchanged)."""
+    if scan_pose is None or pose is None:
+        return scan, scan_pose is None and pose is None
+    (xs, ys, hs), (xc, yc, hc) = scan_pose, pose
+    turn = (hs - hc + 180.0) % 360.0 - 180.0
+    if math.hypot(xs - xc, ys - yc) < STILL_MM and abs(turn) < STILL_DEG:
+        return scan, True
+    c, s = math.cos(math.radians(-hc)), math.sin(math.radians(-hc))
+    dx, dy = xs - xc, ys - yc
+    mx, my = scan.mount.x_mm, scan.mount.y_mm
+    cs, ss = math.cos(math.radians(hs - hc)), math.sin(math.radians(hs - hc))
+    mount = SensorMount(c * dx - s * dy + cs * mx - ss * my, s * dx + c * dy + ss * mx + cs * my,
+                        turn + scan.mount.yaw_deg)
+    return LaserScan(angle_min=scan.angle_min, angle_increment=scan.angle_increment, ranges=scan.ranges,
+                     range_min=scan.range_min, range_max=scan.range_max, angle_max=scan.angle_max, mount=mount), False
+
+
+def _messages(reader: Any, connections: list[Any]) -> Iterator[tuple[Any, int, Any]]:
+    for connection, ns, raw in reader.messages(connections=connections):
+        yield connection, ns, reader.deserialize(raw, connection.msgtype)
+
+
+def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_topic: str = "/cmd_vel",
+              pose_topic: str | None = None, mount: SensorMount | None = None, hold_s: float | None = None,
+              max_hold_s: float = 1.0) -> BagReport:
+    """Judge every command on ``cmd_topic`` of the bag at ``path`` with ``guard`` (module docstring)."""
+    for name, value in (("hold_s", hold_s), ("max_hold_s", max_hold_s)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise BagInputError(f"{name} must be a positive number of seconds, got {value!r}")
+    bag = Path(path)
+    reader = open_bag(bag)
+    try:
+        scans = _connection(reader, bag, scan_topic, SCAN_TYPES, "scan")
+        commands = _connection(reader, bag, cmd_topic, TWIST_TYPES + PLAN_TYPES, "command")
+        poses = _connection(reader, bag, pose_topic, POSE_TYPES, "pose") if pose_topic else []
+        verdicts = list(_judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, pose_topic,
+                               mount, hold_s, max_hold_s))
+    finally:
+        reader.close()
+    rules = [name for name, _ in guard.rules]
+    return BagReport(str(bag), scan_topic, cmd_topic, pose_topic, rules, verdicts)
+
+
+def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, pose_topic, mount, hold_s,
+           max_hold_s) -> Iterator[CommandVerdict]:
+    scan: LaserScan | None = None
+    scan_time: float | None = None
+    scan_pose: tuple[float, float, float] | None = None
+    pose: tuple[float, float, float] | None = None
+    counts = {scan_topic: 0, cmd_topic: 0, pose_topic: 0}
+    pending: tuple[int, float, Twist, LaserScan | None, float | None, Any, bool] | None = None
+
+    def as_seen() -> tuple[LaserScan | None, bool]:
+        """The latest scan from where the robot is now, and whether it is still where it scanned."""
+        return seen_from(scan, scan_pose, pose) if scan is not None else (None, False)
+
+    def twist_verdict(item, until: float | None) -> CommandVerdict:
+        index, time_s, twist, seen, seen_time, where, still = item
+        duration = hold_s if hold_s is not None else min(max_hold_s, until - time_s) if until is not None \
+            else max_hold_s
+        # history for motion rules only from a scan taken where the robot stands (module docstring)
+        report = guard.check_twist(twist, max(duration, 0.0), lidar_mm=seen, pose=where,
+                                   time_s=seen_time if where is not None and still else None)
+        return CommandVerdict(index=index, time_s=time_s, kind="twist",
+                              command={"linear_x": twist.linear_x, "angular_z": twist.angular_z,
+                                       "duration_s": report.duration_s},
+                              valid=report.valid, reasons=report.reasons, scan_time_s=seen_time,
+                              safe_duration_s=report.safe_duration_s)
+
+    for connection, ns, message in _messages(reader, scans + commands + poses):
+        topic, time_s = connection.topic, ns / 1e9
+        index = counts[topic]
+        counts[topic] += 1
+        where = f"{bag}: {topic} message {index} (at {time_s:.3f} s)"
+        try:
+            if topic == scan_topic:
+                scan, scan_time, scan_pose = LaserScan.from_ros(message, mount), time_s, pose
+            elif topic == pose_topic:
+                pose = _pose_of(message)
+            elif connection.msgtype in TWIST_TYPES:
+                twist = Twist.from_ros(message)
+                if pending is not None:
+                    yield twist_verdict(pending, time_s)
+                seen, still = as_seen()
+                pending = (index, time_s, twist, seen, scan_time, pose, still)
+            else:
+                control, recorded = _plan(message.data)
+                seen, still = as_seen()
+                yield _plan_verdict(guard, index, time_s, control, recorded, seen, scan_time, pose, still)
+        except ValueError as error:
+            raise BagInputError(f"{where}: {error}") from None
+    if pending is not None:
+        yield twist_verdict(pending, None)
+
+
+def _plan_verdict(guard, index, time_s, control, recorded, scan, scan_time, pose, still) -> CommandVerdict:
+    if control is None:  # the exported answer did not parse: nothing to judge, refused as it was
+        reason = (recorded or {}).get("parse_error") or "the message holds no plan"
+        return CommandVerdict(index=index, time_s=time_s, kind="plan", command={"control": None}, valid=False,
+                              reasons=[f"schema: {reason}"], scan_time_s=scan_time, recorded=recorded)
+    if not isinstance(control, list):
+        raise ValueError(f'"control" must be a list of signals, got {type(control).__name__}')
+    report = guard.check(control, lidar_mm=scan, pose=pose, time_s=scan_time if pose is not None and still else None)
+    return CommandVerdict(index=index, time_s=time_s, kind="plan", command={"control": control}, valid=report.valid,
+                          reasons=report.reasons, scan_time_s=scan_time, recorded=recorded)
