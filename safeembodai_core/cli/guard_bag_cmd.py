@@ -35,6 +35,8 @@ def recorded_trial(bag: str) -> dict[str, Any]:
     reader = open_bag(bag)
     try:
         found = [c for c in reader.connections if c.topic == "/safeembodai/trial" and c.msgtype == "std_msgs/msg/String"]
+        if not found:  # (rosbags reads every topic when given none)
+            return {}
         for connection, _, raw in reader.messages(connections=found):
             try:
                 value = json.loads(reader.deserialize(raw, connection.msgtype).data)

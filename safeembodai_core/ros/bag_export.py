@@ -21,8 +21,9 @@ One bag per trial, written with ``rosbags`` from the trial's step records and wh
 * ``/safeembodai/trial`` (``std_msgs/String``) -- the trial's id, seed, robot and rules at the start,
   its result at the end; ``/clock`` (``rosgraph_msgs/Clock``) -- the simulated time.
 
-Every message's log time and header stamp is the simulated time it happened at; messages of one
-instant are 1 ns apart, in the order they happened. Text an LLM or attacker wrote goes out redacted,
+Every message's log time and header stamp is the simulated time it happened at; events of one
+instant are 1 ns apart, in the order they happened (the pose, TF, markers and clock of one event
+share its time). Text an LLM or attacker wrote goes out redacted,
 with control characters shown as escapes. The bag is written aside and renamed into place: a
 failure leaves nothing at the target.
 """
@@ -85,7 +86,7 @@ def _text(value: Any) -> str:
 
 
 class _Timeline:
-    """Messages with strictly increasing log times: an instant's messages 1 ns apart, in order."""
+    """Messages on one clock: each event later than the one before, by 1 ns at least."""
 
     def __init__(self) -> None:
         self.last = -1
@@ -259,8 +260,8 @@ def trial_messages(spec: TrialSpec, records: list[StepRecord], result: TrialResu
 
 def write_bag(path: str | Path, items: Iterable[tuple[str, int, Any]], storage: str = "mcap", *,
               replace: bool = False) -> Path:
-    """Write ``items`` (topic, ns, message of :data:`TOPICS`' types, or an image topic) as a rosbag2
-    folder at ``path``, all or nothing. ``path`` must not exist unless ``replace`` says a bag there
+    """Write ``items`` (topic, log time in ns, a message made by :func:`~safeembodai_core.ros.messages.build`)
+    as a rosbag2 folder at ``path``, all or nothing. ``path`` must not exist unless ``replace`` says a bag there
     may be replaced (by the new one, once it is whole)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
@@ -278,7 +279,7 @@ def write_bag(path: str | Path, items: Iterable[tuple[str, int, Any]], storage: 
         with Writer(partial, version=8, storage_plugin=plugin) as writer:
             connections: dict[str, Any] = {}
             for topic, ns, message in items:
-                typename = TOPICS.get(topic, "sensor_msgs/msg/CompressedImage")
+                typename = message.__msgtype__  # what rosbags built it as (messages.build)
                 if topic not in connections:
                     connections[topic] = writer.add_connection(topic, typename, typestore=store)
                 writer.write(connections[topic], ns, m.serialize(message, typename))

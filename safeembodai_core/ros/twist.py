@@ -52,8 +52,9 @@ class Twist:
         except AttributeError:
             raise ValueError(f"not a geometry_msgs/Twist: {type(message).__name__} has no linear/angular "
                              "x, y, z") from None
+        parts = {name: _finite(name, value) for name, value in parts.items()}  # named as ROS names them
         for name in ("linear.y", "linear.z", "angular.x", "angular.y"):
-            if _finite(name, parts[name]) != 0.0:
+            if parts[name] != 0.0:
                 raise ValueError(f"Twist {name} = {parts[name]!r}: only a planar command (linear.x, angular.z) can "
                                  "be judged")
         return cls(parts["linear.x"], parts["angular.z"])

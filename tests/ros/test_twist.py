@@ -83,7 +83,7 @@ def test_from_ros_reads_a_decoded_message_and_refuses_what_it_cannot_judge():
     assert Twist.from_ros(stamped).linear_x == 0.1
     with pytest.raises(ValueError, match="linear.y = 0.3: only a planar command"):
         Twist.from_ros(SimpleNamespace(linear=vector(0.1, 0.3), angular=vector()))
-    with pytest.raises(ValueError, match="Twist.linear_x must be finite"):
+    with pytest.raises(ValueError, match="Twist.linear.x must be finite"):
         Twist.from_ros(SimpleNamespace(linear=vector(math.nan), angular=vector()))
     with pytest.raises(ValueError, match="not a geometry_msgs/Twist"):
         Twist.from_ros(SimpleNamespace(linear=0.2))

@@ -1,0 +1,31 @@
+"""A small MO run recorded with bags, shared by the bag tests (one ablation per session)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="session")
+def bag_run(tmp_path_factory):
+    """``scenarios/mo.yaml``, one trial per cell, a careless mock pilot (so the guard refuses plans),
+    run with ``ablate --bags mcap``: (scenario, run folder, results, store steps by trial id)."""
+    from safeembodai_core.ablation import Ablation, RunFolder
+    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.scenario import load_scenario
+
+    plugins = load_plugins(environ={})
+    scenario = load_scenario(REPO / "scenarios" / "mo.yaml", [
+        "trials=1", "seed=5", "max_steps=8", "backend={use: mock, options: {ignore_clearance_p: 0.9, malformed_p: 0.2}}"],
+        plugins.registry)
+    path = tmp_path_factory.mktemp("bag-run") / "run"
+    ablation = Ablation(scenario, plugins, RunFolder(path), bags="mcap")
+    try:
+        results = ablation.run()
+        steps = {r.spec.trial_id: ablation.store.steps(r.spec.trial_id) for r in results}
+    finally:
+        ablation.close()
+    return scenario, path, results, steps
