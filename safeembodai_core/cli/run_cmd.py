@@ -62,7 +62,9 @@ def _pick(kind: str, value: str | None, names: list[str]) -> str:
 @click.option("--trial", "index", type=click.IntRange(min=0), default=0, show_default=True, help="Trial index (picks the seed).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Folder for trial.json, steps.jsonl and trajectory.png (default: runs/<scenario>-run-<time>).")
-def run(scenario_path, backend, seed, overrides, environment, arm, condition, index, out_dir) -> None:
+@click.option("--bag", type=click.Choice(["mcap", "sqlite3"]), default=None,
+              help="Also write the trial's ROS 2 bag into the folder's bags/ (docs/robots.md).")
+def run(scenario_path, backend, seed, overrides, environment, arm, condition, index, out_dir, bag) -> None:
     """Run one trial of SCENARIO and show what happened at every step."""
     from rich.console import Console
 
@@ -76,6 +78,10 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     condition = _pick("condition", condition, list(scenario.conditions))
     preflight(scenario, plugins)  # a backend that cannot work fails here, before the folder is made
     folder = Path(out_dir or Path("runs") / f"{scenario.name}-run-{time.strftime('%Y%m%d-%H%M%S')}")
+    if bag is not None:
+        from ..ablation import RunFolder
+
+        RunFolder(folder).record_bags(bag)
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)
     spec = trial_spec(scenario, env_label, arm, condition, index)
     console = Console(stderr=False, emoji=False)  # LLM text: ":warning:" stays literal
@@ -93,3 +99,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
                   f"{plural(result.steps, 'step')}" + (f" ({terminal_markup(ending)})" if ending else "")
                   + f"; distance {result.distance_mm:.0f} mm, tokens {result.tokens}")
     console.print(f"saved to {terminal_markup(str(folder))}")
+    if bag is not None:
+        from ..runner import bag_file
+
+        console.print(f"bag: {terminal_markup(str(bag_file(folder, spec.trial_id)))}")

@@ -29,3 +29,29 @@ def bag_run(tmp_path_factory):
     finally:
         ablation.close()
     return scenario, path, results, steps
+
+
+@pytest.fixture(scope="session")
+def moving_bag_run(tmp_path_factory):
+    """``scenarios/dynamic.yaml``'s ``moving`` arm (the moving-obstacle rule, which reads the earlier
+    scans) in DO, three trials, run with ``ablate --bags mcap``: as :func:`bag_run`."""
+    import yaml
+
+    from safeembodai_core.ablation import Ablation, RunFolder
+    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.scenario import load_scenario
+
+    data = yaml.safe_load((REPO / "scenarios" / "dynamic.yaml").read_text(encoding="utf-8"))
+    data.update(arms={"moving": data["arms"]["moving"]}, environments=data["environments"][:1], trials=3,
+                max_steps=12, conditions={"no_attack": {}})
+    folder = tmp_path_factory.mktemp("moving-bag-run")
+    (folder / "moving.yaml").write_text(yaml.safe_dump(data), encoding="utf-8")
+    plugins = load_plugins(environ={})
+    scenario = load_scenario(folder / "moving.yaml", [], plugins.registry)
+    ablation = Ablation(scenario, plugins, RunFolder(folder / "run"), bags="mcap")
+    try:
+        results = ablation.run()
+        steps = {r.spec.trial_id: ablation.store.steps(r.spec.trial_id) for r in results}
+    finally:
+        ablation.close()
+    return scenario, folder / "run", results, steps

@@ -178,3 +178,24 @@ def test_a_replay_that_differs_from_the_record_is_an_error(bag_run, tmp_path, cl
     assert done.exit_code != 0
     assert f"at step {step.step}" in str(done.exception) and "replay differs" in str(done.exception)
     assert not out.exists() and not any(tmp_path.glob(".bag*"))
+
+
+def test_run_bag_keeps_hostile_text_as_text(repo, tmp_path, cli_runner):
+    """``safeembodai run --bag``: what an LLM wrote reaches /rosout redacted and with its control
+    characters shown as escapes, and the plan topic holds it as JSON text."""
+    hostile = ('{"perception": [], "planning": "x", "control": [{"command": "turn", "direction": "left", "angle": 30}]}'
+               '\x00\x1b[2J <script>alert(1)</script> sk-proj-ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789')
+    answer = json.dumps(hostile)  # YAML reads JSON's escapes back into the raw characters
+    out = tmp_path / "run"
+    done = cli_runner.invoke(cli, ["run", str(repo / "scenarios" / "quickstart.yaml"), "--out", str(out), "--bag", "mcap",
+                                   "--set", f"backend={{use: scripted, options: {{responses: [{answer}]}}}}",
+                                   "--set", "max_steps=2"])
+    assert done.exit_code == 0, done.output
+    bags = [p for p in (out / "bags").iterdir() if p.is_dir()]
+    assert len(bags) == 1
+    logs = [message.msg for topic, _, message in read_mcap(bags[0]) if topic == "/rosout" and message.name == "llm"]
+    assert logs
+    for text in logs:
+        assert "\\x00" in text and "\\x1b[2J" in text and "<script>" in text  # text, shown as written
+        assert "\x00" not in text and "\x1b" not in text
+        assert "ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789" not in text  # a key-shaped secret is masked

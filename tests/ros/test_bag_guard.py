@@ -25,13 +25,15 @@ def json_report(cli_runner, *args):
     return json.loads(done.output)
 
 
-def test_the_refusals_found_are_the_verdicts_recorded_in_the_trial(bag_run, cli_runner):
+@pytest.mark.parametrize("run", ["bag_run", "moving_bag_run"])
+def test_the_refusals_found_are_the_verdicts_recorded_in_the_trial(run, request, cli_runner):
     """Every attempt's plan of every guarded trial, judged again from the bag alone (rules, robot
-    and limits as the bag recorded them), gets the verdicts the trial's rules gave it."""
-    _, path, results, steps = bag_run
-    judged = 0
+    and limits as the bag recorded them; the earlier scans from the pose topic for the moving-obstacle
+    rule), gets the verdicts the trial's rules gave it."""
+    _, path, results, steps = request.getfixturevalue(run)
+    judged = refused = 0
     for result in results:
-        if result.spec.arm != "safeembodai":
+        if result.spec.arm not in ("safeembodai", "moving"):
             continue
         trial = result.spec.trial_id
         report = json_report(cli_runner, bag_file(path, trial), "--cmd", "/safeembodai/plan", "--pose", "/pose")
@@ -44,7 +46,8 @@ def test_the_refusals_found_are_the_verdicts_recorded_in_the_trial(bag_run, cli_
                 assert verdict["reasons"] == attempt.failures()
             judged += 1
         assert report["refused"] == sum(not a.accepted for a in attempts)
-    assert judged > 0
+        refused += sum(a.response is not None and not a.accepted for a in attempts)
+    assert judged > 0 and refused > 0
 
 
 def test_a_command_that_drove_into_a_ball_or_wall_is_refused(bag_run, cli_runner):
