@@ -51,8 +51,17 @@ def build(typename: str, **values: Any) -> Any:
     unknown = set(values) - known
     if unknown:
         raise TypeError(f"{typename} has no field {', '.join(sorted(unknown))}")
-    kwargs = {name: values[name] if name in values else _default(node) for name, node in fields}
+    kwargs = {name: _value(node, values[name]) if name in values else _default(node) for name, node in fields}
     return store.types[typename](**kwargs)
+
+
+def _value(node: tuple[Any, Any], value: Any) -> Any:
+    """``value`` as rosbags wants it: a sequence of numbers as a numpy array of the field's type."""
+    kind, detail = node
+    if getattr(kind, "name", "") in ("ARRAY", "SEQUENCE") and getattr(detail[0][0], "name", "") == "BASE" \
+            and detail[0][1][0] in _NUMPY and not isinstance(value, np.ndarray):
+        return np.asarray(value, dtype=_NUMPY[detail[0][1][0]])
+    return value
 
 
 def stamp(ns: int) -> Any:

@@ -12,22 +12,27 @@ import numpy as np
 import pytest
 
 from safeembodai_core.cli import cli
+from safeembodai_core.ros.bag_export import TOPICS
 from safeembodai_core.runner import bag_file
 
 pytest.importorskip("mcap_ros2", reason="the dev extra's independent MCAP reader (pip install -e '.[dev]')")
 
 
 def read_mcap(folder: Path) -> list[tuple[str, int, object]]:
-    """Every message of the bag in ``folder`` decoded by mcap_ros2: (topic, log time ns, message)."""
+    """Every message of the bag in ``folder`` decoded by mcap_ros2: (topic, log time ns, message);
+    each topic with the message type the export documents."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     files = list(folder.glob("*.mcap"))
     assert len(files) == 1, files
+    out = []
     with files[0].open("rb") as handle:
         reader = make_reader(handle, decoder_factories=[DecoderFactory()])
-        return [(channel.topic, message.log_time, decoded)
-                for _, channel, message, decoded in reader.iter_decoded_messages(log_time_order=True)]
+        for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=True):
+            assert schema.encoding == "ros2msg" and schema.name == TOPICS[channel.topic], channel.topic
+            out.append((channel.topic, message.log_time, decoded))
+    return out
 
 
 def raw_mcap(folder: Path) -> list[tuple[str, int, bytes]]:

@@ -12,7 +12,7 @@ import pytest
 
 from safeembodai_core import Guard
 from safeembodai_core.cli import cli
-from safeembodai_core.ros import LaserScan, SensorMount
+from safeembodai_core.ros import LaserScan
 from safeembodai_core.ros import messages as m
 from safeembodai_core.ros.bag_export import write_bag
 from safeembodai_core.ros.bag_guard import BagInputError, guard_bag, seen_from
