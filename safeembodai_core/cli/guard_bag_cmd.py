@@ -40,7 +40,7 @@ def recorded_trial(bag: str) -> dict[str, Any]:
         for connection, _, raw in reader.messages(connections=found):
             try:
                 value = json.loads(reader.deserialize(raw, connection.msgtype).data)
-            except (ValueError, RecursionError):
+            except Exception:  # a corrupt or foreign record: the bag then says nothing of its trial
                 return {}
             return value if isinstance(value, dict) else {}
     finally:
@@ -74,7 +74,10 @@ def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None):
         kwargs["limits"] = limits
     if chosen:
         kwargs["rules"] = chosen
-    return Guard(**kwargs), source
+    try:
+        return Guard(**kwargs), source
+    except (TypeError, ValueError) as error:  # a rule given or recorded that is no validator's reference
+        raise SafeEmbodAIError(f"rules ({source}) cannot be built: {error}") from None
 
 
 @click.command("guard-bag")

@@ -163,9 +163,24 @@ def seen_from(scan: LaserScan, scan_pose: tuple[float, float, float] | None,
                      range_min=scan.range_min, range_max=scan.range_max, angle_max=scan.angle_max, mount=mount), False
 
 
-def _messages(reader: Any, connections: list[Any]) -> Iterator[tuple[Any, int, Any]]:
-    for connection, ns, raw in reader.messages(connections=connections):
-        yield connection, ns, reader.deserialize(raw, connection.msgtype)
+def _messages(reader: Any, bag: Path, connections: list[Any]) -> Iterator[tuple[Any, int, Any]]:
+    """The messages of ``connections`` in log-time order, decoded; a bag that cannot be read or
+    decoded (truncated, corrupt, lying about its types) is a :class:`BagInputError`, not a crash."""
+    counts: dict[str, int] = {}
+    stream = iter(reader.messages(connections=connections))
+    while True:
+        where = "after the last message read"
+        try:
+            item = next(stream, None)
+            if item is None:
+                return
+            connection, ns, raw = item
+            where = f"{connection.topic} message {counts.get(connection.topic, 0)} (at {ns / 1e9:.3f} s)"
+            counts[connection.topic] = counts.get(connection.topic, 0) + 1
+            message = reader.deserialize(raw, connection.msgtype)
+        except Exception as error:  # rosbags' own errors, struct and index errors of a corrupt record
+            raise BagInputError(f"{bag}: cannot read {where}: {type(error).__name__}: {error}") from None
+        yield connection, ns, message
 
 
 def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_topic: str = "/cmd_vel",
@@ -215,7 +230,7 @@ def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, po
                               valid=report.valid, reasons=report.reasons, scan_time_s=seen_time,
                               safe_duration_s=report.safe_duration_s)
 
-    for connection, ns, message in _messages(reader, scans + commands + poses):
+    for connection, ns, message in _messages(reader, bag, scans + commands + poses):
         topic, time_s = connection.topic, ns / 1e9
         index = counts[topic]
         counts[topic] += 1

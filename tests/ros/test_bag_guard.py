@@ -194,3 +194,14 @@ def test_plan_messages_are_read_strictly(tmp_path):
         bad = write(tmp_path, name, base + [("/plan", 2, plan(text))])
         with pytest.raises(BagInputError, match=expected):
             guard_bag(bad, Guard(), cmd_topic="/plan")
+
+
+def test_a_corrupt_bag_is_a_clear_error_not_a_crash(tmp_path, cli_runner):
+    import sqlite3
+
+    bag = write(tmp_path, "corrupt", [("/scan", 1, scan_msg(1, wall_ahead(1.0))), ("/cmd_vel", 2, twist_msg(0.1, 0.0))])
+    with sqlite3.connect(next(bag.glob("*.db3"))) as db:
+        db.execute("update messages set data = x'00010000ffffff7f' where timestamp = 1")  # a scan cut short
+    done = cli_runner.invoke(cli, ["guard-bag", str(bag), "--json"])
+    assert done.exit_code != 0 and isinstance(done.exception, BagInputError)
+    assert "cannot read /scan message 0 (at 0.000 s)" in str(done.exception) and done.output == ""
