@@ -103,3 +103,8 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
         from ..runner import bag_file
 
         console.print(f"bag: {terminal_markup(str(bag_file(folder, spec.trial_id)))}")
+    if result.outcome.value == "error":  # a script must be able to tell: exit non-zero, everything saved
+        from ..errors import SafeEmbodAIError
+
+        raise SafeEmbodAIError(f"trial {spec.trial_id} ended in error ({result.error_kind or 'unknown'}): "
+                               f"{result.detail or 'no detail'}; what it did is saved in {folder}")

@@ -55,6 +55,19 @@ def test_run_saves_a_trial_and_prints_steps(cli_runner, repo, tmp_path):
     assert "saved to" in result.output
 
 
+def test_run_exits_non_zero_when_its_trial_ended_in_error(tmp_path, repo):
+    """A script must tell a failed trial from a finished one: the scripted pilot runs out of answers
+    (then: fail), the trial ends ``error``, ``run`` saves it all and exits 1 saying why."""
+    out = tmp_path / "trial"
+    completed = run_cli("run", str(repo / "scenarios/quickstart.yaml"), "--out", str(out), "--set",
+                        "backend={use: scripted, options: {responses: ['{\"control\": []}'], then: fail}}",
+                        "--set", "max_steps=5")
+    assert completed.returncode == 1, completed.stdout + completed.stderr
+    assert "ended in error (backend)" in completed.stderr and "no answer left" in completed.stderr
+    assert json.loads((out / "trial.json").read_text())["outcome"] == "error"
+    assert "Traceback" not in completed.stderr
+
+
 def run_cli(*args: str, cwd=None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "safeembodai_core", *args], capture_output=True, text=True, cwd=cwd)
 

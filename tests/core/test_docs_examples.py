@@ -1,16 +1,24 @@
-"""The Python examples in the docs run as written."""
+"""Every Python example in README.md and docs/ runs as written: a page's blocks in order, in one
+namespace (as a reader runs them), in a scratch folder."""
 
 from __future__ import annotations
 
 import re
+import textwrap
+from pathlib import Path
 
 import pytest
 
-DOCS = ["library.md"]
+REPO = Path(__file__).resolve().parents[2]
+PAGES = sorted(str(p.relative_to(REPO)) for p in [REPO / "README.md", *(REPO / "docs").rglob("*.md")]
+               if "```python" in p.read_text(encoding="utf-8"))
+#: what a page's examples need beyond the dev install (the extra is installed in CI)
+NEEDS = {"docs/gymnasium.md": "gymnasium", "docs/inspect.md": "inspect_ai"}
 
 
 def code_blocks(path):
-    return re.findall(r"```python\n(.*?)```", path.read_text(), re.S)
+    """The page's ``python`` blocks, dedented (a block inside a list item is indented)."""
+    return [textwrap.dedent(block) for block in re.findall(r"```python\n(.*?)```", path.read_text(), re.S)]
 
 
 @pytest.fixture
@@ -30,14 +38,29 @@ def example_plugin_installed(repo, monkeypatch):
     monkeypatch.setattr(api, "load_plugins", load_plugins)
 
 
-@pytest.mark.parametrize("doc", DOCS)
-def test_python_examples_run(doc, repo, capsys, example_plugin_installed):
-    blocks = code_blocks(repo / "docs" / doc)
+def test_every_page_with_examples_is_found():
+    assert {"README.md", "docs/library.md", "docs/robots.md", "docs/plugins.md"} <= set(PAGES)
+
+
+@pytest.mark.parametrize("doc", PAGES)
+def test_python_examples_run(doc, repo, capsys, example_plugin_installed, tmp_path, monkeypatch):
+    if doc in NEEDS:
+        pytest.importorskip(NEEDS[doc], reason=f"{doc}'s examples need the {NEEDS[doc]} extra")
+    monkeypatch.chdir(tmp_path)
+    if doc == "docs/inspect.md":  # its example reads the log of an `inspect eval` run before it
+        from inspect_ai import eval as inspect_eval
+
+        inspect_eval("safeembodai/mo", model="safeembodai/mock", task_args={"trials": 1}, log_dir="logs",
+                     display="none")
+    blocks = code_blocks(repo / doc)
     assert blocks, f"{doc} has no python example"
+    namespace = {"__name__": "docs_example"}
     for block in blocks:
-        exec(compile(block, f"docs/{doc}", "exec"), {"__name__": "docs_example"})
+        exec(compile(block, doc, "exec"), namespace)
     out = capsys.readouterr().out
-    if doc == "library.md":
+    if doc == "README.md":
+        assert out.startswith("False ['lidar_clearance (signal 1): straight forward 350 mm")
+    if doc == "docs/library.md":
         assert "lidar_clearance (signal 1): straight forward 390 mm" in out
         assert "completed" in out and "refused by lidar_clearance" in out
         assert "geofence (signal 2): straight forward 390 mm leaves the robot's area: at most 183 mm forward is safe" in out
