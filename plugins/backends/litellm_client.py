@@ -8,7 +8,8 @@ not a chat completion) is retried once, since a broken proxy or a restarting ser
 but a server that always does would only burn the backoff; so is an HTTP error whose status and
 text repeat word for word on the same request (a server that refuses the request itself, like
 llama-cpp-python answering an unknown ``response_format`` with HTTP 500, is not overloaded). Anything else -- a bad key, an unknown
-model, a request the provider refuses -- fails at once. Either way the failure becomes a
+model, a request the provider refuses, a text-only model refusing the image parts (said plainly,
+naming ``perception: text``: :func:`.litellm_errors.images_refused`) -- fails at once. Either way the failure becomes a
 :class:`~safeembodai_core.errors.BackendError` with one clean line of the provider's text
 (:mod:`.litellm_errors`). litellm's own retry layers are off (``max_retries=0`` to the openai
 SDK, no ``num_retries``) so the count is exactly what the options say.
@@ -50,13 +51,13 @@ from safeembodai_core.quoting import quote_untrusted
 
 from .litellm_api import NO_KEY
 from .litellm_call import CallTimedOut, TooManyHungCalls, call_with_deadline
-from .litellm_errors import (MALFORMED, Failure, classify, exchange_failure, format_hint, is_malformed, repeated,
-                             retry_after, scrub_message)
+from .litellm_errors import (MALFORMED, Failure, classify, exchange_failure, format_hint, images_refused,
+                             is_malformed, repeated, retry_after, scrub_message)
 from .litellm_preflight import endpoint
 from .litellm_reply import reply_from_body, reply_from_response
 from .litellm_runtime import import_litellm
 from .litellm_transport import Recorder, openai_client, recording
-from .messages import chat_messages, response_format
+from .messages import carries_images, chat_messages, response_format
 
 log = structlog.get_logger(__name__)
 
@@ -228,13 +229,14 @@ class LiteLLMBackend(LLMBackend):
             kwargs["client"] = self._client.value
         malformed = 0
         previous: Failure | None = None
+        images = carries_images(kwargs["messages"])
         for attempt in range(o.max_retries + 1):
             started = time.perf_counter()
             with recording() as recorder:  # call_with_deadline's worker sees it (a context copy)
                 try:
                     response = call_with_deadline(self._litellm.completion, kwargs, o.timeout_s)
                 except Exception as error:  # every provider error is classified below
-                    failure = self._failure(error, recorder)
+                    failure = self._failure(error, recorder, images)
                 else:
                     return self._reply(response, recorder, time.perf_counter() - started)
             if is_malformed(failure.kind):
@@ -254,16 +256,19 @@ class LiteLLMBackend(LLMBackend):
             self._sleep(delay)
         raise AssertionError("unreachable")  # pragma: no cover
 
-    def _failure(self, error: Exception, recorder: Recorder) -> Failure:
-        """What went wrong: from the transport's record when it shows it, else from the exception."""
+    def _failure(self, error: Exception, recorder: Recorder, images: bool) -> Failure:
+        """What went wrong: from the transport's record when it shows it, else from the exception;
+        a text-only model refusing the request's ``images`` is said plainly (:func:`images_refused`)."""
+        last = recorder.last if recorder is not None else None
+        status = last.status if last is not None and last.status is not None else getattr(error, "status_code", None)
         if not isinstance(error, (CallTimedOut, TooManyHungCalls)):
             found = exchange_failure(recorder, self._secrets)
             if found is not None and found.kind == MALFORMED:  # litellm's words say what it could not read
                 return Failure(MALFORMED, True, self._scrub(str(error)) or found.detail)
             if found is not None:
-                return found
+                return images_refused(found, status, images)
         kind, retryable = classify(error)
-        return Failure(kind, retryable, self._scrub(str(error)), retry_after(error))
+        return images_refused(Failure(kind, retryable, self._scrub(str(error)), retry_after(error)), status, images)
 
     def preflight(self) -> None:
         """Before the first trial: the server accepts a connection (:mod:`.litellm_preflight`)."""

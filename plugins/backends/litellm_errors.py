@@ -19,6 +19,12 @@ the record decides first (:func:`exchange_failure`), since it holds what the ser
 * any other 200 that litellm could not read -- a malformed reply (retried once);
 * a body longer than the transport reads -- a malformed reply too.
 
+A request that carried image parts and came back refused (HTTP 400/422/500, or an error object in
+an HTTP 200) with words that say the model takes no images -- llama-cpp-python serving a text-only
+model fails in its chat template with "can only concatenate str (not list) to str";
+``llama-server``, vLLM, Ollama and LM Studio say "image input is not supported", "not a multimodal
+model", ... -- is reported plainly as :data:`TEXT_ONLY` and not retried (:func:`images_refused`).
+
 Every text a provider (or litellm, about a provider) wrote passes through :func:`scrub_message`
 before it reaches a :class:`~safeembodai_core.errors.BackendError` or a log: one line, no
 traceback, no file path, no class repr, no control character, no secret, at most 300 characters.
@@ -41,12 +47,23 @@ TOO_LARGE = "malformed reply (body too large to read)"
 TIMED_OUT = "timed out"
 SERVER_ERROR = "server error"
 ERROR_IN_200 = "provider error in an HTTP 200 reply"
+TEXT_ONLY = ("this model does not take images (the server failed on the request's image parts); give it the "
+             "text-only perception: set `perception: text` in the scenario (docs/backends.md, "
+             "\"Perception for text-only models\")")
 
 _NOT_RETRIED = {
     401: "authentication failed (HTTP 401), check the key in the variable named by api_key_env",
     403: "permission denied (HTTP 403)",
     404: "not found (HTTP 404), check the model name and api_base",
 }
+_IMAGE_STATUSES = (400, 422, 500)
+_IMAGES_REFUSED = re.compile(
+    r"can only concatenate str \(not \W?list\W?\) to str"  # llama-cpp-python: a chat template on a parts list
+    r"|\b(?:image|images|vision|multi-?modal)\b[^.;]{0,80}?\b(?:not supported|unsupported|not enabled|not available)"
+    r"|\b(?:does not|doesn't|do not|cannot|can't)\s+(?:support|accept|take|handle)\s+(?:image|vision|multi-?modal)"
+    r"|\bnot an? (?:multi-?modal|vision) model"
+    r"|\bimage_url is only supported",
+    re.I)
 _TRACEBACK = re.compile(r"Traceback \(most recent call last\).*", re.S)
 _FILE_LINE = re.compile(r"File \"[^\"]*\", line \d+(, in \S+)?")
 _PATH = re.compile(r"(?:[A-Za-z]:)?(?:[\\/][\w.\-+@~]+){2,}[\\/]?(?::\d+)?")
@@ -186,6 +203,19 @@ def repeated(failure: Failure, previous: Failure | None) -> Failure:
         return replace(failure, kind=f"{failure.kind}, the same twice on the same request (not transient)",
                        retryable=False)
     return failure
+
+
+def images_refused(failure: Failure, status: int | None, sent_images: bool) -> Failure:
+    """``failure`` as :data:`TEXT_ONLY` (not retried) when it is a text-only model refusing images.
+
+    That is: the request carried image parts (``sent_images``), the server answered it with an
+    HTTP 400, 422 or 500 (``status``) or an error object in an HTTP 200, and its text says the
+    model takes no images (module docstring). Any other failure comes back unchanged.
+    """
+    answered = status in _IMAGE_STATUSES or failure.kind == ERROR_IN_200
+    if not sent_images or not answered or is_malformed(failure.kind) or not _IMAGES_REFUSED.search(failure.detail):
+        return failure
+    return Failure(TEXT_ONLY, False, failure.detail)
 
 
 def format_hint(failure: Failure, options: Any) -> str:

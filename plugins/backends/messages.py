@@ -73,6 +73,13 @@ def chat_messages(prompt: Prompt, *, detail: ImageDetail = "low", send_images: b
     return messages
 
 
+def carries_images(messages: list[dict[str, Any]]) -> bool:
+    """Whether any of the chat ``messages`` holds an image part."""
+    return any(isinstance(message.get("content"), list)
+               and any(isinstance(part, dict) and part.get("type") == "image_url" for part in message["content"])
+               for message in messages if isinstance(message, dict))
+
+
 def _whole_values(limit: float, most: int = MAX_ENUM_VALUES) -> list[int]:
     """The whole numbers v with 0 < v < ``limit``, every n-th one when there are more than ``most``."""
     top = math.ceil(limit) - 1

@@ -184,24 +184,57 @@ def _flock(path: Path, exclusive: bool, wait: bool) -> int | None:
     The descriptor is not inherited across ``exec`` (Python's default) nor kept by forked
     children (see :func:`_forget_locks_in_child`). On platforms without ``fcntl`` no locking is
     done (and every call succeeds).
+
+    A lock counts only on the file that ``path`` names once it is held: its holder may remove
+    the file (:func:`_remove_held`), and a process that opened it before and got the lock after
+    that holds a lock on a file nobody else can open, so it tries again on the one at ``path``.
     """
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX
         return -1
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as error:
-        raise SafeEmbodAIError(f"cannot open the lock file {path}: {error.strerror or error} "
-                               "(a run folder must be writable to run or report it)") from None
     mode = (fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH) | (0 if wait else fcntl.LOCK_NB)
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as error:
+            raise SafeEmbodAIError(f"cannot open the lock file {path}: {error.strerror or error} "
+                                   "(a run folder must be writable to run or report it)") from None
+        try:
+            fcntl.flock(fd, mode)
+        except BlockingIOError:
+            os.close(fd)
+            return None
+        if _names(path, fd):
+            _HELD.add(fd)
+            return fd
+        os.close(fd)  # removed by its holder while this process waited: lock the file at path now
+
+
+def _names(path: Path, fd: int) -> bool:
+    """Whether ``path`` still names the file open as ``fd`` (an open file's inode is never reused)."""
     try:
-        fcntl.flock(fd, mode)
-    except BlockingIOError:
-        os.close(fd)
-        return None
-    _HELD.add(fd)
-    return fd
+        named = os.stat(path)
+    except FileNotFoundError:
+        return False
+    held = os.fstat(fd)
+    return (named.st_dev, named.st_ino) == (held.st_dev, held.st_ino)
+
+
+def _remove_held(path: Path, fd: int) -> None:
+    """Remove the lock file ``path`` while this process holds it exclusively as ``fd``; the caller
+    unlocks ``fd`` afterwards.
+
+    Only then is it safe: no other process holds a lock on it, and one that opened it and waits
+    for it finds, once it has the lock, that ``path`` no longer names it (:func:`_flock`). Removing
+    it after the unlock instead could delete a file another process has just locked. A file that
+    cannot be removed (a folder made read-only meanwhile) stays: it holds nothing.
+    """
+    if _names(path, fd):
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
 
 
 def _unlock(fd: int) -> None:
@@ -234,6 +267,11 @@ class RunLock:
     to start while an earlier one is alive, and while workers of a killed coordinator are still
     alive, so no trial can be run by two processes at once. Workers exit within a fraction of a
     second of their coordinator's death (see ``lifeline.py``): ``acquire`` waits ``wait_s`` for them.
+
+    ``release`` removes both files, so a finished run folder holds none: each is removed while
+    this process holds it exclusively (the workers lock only when no worker holds it any more),
+    never after letting go (:func:`_remove_held`). A killed coordinator leaves them; they hold
+    nothing then, and the next ``acquire`` on the folder uses them.
     """
 
     def __init__(self, folder: Path, wait_s: float = 3.0) -> None:
@@ -259,7 +297,14 @@ class RunLock:
         self.fd = fd
 
     def release(self) -> None:
+        """Let go of the run folder and remove its lock files (see the class docstring)."""
         if self.fd is not None and self.fd >= 0:
+            path = self.folder / WORKERS_LOCK
+            workers = _flock(path, exclusive=True, wait=False) if path.exists() else None
+            if workers is not None and workers >= 0:  # no worker holds it: this process does now
+                _remove_held(path, workers)
+                _unlock(workers)
+            _remove_held(self.folder / COORDINATOR_LOCK, self.fd)
             _unlock(self.fd)
         self.fd = None
 

@@ -4,9 +4,10 @@ Three shapes, each keeping identifiers whole so that they can be searched and co
 
 * at a terminal, one block per plugin (name, source, module, then its components and hooks),
   never wrapped inside an identifier;
-* piped or redirected, one tab-separated line per component, ``kind name plugin source module``
-  (``-`` for kind and name on the line of a plugin that registers no component), so that
-  ``safeembodai plugins | grep lidar_clearance`` finds exactly one line;
+* piped or redirected, a header row ``kind name plugin source module`` then one tab-separated
+  line per component in those columns (``-`` for kind and name on the line of a plugin that
+  registers no component), so that ``safeembodai plugins | grep lidar_clearance`` finds exactly
+  one line;
 * ``--json``, a list of plugins (``docs/plugins.md`` gives its shape).
 """
 
@@ -18,10 +19,14 @@ from typing import Any
 
 import click
 
+#: The columns of the piped listing, printed as its first row.
+PLAIN_COLUMNS = ("kind", "name", "plugin", "source", "module")
+
 
 def plain_lines(rows: list[dict[str, Any]]) -> list[str]:
-    """One ``kind<TAB>name<TAB>plugin<TAB>source<TAB>module`` line per component."""
-    lines = []
+    """The header row (:data:`PLAIN_COLUMNS`), then one ``kind<TAB>name<TAB>plugin<TAB>source<TAB>module``
+    line per component."""
+    lines = ["\t".join(PLAIN_COLUMNS)]
     for row in rows:
         components = [tuple(component.split(":", 1)) for component in row["components"]] or [("-", "-")]
         for kind, name in components:
@@ -69,7 +74,8 @@ def render(rows: list[dict[str, Any]], console: Any) -> None:
 def plugins(as_json: bool) -> None:
     """List plugins with their origin, hooks and registered components.
 
-    Piped, it prints one tab-separated line per component: kind, name, plugin, source, module.
+    Piped, it prints a header row, then one tab-separated line per component: kind, name, plugin,
+    source, module.
     """
     from ..plugins import load_plugins
 

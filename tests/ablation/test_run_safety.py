@@ -6,6 +6,7 @@ import subprocess
 import sys
 import textwrap
 import types
+from pathlib import Path
 
 import pytest
 
@@ -48,6 +49,83 @@ def test_resume_waits_for_orphaned_workers(repo, plugins, tmp_path):
         holder.kill()
         holder.wait()
     Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True).close()
+
+
+def _lock_files(folder):
+    return sorted(path.name for path in folder.iterdir() if path.name.endswith(".lock"))
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_finished_run_folder_holds_no_lock_files(repo, plugins, tmp_path, workers):
+    scenario = quickstart(repo, plugins)
+    ablation = Ablation(scenario, plugins, RunFolder(tmp_path / "run"), workers=workers)
+    try:
+        assert len(ablation.run()) == 4
+        assert ".coordinator.lock" in _lock_files(tmp_path / "run")  # held while the run is open
+    finally:
+        ablation.close()
+    assert _lock_files(tmp_path / "run") == []
+    Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True).close()  # a resume ending cleanly
+    assert _lock_files(tmp_path / "run") == []
+
+
+def test_safeembodai_ablate_and_report_leave_no_lock_files(repo, cli_runner, tmp_path):
+    from safeembodai_core.cli import cli
+
+    done = cli_runner.invoke(cli, ["ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=1",
+                                   "--set", "max_steps=2", "--out", str(tmp_path), "--no-report"])
+    assert done.exit_code == 0, done.output
+    [run] = [path for path in tmp_path.iterdir() if path.is_dir()]
+    assert _lock_files(run) == []
+    assert cli_runner.invoke(cli, ["report", str(run)]).exit_code == 0
+    assert _lock_files(run) == []
+
+
+WAITING_WORKER = textwrap.dedent("""
+    import sys
+    from safeembodai_core.ablation.run_folder import hold_worker_lock
+    hold_worker_lock(sys.argv[1]); print("held", flush=True); sys.stdin.read()
+""")
+
+
+def _waits_on(path, pid):
+    """Whether ``pid`` is blocked waiting for a lock on ``path`` (a ``->`` line of /proc/locks)."""
+    import os
+
+    info = os.stat(path)
+    wanted = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
+    lines = Path("/proc/locks").read_text().splitlines()
+    return any("->" in line and wanted in line.split() and str(pid) in line.split() for line in lines)
+
+
+@pytest.mark.skipif(not Path("/proc/locks").exists(), reason="needs /proc/locks to see a blocked waiter")
+def test_a_worker_waiting_on_a_removed_lock_file_still_keeps_a_resume_out(tmp_path):
+    """The holder removes the file while a worker waits on it: the worker must lock the file the
+    path names afterwards, or a resume would start beside a live worker."""
+    import time
+
+    from safeembodai_core.ablation.run_folder import WORKERS_LOCK, RunInProgress, RunLock, _flock, _remove_held, _unlock
+
+    path = tmp_path / WORKERS_LOCK
+    held = _flock(path, exclusive=True, wait=False)
+    worker = subprocess.Popen([sys.executable, "-c", WAITING_WORKER, str(tmp_path)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not _waits_on(path, worker.pid):
+            assert worker.poll() is None and time.monotonic() < deadline, "the worker never waited on the lock"
+            time.sleep(0.05)
+        _remove_held(path, held)
+        _unlock(held)
+        assert worker.stdout.readline().strip() == "held"
+        assert path.exists()  # the worker made the file anew and holds that one
+        with pytest.raises(RunInProgress, match=f"still alive \\(pid {worker.pid}\\)"):
+            RunLock(tmp_path, wait_s=0.3).acquire()
+    finally:
+        worker.kill()
+        worker.wait()
+        worker.stdin.close()
+        worker.stdout.close()
 
 
 def test_error_trials_are_run_again_on_resume(repo, plugins, tmp_path):

@@ -92,7 +92,7 @@ def test_the_key_never_reaches_logs_records_or_reports(fake_server, fake_key, tm
     env = {**os.environ, "SAFEEMBODAI_TEST_KEY": fake_key}
     done = subprocess.run([sys.executable, "-m", "safeembodai_core", "--debug", "--log-level", "debug", "run",
                            str(scenario), "--out", str(out)], capture_output=True, text=True, env=env, timeout=240)
-    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.returncode == 1, done.stderr[-2000:]  # the trial ended in error: run says so
     assert "authentication failed" in done.stdout + done.stderr  # the run did reach the failing call
     assert fake_server.requests[0].headers["authorization"] == f"Bearer {fake_key}"  # the key was really used
     files = [p for p in out.rglob("*") if p.is_file()]

@@ -133,6 +133,15 @@ def test_plugins_piped_prints_one_tab_separated_line_per_component():
     assert all(len(line.split("\t")) == 5 for line in lines), lines
 
 
+def test_plugins_piped_starts_with_a_header_row(cli_runner):
+    result = cli_runner.invoke(cli, ["plugins"])  # CliRunner's output is no TTY: the piped shape
+    assert result.exit_code == 0, result.output
+    header, *rows = result.output.splitlines()
+    assert header.split("\t") == ["kind", "name", "plugin", "source", "module"]
+    assert "validator\tlidar_clearance\tvalidators\tbuilt-in\tsafeembodai_plugins.validators" in rows
+    assert "kind\tname\tplugin\tsource\tmodule" not in rows  # once, at the top
+
+
 def test_plugins_at_a_terminal_never_breaks_an_identifier():
     from rich.console import Console
 

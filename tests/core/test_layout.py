@@ -22,3 +22,10 @@ def test_every_package_folder_is_listed(repo):
 def test_prompt_templates_are_package_data(repo):
     data = tomllib.loads((repo / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
     assert "*.j2" in data["safeembodai_prompts"] and "**/*.j2" in data["safeembodai_prompts"]
+
+
+def test_gitignore_ignores_run_folders_and_inspect_logs(repo):
+    """``safeembodai`` writes runs to ``runs/``, ``inspect eval`` its ``.eval`` logs to ``./logs``."""
+    patterns = {line.strip() for line in (repo / ".gitignore").read_text().splitlines()}
+    for folder in ("runs", "logs"):
+        assert patterns & {f"{folder}/", f"/{folder}/", folder, f"/{folder}"}, f"{folder}/ is not in .gitignore"
