@@ -196,8 +196,20 @@ class ScenarioRunner:
     def trajectory_path(self, trial_id: str) -> Path:
         return trajectory_file(self.run_dir or ".", trial_id)
 
+    def trajectory_picture(self, environment: Any, result: TrialResult) -> bytes | None:
+        """The trial's picture as ``environment`` draws it, captioned with the trial's id, arm and
+        condition and, for a simulated backend, that it is one (``report/captions.py``); None when
+        the environment draws none. Raises what the environment's drawing raises."""
+        from .report.captions import caption_lines, captioned
+
+        picture = environment.trajectory_png(result.trajectory, result.outcome)
+        if not picture:
+            return None
+        return captioned(picture, caption_lines(result.spec, self.scenario.backend.use))
+
     def _save_trajectory(self, environment: Any, result: TrialResult) -> bool:
-        """Draw and write the trial's picture; False when the environment draws none.
+        """Draw and write the trial's picture (:meth:`trajectory_picture`); False when the
+        environment draws none.
 
         A drawing bug only costs the picture (a warning). A picture that cannot be written (a
         full disk, ``trajectories`` not a folder) stops the run with an error naming the file: the
@@ -205,7 +217,7 @@ class ScenarioRunner:
         appears whole or not at all (written aside, then renamed).
         """
         try:
-            picture = environment.trajectory_png(result.trajectory, result.outcome)
+            picture = self.trajectory_picture(environment, result)
         except Exception as error:  # a picture is a convenience: never lose a trial over it
             log.warning("trajectory.failed", trial=result.spec.trial_id, error=str(error))
             return False

@@ -89,7 +89,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
         with console.status(f"running {terminal_markup(spec.trial_id)} (seed {spec.seed})"):
             result = runner.run(spec)
         steps = runner.state.steps(spec.trial_id)
-        picture = runner.environment(env_label).trajectory_png(result.trajectory, result.outcome)
+        picture = runner.trajectory_picture(runner.environment(env_label), result)  # captioned, as ablate's
         save_trial(folder, result, steps, picture)
     finally:
         runner.close()

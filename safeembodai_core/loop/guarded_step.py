@@ -85,6 +85,7 @@ def decide(
         latency = reply.latency_s or (time.perf_counter() - started)
         attempt = Attempt(index=index, raw_text=_stored(reply.text), reasoning=_stored(reply.reasoning),
                           choices=_count(reply.choices), origin=_stored(reply.origin) or None,
+                          model=_stored(reply.model)[:200] or None,
                           usage=reply.usage, latency_s=latency, finish_reason=finish_reason_text(reply.finish_reason),
                           sampling=sampling or None)
         try:

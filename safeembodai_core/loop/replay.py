@@ -43,7 +43,7 @@ class RecordedAnswers(LLMBackend):
         attempt = self.replies[self.calls]
         self.calls += 1
         return BackendReply(text=attempt.raw_text, usage=attempt.usage, latency_s=attempt.latency_s,
-                            model="replay", finish_reason=attempt.finish_reason, reasoning=attempt.reasoning or None,
+                            model=attempt.model or "", finish_reason=attempt.finish_reason, reasoning=attempt.reasoning or None,
                             choices=attempt.choices, origin=attempt.origin)
 
 

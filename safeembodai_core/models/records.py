@@ -108,6 +108,7 @@ class Attempt(_Record):
     reasoning: str = ""  # reasoning the reply held apart from its answer (a provider's field, <think> blocks)
     choices: int | None = None  # how many choices the reply held; None when the backend handed over one text
     origin: str | None = None  # where the answer came from (scheme://host:port), when the backend knows
+    model: str | None = None  # the model the reply says answered (the provider's own name), when it says
     verdicts: list[Verdict] = Field(default_factory=list)
     usage: TokenUsage = Field(default_factory=TokenUsage)
     latency_s: float = 0.0

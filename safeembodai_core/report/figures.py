@@ -5,16 +5,25 @@ A diamond is drawn only where the metric has the paper's definition (``tlr.png``
 ``tlr_all``, the paper's TLR; ``tlr_after_seen.png`` is ours alone). A bar whose mean has fewer
 than three trials behind it has no error bar and is labelled ``n=1`` or ``n=2``. ``note`` (the
 banner of a simulated pilot) is printed on every figure.
+
+The legend is built from the arms' colours, not from what a panel drew (a panel without bars, such
+as ADR without attacks, has nothing to take a colour from); its title says what the bars are
+(``bars``: backend and model, or a simulated pilot, and N per cell) and the diamonds' entry that
+they are the paper's GPT-4o values.
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..metrics import CellMetrics
 from ..metrics.intervals import MIN_N_FOR_INTERVAL
 from .paper import paper_value
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 #: file name -> (attribute of CellMetrics, axis label, y limits, the paper's metric or None)
 FIGURES = {
@@ -26,68 +35,99 @@ FIGURES = {
     "tokens": ("tokens", "Tokens (completed)", None, "tokens"),
     "distance_mm": ("distance_mm", "Distance mm (completed)", None, "distance_mm"),
 }
+#: The legend's word on the diamonds.
+PAPER_LABEL = "paper: GPT-4o in EyeSim (diamonds)"
 
 
-def draw_figures(cells: list[CellMetrics], folder: Path, note: str | None = None) -> list[Path]:
-    """Write one PNG per metric into ``folder``; return their paths."""
-    import matplotlib
+def draw_figures(cells: list[CellMetrics], folder: Path, note: str | None = None,
+                 bars: str | None = None) -> list[Path]:
+    """Write one PNG per metric into ``folder``; return their paths.
 
-    matplotlib.use("Agg")
+    ``note`` is printed above every figure (a simulated pilot's banner); ``bars`` titles the legend
+    (what the bars are: :meth:`~safeembodai_core.report.run_info.RunInfo.bars`).
+    """
     import matplotlib.pyplot as plt
 
     folder.mkdir(parents=True, exist_ok=True)
-    environments = list(dict.fromkeys(m.environment for m in cells))
-    arms = list(dict.fromkeys(m.arm for m in cells))
-    conditions = list(dict.fromkeys(m.condition for m in cells))
-    lookup = {(m.environment, m.arm, m.condition): m for m in cells}
-    width = 0.8 / max(1, len(arms))
     paths = []
-    for name, (metric, label, limits, theirs_metric) in FIGURES.items():
-        fig, axes = plt.subplots(1, len(conditions), figsize=(3.2 * len(conditions) + 1, 3.4), squeeze=False, sharey=True)
-        for axis, condition in zip(axes[0], conditions):
-            for a, arm in enumerate(arms):
-                xs, values, lows, highs, paper_x, paper_y, few = [], [], [], [], [], [], []
-                for e, environment in enumerate(environments):
-                    m = lookup.get((environment, arm, condition))
-                    estimate = getattr(m, metric) if m else None
-                    x = e + (a - (len(arms) - 1) / 2) * width
-                    if estimate is not None and estimate.value is not None:
-                        xs.append(x)
-                        values.append(estimate.value)
-                        bounded = estimate.low is not None and estimate.high is not None
-                        lows.append(estimate.value - estimate.low if bounded else math.nan)  # nan: no error bar
-                        highs.append(estimate.high - estimate.value if bounded else math.nan)
-                        if estimate.n < MIN_N_FOR_INTERVAL:
-                            few.append((x, estimate.value, estimate.n))
-                    theirs = paper_value(theirs_metric, environment, arm, condition) if theirs_metric else None
-                    if theirs is not None:
-                        paper_x.append(x)
-                        paper_y.append(theirs)
-                axis.bar(xs, values, width=width * 0.95, yerr=[lows, highs], capsize=2, label=arm, color=f"C{a}")
-                for x, value, n in few:
-                    axis.annotate(f"n={n}", (x, value), ha="center", va="bottom", fontsize="x-small",
-                                  xytext=(0, 2), textcoords="offset points")
-                if paper_x:
-                    axis.scatter(paper_x, paper_y, marker="D", s=28, facecolors="white", edgecolors="black",
-                                 linewidths=1.2, zorder=4, label="paper (GPT-4o)")
-            axis.set_xticks(range(len(environments)), environments)
-            axis.set_title(condition.replace("_", " "))
-            if limits:
-                axis.set_ylim(*limits)
-        axes[0][0].set_ylabel(label)
-        handles: dict[str, object] = {}
-        for axis in axes[0]:
-            for handle, legend_name in zip(*axis.get_legend_handles_labels()):
-                handles.setdefault(legend_name, handle)
-        fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=len(handles), fontsize="small",
-                   frameon=False)
-        top = 1.0
-        if note:
-            fig.suptitle(note, fontsize="small", color="darkred", fontstyle="italic")
-            top = 0.93
-        fig.tight_layout(rect=(0, 0.08, 1, top))
+    for name in FIGURES:
+        fig = metric_figure(cells, name, note=note, bars=bars)
         path = folder / f"{name}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)
     return paths
+
+
+def metric_figure(cells: list[CellMetrics], name: str, note: str | None = None, bars: str | None = None) -> "Figure":
+    """The figure of one metric of :data:`FIGURES` (a pyplot figure: close it when done)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    metric, label, limits, theirs_metric = FIGURES[name]
+    environments = list(dict.fromkeys(m.environment for m in cells))
+    arms = list(dict.fromkeys(m.arm for m in cells))
+    conditions = list(dict.fromkeys(m.condition for m in cells))
+    lookup = {(m.environment, m.arm, m.condition): m for m in cells}
+    width = 0.8 / max(1, len(arms))
+    fig, axes = plt.subplots(1, len(conditions), figsize=(3.2 * len(conditions) + 1, 3.9), squeeze=False, sharey=True)
+    paper_drawn = False
+    for axis, condition in zip(axes[0], conditions):
+        for a, arm in enumerate(arms):
+            xs, values, lows, highs, paper_x, paper_y, few = [], [], [], [], [], [], []
+            for e, environment in enumerate(environments):
+                m = lookup.get((environment, arm, condition))
+                estimate = getattr(m, metric) if m else None
+                x = e + (a - (len(arms) - 1) / 2) * width
+                if estimate is not None and estimate.value is not None:
+                    xs.append(x)
+                    values.append(estimate.value)
+                    bounded = estimate.low is not None and estimate.high is not None
+                    lows.append(estimate.value - estimate.low if bounded else math.nan)  # nan: no error bar
+                    highs.append(estimate.high - estimate.value if bounded else math.nan)
+                    if estimate.n < MIN_N_FOR_INTERVAL:
+                        few.append((x, estimate.value, estimate.n))
+                theirs = paper_value(theirs_metric, environment, arm, condition) if theirs_metric else None
+                if theirs is not None:
+                    paper_x.append(x)
+                    paper_y.append(theirs)
+            axis.bar(xs, values, width=width * 0.95, yerr=[lows, highs], capsize=2, color=_colour(a))
+            for x, value, n in few:
+                axis.annotate(f"n={n}", (x, value), ha="center", va="bottom", fontsize="x-small",
+                              xytext=(0, 2), textcoords="offset points")
+            if paper_x:
+                paper_drawn = True
+                axis.scatter(paper_x, paper_y, marker="D", s=28, facecolors="white", edgecolors="black",
+                             linewidths=1.2, zorder=4)
+        axis.set_xticks(range(len(environments)), environments)
+        axis.set_xlim(-0.5, len(environments) - 0.5)  # an empty panel spans the environments as the others do
+        axis.set_title(condition.replace("_", " "))
+        if limits:
+            axis.set_ylim(*limits)
+    axes[0][0].set_ylabel(label)
+    _legend(fig, arms, paper_drawn, bars)
+    top = 1.0
+    if note:
+        fig.suptitle(note, fontsize="small", color="darkred", fontstyle="italic")
+        top = 0.93
+    fig.tight_layout(rect=(0, 0.17 if bars else 0.1, 1, top))
+    return fig
+
+
+def _colour(index: int) -> str:
+    return f"C{index}"
+
+
+def _legend(fig: "Figure", arms: list[str], paper_drawn: bool, bars: str | None) -> None:
+    """One entry per arm in its bars' colour, the diamonds when drawn, titled with what the bars are."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: list = [Patch(facecolor=_colour(a), label=arm) for a, arm in enumerate(arms)]
+    if paper_drawn:
+        handles.append(Line2D([], [], marker="D", linestyle="none", markersize=6, markerfacecolor="white",
+                              markeredgecolor="black", markeredgewidth=1.2, label=PAPER_LABEL))
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize="small", frameon=False,
+               title=bars, title_fontsize="small")

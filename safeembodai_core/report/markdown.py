@@ -28,6 +28,13 @@ GLOSSARY = (
 )
 
 
+def _model(info: RunInfo) -> str:
+    """The header's model cell: the model, and how it was read where that is not plain."""
+    if info.model_source is None:
+        return info.model
+    return f"`{info.model}` ({info.model_source})"
+
+
 def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
     lines = [f"# {scenario.name}", ""]
     if scenario.description:
@@ -40,7 +47,7 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
     m = scenario.metrics
     s_max = "mean steps of the cell's timeout trials (the budget when none)" if m.s_max == "timeouts" else f"fixed {m.s_max}"
     lines += ["| run | |", "|---|---|",
-              f"| backend | `{info.backend}` |", f"| model | {info.model} |",
+              f"| backend | `{info.backend}` |", f"| model | {_model(info)} |",
               f"| seed | {info.seed} (trial k of environment E runs on a seed derived from the seed, E and k) |",
               f"| scenario fingerprint | `{info.fingerprint}` |",
               f"| trials per cell | N = {info.trials_per_cell} ({results} trials recorded; n below counts the scored ones) |",

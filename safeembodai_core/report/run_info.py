@@ -5,6 +5,11 @@ of its options are the inputs behind the numbers that look like findings.
 The built-in simulated backends are known by name (:data:`SIMULATED`): ``mock`` (the offline
 pilot of ``plugins/backends/mock_pilot.py``) and ``scripted`` (replayed answers). A third-party
 backend is taken for an LLM.
+
+The model of litellm's backends (:data:`LITELLM_BACKENDS`) is their ``model`` option, a litellm
+id ``<route>/<model>``: the report names the model without litellm's provider route
+(``openai/local`` is the model ``local`` behind an OpenAI-compatible server) and says so. The
+name a server reports in its replies is not part of the stored records, so it cannot be named.
 """
 
 from __future__ import annotations
@@ -21,6 +26,17 @@ SIMULATED = {
     "mock": "simulated pilot (mock): not a measurement of an LLM",
     "scripted": "scripted answers (scripted): not a measurement of an LLM",
 }
+
+#: Backends whose ``model`` option is a litellm model id (``plugins/backends/litellm_api.py``).
+LITELLM_BACKENDS = ("gpt-4o", "litellm", "local")
+#: litellm provider routes a model id may start with (``openai/`` reaches any OpenAI-compatible server).
+ROUTES = frozenset({
+    "openai", "azure", "azure_ai", "anthropic", "bedrock", "vertex_ai", "gemini", "mistral", "cohere", "groq",
+    "together_ai", "fireworks_ai", "deepinfra", "deepseek", "openrouter", "perplexity", "xai", "huggingface",
+    "ollama", "ollama_chat", "hosted_vllm", "vllm", "lm_studio", "llamafile", "openai_like", "custom_openai",
+    "text-completion-openai", "litellm_proxy", "nvidia_nim", "cerebras", "sambanova", "watsonx", "databricks",
+    "sagemaker", "replicate", "cloudflare", "github", "xinference", "oobabooga", "docker_model_runner",
+})
 
 #: The mock's options that set ADR and how often an injection is obeyed: inputs, not findings.
 MOCK_INPUTS = (
@@ -45,14 +61,48 @@ class RunInfo:
     fingerprint: str
     trials_per_cell: int
     simulated: str | None = None  # the banner, for a simulated backend
+    model_id: str | None = None  # the backend's model option as configured (a litellm id), when it has one
+    model_source: str | None = None  # how ``model`` was read off the configuration (litellm's backends)
     inputs: list[tuple[str, Any, str]] = field(default_factory=list)  # (option, value, what it sets)
     weaknesses: list[tuple[str, Any]] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"backend": self.backend, "model": self.model, "seed": self.seed, "fingerprint": self.fingerprint,
+        return {"backend": self.backend, "model": self.model, "model_id": self.model_id,
+                "model_source": self.model_source, "seed": self.seed, "fingerprint": self.fingerprint,
                 "trials_per_cell": self.trials_per_cell, "simulated": self.simulated,
                 "pilot_inputs": {name: value for name, value, _ in self.inputs},
                 "pilot_weaknesses": dict(self.weaknesses)}
+
+    @property
+    def pilot(self) -> str:
+        """Who answered, in a few words: ``local/SmolLM2``, or a simulated pilot named as not an LLM."""
+        if self.simulated:
+            return f"{self.simulated.split(':')[0]}, not an LLM"
+        return f"{self.backend}/{self.model}"
+
+    def bars(self) -> str:
+        """What a figure's bars show: who answered and the trials per cell."""
+        return f"bars: {self.pilot}, N = {self.trials_per_cell} trials per cell"
+
+
+def model_without_route(model_id: str) -> tuple[str, str | None]:
+    """A litellm model id split into the model and litellm's provider route (None when it names none)."""
+    route, _, rest = model_id.partition("/")
+    if rest and route in ROUTES:
+        return rest, route
+    return model_id, None
+
+
+def _litellm_model(options: dict[str, Any]) -> tuple[str, str | None, str]:
+    """(model, configured id, where the model comes from) of one of litellm's backends."""
+    model_id = str(options.get("model") or "")
+    if not model_id:
+        return "(the backend's own)", None, "no model configured"
+    model, route = model_without_route(model_id)
+    unreported = "the name the server reported in its replies is not recorded"
+    if route is None:
+        return model, model_id, f"as configured; {unreported}"
+    return model, model_id, f"the configured litellm id `{model_id}` without its route `{route}/`; {unreported}"
 
 
 def _options(scenario: Scenario, plugins: Any) -> dict[str, Any]:
@@ -87,14 +137,17 @@ def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any 
     name = scenario.backend.use
     options = _options(scenario, plugins)
     recorded = _recorded_fingerprint(Path(folder) if folder is not None else None)
+    model_id = source = None
     if name == "mock":
         model = f"none: simulated, tokens counted as for {options.get('token_model', 'gpt-4o')}"
     elif name == "scripted":
         model = "none: answers replayed from the scenario"
+    elif name in LITELLM_BACKENDS:
+        model, model_id, source = _litellm_model(options)
     else:
         model = str(options.get("model") or "(the backend's own)")
     inputs = [(key, options[key], what) for key, what in MOCK_INPUTS if key in options] if name == "mock" else []
     weaknesses = [(key, options[key]) for key in MOCK_WEAKNESSES if key in options] if name == "mock" else []
     return RunInfo(backend=name, model=model, seed=scenario.seed, fingerprint=recorded or fingerprint(scenario),
-                   trials_per_cell=scenario.trials, simulated=SIMULATED.get(name), inputs=inputs,
-                   weaknesses=weaknesses)
+                   trials_per_cell=scenario.trials, simulated=SIMULATED.get(name), model_id=model_id,
+                   model_source=source, inputs=inputs, weaknesses=weaknesses)

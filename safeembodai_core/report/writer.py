@@ -114,7 +114,7 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     if asked:
         lines += markdown.release_table(cells, releases, scenario.state.use)
     lines += [markdown.GLOSSARY, ""]
-    figures = draw_figures(metrics, folder / "figures", note=info.simulated) if metrics else []
+    figures = draw_figures(metrics, folder / "figures", note=info.simulated, bars=info.bars()) if metrics else []
     if figures:
         lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
     lines += _against_the_paper(metrics, info.simulated)

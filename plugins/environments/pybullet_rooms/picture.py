@@ -29,6 +29,6 @@ def draw_trajectory(env: "PybulletRoom", poses: list[Pose], outcome: Outcome | N
         obstacles=[(x, y, o.ball_radius_mm) for x, y in env.balls_xy],
         movers_radius_mm=swarm.radius if has_movers else 0.0,
         mover_tracks=np.stack(swarm.track) if has_movers else None,
-        collision_xy=env.collision_xy,
+        collision_xy=env.collision_xy, obstacle_label="soccer ball",
     )
     return draw_topdown(scene, poses, outcome)

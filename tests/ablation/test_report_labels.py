@@ -1,0 +1,150 @@
+"""What the figures' legends and the report's header say about the bars: each arm in its own colour
+whatever panel is empty, who answered (backend and model, or a simulated pilot), the paper's
+diamonds as GPT-4o's."""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+from pathlib import Path
+
+from matplotlib.colors import to_rgba
+
+from safeembodai_core.metrics import cell_metrics
+from safeembodai_core.models import Outcome, TrialResult, TrialSpec
+from safeembodai_core.plugins import load_plugins
+from safeembodai_core.report import write_report
+from safeembodai_core.report.figures import FIGURES, draw_figures, metric_figure
+from safeembodai_core.report.run_info import model_without_route, run_info
+from safeembodai_core.scenario import parse_scenario
+
+ARMS = ("baseline", "safeembodai")
+
+
+def _trial(arm: str, condition: str, index: int, attacked: bool) -> TrialResult:
+    spec = TrialSpec(trial_id=f"OF/{arm}/{condition}/{index}", environment="OF", arm=arm, condition=condition,
+                     index=index, seed=index)
+    return TrialResult(spec=spec, outcome=Outcome.COMPLETED, steps=6, attacked_steps=3 if attacked else 0,
+                       flagged_steps=index)
+
+
+def _results() -> list[TrialResult]:
+    """OF, both arms, three trials per cell, no_attack first."""
+    return [_trial(arm, condition, k, condition == "attack") for condition in ("no_attack", "attack")
+            for arm in ARMS for k in range(3)]
+
+
+def _cells():
+    """The cells of :func:`_results`: the first ADR panel (no_attack) has no bars, nothing to detect."""
+    results = _results()
+    return [cell_metrics([r for r in results if (r.spec.arm, r.spec.condition) == (arm, condition)], 20,
+                         attacked=condition == "attack") for condition in ("no_attack", "attack") for arm in ARMS]
+
+
+@contextmanager
+def figure(*args, **kwargs):
+    """:func:`metric_figure`, closed afterwards."""
+    import matplotlib.pyplot as plt
+
+    fig = metric_figure(*args, **kwargs)
+    try:
+        yield fig
+    finally:
+        plt.close(fig)
+
+
+def _legend(fig):
+    assert len(fig.legends) == 1
+    legend = fig.legends[0]
+    return legend, [text.get_text() for text in legend.get_texts()]
+
+
+def test_each_arm_has_its_own_colour_in_every_legend_even_when_the_first_panel_is_empty(tmp_path, monkeypatch):
+    from matplotlib.figure import Figure
+
+    cells = _cells()
+    assert all(m.adr.value is None for m in cells if m.condition == "no_attack")  # the empty first panel
+    saved = {}
+    real = Figure.savefig
+
+    def keep(self, path, **kwargs):
+        saved[Path(path).stem] = self
+        return real(self, path, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    draw_figures(cells, tmp_path)
+    assert set(saved) == set(FIGURES)
+    for name, fig in saved.items():
+        legend, labels = _legend(fig)
+        colours = {label: to_rgba(handle.get_facecolor()) for handle, label in zip(legend.legend_handles, labels)
+                   if label in ARMS}
+        assert set(colours) == set(ARMS), name
+        assert colours["baseline"] != colours["safeembodai"], name
+        # the legend's colour is the colour of the arm's bars
+        bars = {to_rgba(patch.get_facecolor()) for axis in fig.axes for patch in axis.patches}
+        assert bars <= set(colours.values()), name
+
+
+def test_the_legend_says_what_the_bars_and_the_diamonds_are():
+    with figure(_cells(), "adr", bars="bars: local/SmolLM2, N = 3 trials per cell") as fig:
+        legend, labels = _legend(fig)
+        assert legend.get_title().get_text() == "bars: local/SmolLM2, N = 3 trials per cell"
+        paper = [label for label in labels if "paper" in label]
+        assert paper and "GPT-4o" in paper[0] and "diamond" in paper[0]
+    with figure(_cells(), "tlr_after_seen", bars="bars: x") as fig:  # no paper value: no diamond entry
+        assert not any("paper" in label for label in _legend(fig)[1])
+
+
+LOCAL_RUN = """
+name: localrun
+trials: 3
+environments: [OF]
+backend: {use: local, options: {model: openai/SmolLM2-135M-Instruct}}
+"""
+
+
+def _legend_titles(monkeypatch) -> list[str]:
+    """The legend titles of the figures the report draws from now on."""
+    titles = []
+    real = metric_figure
+
+    def spy(*args, **kwargs):
+        fig = real(*args, **kwargs)
+        titles.append(fig.legends[0].get_title().get_text())
+        return fig
+
+    monkeypatch.setattr("safeembodai_core.report.figures.metric_figure", spy)
+    return titles
+
+
+def test_a_local_run_names_the_model_not_litellms_route(tmp_path, monkeypatch):
+    plugins = load_plugins(environ={})
+    scenario = parse_scenario(LOCAL_RUN, "localrun.yaml", registry=plugins.registry)
+    info = run_info(scenario, plugins=plugins)
+    assert (info.backend, info.model, info.model_id) == ("local", "SmolLM2-135M-Instruct",
+                                                        "openai/SmolLM2-135M-Instruct")
+    titles = _legend_titles(monkeypatch)
+    text = write_report(tmp_path, scenario, _results(), plugins=plugins).read_text()
+    row = next(line for line in text.splitlines() if line.startswith("| model |"))
+    assert row.startswith("| model | `SmolLM2-135M-Instruct` (the configured litellm id `openai/SmolLM2-135M-Instruct` "
+                          "without its route `openai/`;")
+    assert "not recorded" in row  # said, not guessed: the server's own name is not in the records
+    assert titles == ["bars: local/SmolLM2-135M-Instruct, N = 3 trials per cell"] * len(FIGURES)
+
+
+def test_the_local_backends_default_model_is_named_local_without_its_route():
+    plugins = load_plugins(environ={})
+    scenario = parse_scenario("name: t\nenvironments: [OF]\nbackend: local\n", "t.yaml", registry=plugins.registry)
+    info = run_info(scenario, plugins=plugins)
+    assert (info.model, info.model_id) == ("local", "openai/local")
+    assert model_without_route("gpt-4o") == ("gpt-4o", None)
+    assert model_without_route("openai/Qwen/Qwen2-VL-7B-Instruct") == ("Qwen/Qwen2-VL-7B-Instruct", "openai")
+    assert model_without_route("Qwen/Qwen2-VL-7B-Instruct") == ("Qwen/Qwen2-VL-7B-Instruct", None)
+
+
+def test_the_simulated_pilots_figures_say_it_is_not_an_llm(tmp_path, monkeypatch):
+    plugins = load_plugins(environ={})
+    scenario = parse_scenario("name: t\ntrials: 3\nenvironments: [OF]\nbackend: mock\n", "t.yaml",
+                              registry=plugins.registry)
+    titles = _legend_titles(monkeypatch)
+    write_report(tmp_path, scenario, _results(), plugins=plugins)
+    assert titles == ["bars: simulated pilot (mock), not an LLM, N = 3 trials per cell"] * len(FIGURES)
