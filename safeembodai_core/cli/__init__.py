@@ -91,8 +91,9 @@ def _register_builtin_commands() -> None:
     from .plugins_cmd import plugins
     from .report_cmd import report
     from .run_cmd import run
+    from .view_cmd import view
 
-    for command in (plugins, run, ablate, report, export, guard_bag):
+    for command in (plugins, run, ablate, report, export, guard_bag, view):
         cli.add_command(command)
 
 

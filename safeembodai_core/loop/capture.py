@@ -14,8 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..components import Environment, Perception, WorldSnapshot
-from ..models import ControlSignal, ExecutionResult, Modalities, Observation, Pose
+from ..components import Environment, Perception, PromptBuilder, WorldSnapshot
+from ..models import ControlSignal, ExecutionResult, Modalities, Observation, Pose, Prompt
 from ..models.observation import ImagePart, LidarScan
 
 
@@ -55,14 +55,20 @@ Event = Observed | Seen | Executed
 
 @dataclass
 class TrialCapture:
-    """The events of one trial, in order (module docstring)."""
+    """The events of one trial, in order (module docstring); with :meth:`wrap_prompts`, also every
+    prompt the LLM was sent, by step (``prompts[step]``: one per attempt)."""
 
     events: list[Event] = field(default_factory=list)
     step: int = 0
+    prompts: dict[int, list[Prompt]] = field(default_factory=dict)
 
     def wrap(self, environment: Environment, perception: Perception) -> tuple[Environment, Perception]:
         """The components to run the trial with: the same ones, recording into this capture."""
         return _CapturingEnvironment(environment, self), _CapturingPerception(perception, self)
+
+    def wrap_prompts(self, builder: PromptBuilder) -> PromptBuilder:
+        """``builder``, recording each prompt it builds under the current step."""
+        return _CapturingPromptBuilder(builder, self)
 
     def observed(self, observation: Observation, world: WorldSnapshot | None) -> None:
         self.events.append(Observed(world, observation.pose, float(observation.sim_time_s)))
@@ -136,3 +142,21 @@ class _CapturingPerception(Perception):
         modalities = self._inner.perceive(observation)
         self._capture.seen(observation, modalities)
         return modalities
+
+
+class _CapturingPromptBuilder(PromptBuilder):
+    """The trial's prompt builder, recording what each attempt was sent."""
+
+    def __init__(self, inner: PromptBuilder, capture: TrialCapture) -> None:
+        self._inner, self._capture = inner, capture
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+    def build(self, request: Any) -> Prompt:
+        prompt = self._inner.build(request)
+        self._capture.prompts.setdefault(self._capture.step, []).append(prompt)
+        return prompt
+
+    def security_prefix_variants(self) -> list[str] | None:
+        return self._inner.security_prefix_variants()

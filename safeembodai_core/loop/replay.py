@@ -96,7 +96,8 @@ def replay_trial(runner: Any, spec: TrialSpec, records: list[StepRecord]) -> tup
     built = runner.parts(spec, backend=RecordedAnswers(records))
     capture = TrialCapture()
     environment, perception = capture.wrap(built.environment, built.perception)
-    parts = TrialParts(environment=environment, perception=perception, prompt_builder=built.prompt_builder,
+    parts = TrialParts(environment=environment, perception=perception,
+                       prompt_builder=capture.wrap_prompts(built.prompt_builder),
                        state=runner.build("state_store", ref("memory")), backend=built.backend, validators=built.validators,
                        attackers=built.attackers)
     result = run_trial(spec, parts, runner.settings(spec.arm))

@@ -1,0 +1,49 @@
+"""``safeembodai view RUNS``: every run in a browser (``safeembodai_core.view``)."""
+
+from __future__ import annotations
+
+import click
+
+
+@click.command("view")
+@click.argument("source", metavar="RUNS_DIR_OR_RUN", type=click.Path(file_okay=False, exists=True))
+@click.option("--out", type=click.Path(file_okay=False), default=None,
+              help="The site's folder (default: SOURCE/_view for a folder of runs, RUN/view for one run).")
+@click.option("--serve", is_flag=True, help="Serve the site and pick up new runs while they are written.")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to serve on (with --serve).")
+@click.option("--port", type=click.IntRange(0, 65535), default=8000, show_default=True,
+              help="Port to serve on (0: any free one).")
+def view(source: str, out: str | None, serve: bool, host: str, port: int) -> None:
+    """Write a static site of every run in RUNS_DIR_OR_RUN (index, run pages, trial pages)."""
+    import time
+    from pathlib import Path
+
+    from rich.console import Console
+
+    from ..ablation.run_folder import SCENARIO_FILE
+    from ..plugins import load_plugins
+    from ..text_safety import terminal_markup
+    from ..view import build_site
+    from ..view.serve import SiteServer
+
+    root = Path(source)
+    target = Path(out) if out else root / ("view" if (root / SCENARIO_FILE).is_file() else "_view")
+    plugins = load_plugins()
+    console = Console(stderr=True, emoji=False)
+    refresh = 5 if serve else 0
+    with console.status("rendering"):
+        counts = build_site(root, target, plugins, refresh=refresh)
+    console.print(f"{counts['runs']} run(s), {counts['trials']} trial page(s) rendered into "
+                  f"{terminal_markup(str(target))}")
+    if not serve:
+        console.print(f"open {terminal_markup(str(target / 'index.html'))}")
+        return
+    server = SiteServer(target, lambda: build_site(root, target, plugins, refresh=refresh), host, port).start()
+    console.print(f"serving {terminal_markup(server.url)} (Ctrl-C to stop)")
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()

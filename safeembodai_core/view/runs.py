@@ -1,0 +1,154 @@
+"""What the site says of a run folder: its summary (the index row) and its trials (the run page).
+
+Read-only: the results store is opened read-only, a run's lock is probed without being taken
+(:func:`running`), and nothing is written into the run folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from ..ablation.run_folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
+from ..errors import SafeEmbodAIError
+
+
+def find_runs(source: Path) -> list[Path]:
+    """``source`` itself when it is a run folder (holds ``scenario.json``), else its run folders."""
+    if (source / SCENARIO_FILE).is_file():
+        return [source]
+    if not source.is_dir():
+        raise SafeEmbodAIError(f"{source} is neither a run folder nor a folder of runs")
+    return sorted((p for p in source.iterdir() if p.is_dir() and (p / SCENARIO_FILE).is_file()),
+                  key=lambda p: p.name)
+
+
+def running(folder: Path) -> bool:
+    """Whether an ``ablate`` holds the run now: its coordinator lock file exists and is locked.
+    Probed with a shared, non-blocking lock on a read-only open: never created, never kept."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no locks to probe
+        return False
+    try:
+        fd = os.open(folder / COORDINATOR_LOCK, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return False
+    finally:
+        os.close(fd)
+
+
+def signature(folder: Path) -> str:
+    """Changes whenever the run's results may have: the store's, the ledger's and the report's stamps."""
+    parts = []
+    for name in (SCENARIO_FILE, LEDGER_FILE, "results.sqlite", "results.sqlite-wal", "metrics.json", COORDINATOR_LOCK):
+        try:
+            stat = (folder / name).stat()
+            parts.append(f"{name}:{stat.st_size}:{stat.st_mtime_ns}")
+        except OSError:
+            parts.append(f"{name}:-")
+    return "|".join(parts)
+
+
+@dataclass
+class TrialRow:
+    trial_id: str
+    page: str
+    environment: str
+    arm: str
+    condition: str
+    index: int
+    outcome: str
+    steps: int
+    refusals: int
+    collisions_self: int
+    collisions_struck: int
+    detail: str
+
+
+@dataclass
+class CellRow:
+    environment: str
+    arm: str
+    condition: str
+    trials: int
+    moer: str
+    completed: str
+
+
+@dataclass
+class RunSummary:
+    name: str
+    path: Path
+    when: str
+    scenario: str
+    backend: str
+    model: str
+    pilot: str
+    seed: int
+    trials_per_cell: int
+    total: int
+    finished: int
+    status: str  # running, finished, interrupted
+    simulated: str | None
+    cells: list[CellRow] = field(default_factory=list)
+    trials: list[TrialRow] = field(default_factory=list)
+    figures: list[str] = field(default_factory=list)
+    error: str | None = None
+
+
+def trial_page(trial_id: str) -> str:
+    """The file name of a trial's page (also its images' folder)."""
+    return trial_id.replace("/", "__")
+
+
+def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
+    """The run's summary with its cells and trials, the runner (to replay trials) and the results."""
+    from ..report.cells import scenario_cells
+    from ..report.run_info import run_info
+    from ..runner import ScenarioRunner
+
+    scenario = RunFolder(folder).scenario()
+    info = run_info(scenario, folder, plugins)
+    runner = ScenarioRunner(scenario, plugins, run_dir=folder)
+    results = runner.in_trial_order(runner.state.results())
+    total = len(runner.specs())
+    state = "running" if running(folder) else "finished" if len(results) >= total else "interrupted"
+    stamp = datetime.fromtimestamp((folder / SCENARIO_FILE).stat().st_mtime, tz=timezone.utc)
+    summary = RunSummary(
+        name=folder.name, path=folder, when=stamp.strftime("%Y-%m-%d %H:%M UTC"), scenario=scenario.name,
+        backend=info.backend, model=info.model, pilot=info.pilot, seed=info.seed,
+        trials_per_cell=info.trials_per_cell, total=total, finished=len(results), status=state,
+        simulated=info.simulated)
+    for cell in scenario_cells(scenario, results) if results else []:
+        m = cell.metrics
+        summary.cells.append(CellRow(m.environment, m.arm, m.condition, m.trials, m.moer.fmt(), m.completion.fmt()))
+    for r in results:
+        s = r.spec
+        summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition, s.index,
+                                       r.outcome.value, r.steps, r.interventions, r.collisions_self,
+                                       r.collisions_struck, r.detail))
+    summary.figures = sorted(p.name for p in (folder / "figures").glob("*.png")) if (folder / "figures").is_dir() else []
+    return summary, runner, results
+
+
+def broken(folder: Path, error: Exception) -> RunSummary:
+    """The index row of a run folder that cannot be read (its error shown, the rest left empty)."""
+    try:
+        name = json.loads((folder / SCENARIO_FILE).read_text(encoding="utf-8"))["scenario"]["name"]
+    except Exception:
+        name = "?"
+    return RunSummary(name=folder.name, path=folder, when="", scenario=str(name), backend="", model="", pilot="",
+                      seed=0, trials_per_cell=0, total=0, finished=0, status="unreadable", simulated=None,
+                      error=str(error))

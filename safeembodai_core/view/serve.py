@@ -1,0 +1,67 @@
+"""``view --serve``: the site on a local HTTP server, rebuilt while runs are written.
+
+The server serves only the site folder, with the Content-Security-Policy as a header too and
+``nosniff``; a background thread rebuilds the site every ``interval_s`` seconds (incrementally:
+only changed runs), and the pages ask the browser to reload every ``refresh`` seconds.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from typing import Any, Callable
+
+from ..logs import get_logger
+from .html import CSP_HEADER
+
+log = get_logger(__name__)
+
+
+class _Handler(SimpleHTTPRequestHandler):
+    def end_headers(self) -> None:
+        self.send_header("Content-Security-Policy", CSP_HEADER)
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("Referrer-Policy", "no-referrer")
+        self.send_header("Cache-Control", "no-cache")
+        super().end_headers()
+
+    def log_message(self, format: str, *args: Any) -> None:  # structlog, not stderr lines
+        log.debug("view.request", request=format % args)
+
+
+class SiteServer:
+    """The site in ``folder`` served on ``host:port`` (port 0: any free one), rebuilt by ``rebuild``."""
+
+    def __init__(self, folder: Path, rebuild: Callable[[], Any], host: str = "127.0.0.1", port: int = 8000,
+                 interval_s: float = 2.0) -> None:
+        handler = functools.partial(_Handler, directory=str(folder))
+        self.httpd = ThreadingHTTPServer((host, port), handler)
+        self.rebuild, self.interval_s = rebuild, interval_s
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+
+    @property
+    def url(self) -> str:
+        host, port = self.httpd.server_address[:2]
+        return f"http://{host}:{port}/index.html"
+
+    def start(self) -> "SiteServer":
+        for target in (self.httpd.serve_forever, self._watch):
+            thread = threading.Thread(target=target, daemon=True)
+            thread.start()
+            self._threads.append(thread)
+        return self
+
+    def _watch(self) -> None:
+        while not self._stop.wait(self.interval_s):
+            try:
+                self.rebuild()
+            except Exception as error:  # a bad moment (a run being created): try again next time
+                log.warning("view.rebuild_failed", error=str(error))
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.httpd.shutdown()
+        self.httpd.server_close()

@@ -1,0 +1,101 @@
+"""A trial's step timeline for its page: what the LLM saw and was sent, what it answered, what the
+guard refused and why, what ran, what it hit, which attacks were injected.
+
+A run folder keeps no sensor readings nor prompts, so the trial is replayed from its recorded
+answers (:func:`~safeembodai_core.loop.replay.replay_trial`, no LLM called) to get the prompts and
+their images back; a replay that cannot be made (a plugin gone, a world that does not replay) leaves
+the page without them and says why, with everything recorded still shown.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..models import StepRecord, TrialSpec
+from ..models.observation import ImagePart, TextPart
+
+_SUFFIX = {"image/png": "png", "image/jpeg": "jpg"}
+
+
+@dataclass
+class AttemptView:
+    number: int
+    answer: str
+    reasoning: str
+    finish_reason: str | None
+    model: str | None
+    accepted: bool
+    parse_error: str | None
+    verdicts: list[tuple[str, bool, str]]  # (where, valid, reason)
+
+
+@dataclass
+class StepView:
+    step: int
+    instruction: str
+    sim_time_s: float
+    attacks: list[tuple[str, str, str]]  # (kind, channel, payload)
+    images: list[tuple[str, str]] = field(default_factory=list)  # (modality, file relative to the page)
+    system: str = ""
+    user: str = ""
+    attempts: list[AttemptView] = field(default_factory=list)
+    executed: list[tuple[str, str, bool]] = field(default_factory=list)  # (signal, result, collided)
+    waited_collision: str = ""
+
+
+def _result(item: Any) -> str:
+    r = item.result
+    moved = f"{r.distance_mm:.0f} mm" if item.signal.command == "straight" else f"{r.angle_deg:.0f} deg"
+    said = f": {r.detail}" if r.detail else ""
+    hit = f" ({r.collision or 'unattributed'} collision, hit {r.hit or '?'})" if r.collided else ""
+    return f"moved {moved}{hit}{said}"
+
+
+def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, image_dir: Path,
+               image_href: str) -> list[StepView]:
+    """One view per recorded step; the images of each step's first prompt written into ``image_dir``
+    (linked as ``image_href/<file>``)."""
+    views = []
+    for record in records:
+        view = StepView(step=record.step, instruction=record.instruction, sim_time_s=record.sim_time_s,
+                        attacks=[(a.kind, a.channel, a.payload) for a in record.attacks])
+        sent = (prompts or {}).get(record.step) or []
+        if sent:
+            first = sent[0]
+            view.system = first.system
+            view.user = "\n".join(part.text for part in first.user if isinstance(part, TextPart))
+            for image in (part for part in first.user if isinstance(part, ImagePart)):
+                name = f"step{record.step:03d}-{image.name}.{_SUFFIX.get(image.media_type, 'img')}"
+                image_dir.mkdir(parents=True, exist_ok=True)
+                (image_dir / name).write_bytes(image.data)
+                view.images.append((image.name, f"{image_href}/{name}"))
+        for attempt in record.attempts:
+            view.attempts.append(AttemptView(
+                number=attempt.index + 1, answer=attempt.raw_text, reasoning=attempt.reasoning,
+                finish_reason=attempt.finish_reason, model=attempt.model, accepted=attempt.accepted,
+                parse_error=attempt.parse_error,
+                verdicts=[(v.rule + ("" if v.signal_index is None else f" (signal {v.signal_index + 1})"), v.valid,
+                           v.reason) for v in attempt.verdicts]))
+        view.executed = [(item.signal.describe(), _result(item), item.result.collided) for item in record.executed]
+        extra = record.truth.extra
+        if extra.get("collision") in ("self", "struck"):
+            view.waited_collision = f"{extra['collision']} collision while the robot waited: " \
+                                    f"{extra.get('collision_detail', '')}"
+        views.append(view)
+    return views
+
+
+def replayed_prompts(runner: Any, spec: TrialSpec, records: list[StepRecord]) -> tuple[dict[int, list[Any]], str]:
+    """The prompts of a replay of the trial, and why there are none when it could not be replayed."""
+    from ..errors import SafeEmbodAIError
+    from ..loop.replay import replay_trial
+
+    try:
+        capture, _, _ = replay_trial(runner, spec, records)
+    except SafeEmbodAIError as error:
+        return {}, f"the prompts and images could not be rebuilt: {error}"
+    except Exception as error:  # a plugin's bug: the page still shows every record
+        return {}, f"the prompts and images could not be rebuilt: {type(error).__name__}: {error}"
+    return capture.prompts, ""
