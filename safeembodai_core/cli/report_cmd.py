@@ -46,7 +46,7 @@ def report(run_dir: str) -> None:
                 raise SafeEmbodAIError(f"{run_dir} has no finished trial yet")
             results = runner.in_trial_order(results)
             runner.draw_missing_trajectories(results)
-            info = run_info(scenario, folder.path, plugins)
+            info = run_info(scenario, folder.path, plugins, results)
             report = write_report(folder.path, scenario, results, store=runner.state, plugins=plugins)
         finally:
             runner.close()

@@ -27,7 +27,7 @@ def title(scenario: Scenario, info: RunInfo) -> str:
 
 def summary_table(scenario: Scenario, results: list[TrialResult], *, info: RunInfo | None = None,
                   plugins: Any = None) -> Table:
-    info = info or run_info(scenario, plugins=plugins)
+    info = info or run_info(scenario, plugins=plugins, results=results)
     table = Table(title=title(scenario, info), box=None, padding=(0, 1, 0, 0), pad_edge=False,
                   header_style="bold underline")
     cells = scenario_cells(scenario, results)

@@ -118,6 +118,7 @@ class _Totals:
     lost: int = 0
     trajectory: list[Any] = field(default_factory=list)
     world: str = ""  # the first observation's truth.extra["world_kind"]
+    models: list[str] = field(default_factory=list)  # the model names the replies gave, first seen first
 
     def add(self, record: StepRecord) -> None:
         usage = record.usage
@@ -128,6 +129,9 @@ class _Totals:
         self.retries += record.retries
         self.attacked += bool(record.attacks)
         self.flagged += record.flagged_attack
+        for attempt in record.attempts:
+            if attempt.model and attempt.model not in self.models and len(self.models) < 8:
+                self.models.append(attempt.model)
         self.caught += bool(record.attacks) and record.flagged_attack
         self.visible += record.truth.target_in_view
         if record.truth.target_in_view and self.first_seen is None:
@@ -163,7 +167,7 @@ class _Totals:
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
             lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory, wall_time_s=wall_time_s,
-            error_kind=error_kind if outcome == Outcome.ERROR else None, world=self.world,
+            error_kind=error_kind if outcome == Outcome.ERROR else None, world=self.world, models=list(self.models),
         )
 
 

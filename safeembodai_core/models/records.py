@@ -273,6 +273,8 @@ class TrialResult(_Record):
     #: the kind of world the trial met, as its environment reported it (``truth.extra["world_kind"]``
     #: of the first observation: a room's drawn Labbot dynamics, say); empty when it says nothing
     world: str = Field("", max_length=64)
+    #: the model names the trial's replies gave (first seen first, at most 8); empty when none named one
+    models: list[str] = Field(default_factory=list, max_length=8)
     trajectory: list[Pose] = Field(default_factory=list)
     wall_time_s: float = 0.0
 

@@ -99,7 +99,7 @@ def _litellm_model(options: dict[str, Any]) -> tuple[str, str | None, str]:
     if not model_id:
         return "(the backend's own)", None, "no model configured"
     model, route = model_without_route(model_id)
-    unreported = "the name the server reported in its replies is not recorded"
+    unreported = "no reply named a model (or the run's results were not read)"
     if route is None:
         return model, model_id, f"as configured; {unreported}"
     return model, model_id, f"the configured litellm id `{model_id}` without its route `{route}/`; {unreported}"
@@ -130,8 +130,19 @@ def _recorded_fingerprint(folder: Path | None) -> str | None:
     return value if isinstance(value, str) else None
 
 
-def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any = None) -> RunInfo:
-    """The report's header facts; the fingerprint is the run folder's, else the scenario's own."""
+def _answered_by(results: Any) -> list[str]:
+    """The model names the trials' replies gave, most trials first."""
+    counts: dict[str, int] = {}
+    for result in results or ():
+        for name in getattr(result, "models", ()):
+            counts[name] = counts.get(name, 0) + 1
+    return sorted(counts, key=lambda name: -counts[name])
+
+
+def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any = None,
+             results: Any = None) -> RunInfo:
+    """The report's header facts; the fingerprint is the run folder's, else the scenario's own.
+    With ``results``, an LLM's model is the one its replies named (litellm's backends)."""
     from ..ablation.run_folder import fingerprint
 
     name = scenario.backend.use
@@ -144,6 +155,10 @@ def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any 
         model = "none: answers replayed from the scenario"
     elif name in LITELLM_BACKENDS:
         model, model_id, source = _litellm_model(options)
+        named = _answered_by(results)
+        if named:
+            model = ", ".join(named[:3])
+            source = f"as the server named it in its replies (configured: `{model_id or 'none'}`)"
     else:
         model = str(options.get("model") or "(the backend's own)")
     inputs = [(key, options[key], what) for key, what in MOCK_INPUTS if key in options] if name == "mock" else []

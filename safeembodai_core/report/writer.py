@@ -87,7 +87,7 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     when not given).
     """
     folder = Path(folder)
-    info = run_info(scenario, folder, plugins)
+    info = run_info(scenario, folder, plugins, results)
     cells = scenario_cells(scenario, results)
     facts = _facts(folder, scenario, results, store)
     rates = collision_rates(scenario, cells)

@@ -120,9 +120,9 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
     from ..runner import ScenarioRunner
 
     scenario = RunFolder(folder).scenario()
-    info = run_info(scenario, folder, plugins)
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)
     results = runner.in_trial_order(runner.state.results())
+    info = run_info(scenario, folder, plugins, results)
     total = len(runner.specs())
     state = "running" if running(folder) else "finished" if len(results) >= total else "interrupted"
     stamp = datetime.fromtimestamp((folder / SCENARIO_FILE).stat().st_mtime, tz=timezone.utc)

@@ -127,8 +127,23 @@ def test_a_local_run_names_the_model_not_litellms_route(tmp_path, monkeypatch):
     row = next(line for line in text.splitlines() if line.startswith("| model |"))
     assert row.startswith("| model | `SmolLM2-135M-Instruct` (the configured litellm id `openai/SmolLM2-135M-Instruct` "
                           "without its route `openai/`;")
-    assert "not recorded" in row  # said, not guessed: the server's own name is not in the records
+    assert "no reply named a model" in row  # said, not guessed: these results name none
     assert titles == ["bars: local/SmolLM2-135M-Instruct, N = 3 trials per cell"] * len(FIGURES)
+
+
+def test_a_run_whose_replies_named_the_model_is_reported_by_that_name(tmp_path, monkeypatch):
+    """The server's own name for the model (each attempt records it, each result collects it) wins
+    over the configured id, and the report says where it came from."""
+    plugins = load_plugins(environ={})
+    scenario = parse_scenario(LOCAL_RUN, "localrun.yaml", registry=plugins.registry)
+    results = [r.model_copy(update={"models": ["smollm2-135m-instruct-q4_1"]}) for r in _results()]
+    info = run_info(scenario, plugins=plugins, results=results)
+    assert info.model == "smollm2-135m-instruct-q4_1"
+    assert info.model_source.startswith("as the server named it in its replies")
+    titles = _legend_titles(monkeypatch)
+    text = write_report(tmp_path, scenario, results, plugins=plugins).read_text()
+    assert "| model | `smollm2-135m-instruct-q4_1` (as the server named it" in text
+    assert titles[0] == "bars: local/smollm2-135m-instruct-q4_1, N = 3 trials per cell"
 
 
 def test_the_local_backends_default_model_is_named_local_without_its_route():

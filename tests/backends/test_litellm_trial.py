@@ -61,6 +61,7 @@ def test_malformed_answers_are_recorded_retried_and_never_executed(built_plugins
     assert second.attempts[2].raw_text.startswith("Here is my answer: ")  # the raw text is kept
     # the model the server said answered is on record (the fake server echoes the request's)
     assert {a.model for a in second.attempts} == {fake_server.requests[0].body["model"]}
+    assert result.models == [fake_server.requests[0].body["model"]]  # and the result collects it for the report
     assert [e.signal.describe() for e in second.executed] == ["turn right 20 deg"]
     # every request carried both images and the security prefix; retries carried the failures
     bodies = [r.body for r in fake_server.requests]
