@@ -15,6 +15,7 @@ from typing import Any
 
 from ..ablation.run_folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
 from ..errors import SafeEmbodAIError
+from .report_tables import report_tables
 
 
 def find_runs(source: Path) -> list[Path]:
@@ -105,6 +106,7 @@ class RunSummary:
     cells: list[CellRow] = field(default_factory=list)
     trials: list[TrialRow] = field(default_factory=list)
     figures: list[str] = field(default_factory=list)
+    tables: list[Any] = field(default_factory=list)  # report.md's tables (report_tables.Table)
     error: str | None = None
 
 
@@ -139,6 +141,7 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
         summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition, s.index,
                                        r.outcome.value, r.steps, r.interventions, r.collisions_self,
                                        r.collisions_struck, r.detail))
+    summary.tables = report_tables(folder / "report.md")
     summary.figures = sorted(p.name for p in (folder / "figures").glob("*.png")) if (folder / "figures").is_dir() else []
     return summary, runner, results
 

@@ -73,7 +73,7 @@ def _plain(summary: RunSummary) -> dict[str, Any]:
     fields = dict(vars(summary))
     fields.pop("path")
     fields["cells"] = [vars(c) for c in summary.cells]
-    fields["trials"] = []
+    fields["trials"], fields["tables"] = [], []
     return fields
 
 

@@ -96,6 +96,10 @@ def test_a_run_page_has_its_trials_metrics_figures_and_banner(site):
     text = "".join(page.text)
     assert "not a measurement of an LLM" in text and "MOER [95%]" in text
     assert {"id": "filter", "type": "search", "placeholder": "cell, outcome, collision..."} in page.all("input")
+    # the report's tables, each under its heading, as text
+    assert "The report's tables" in text and "Outcomes and collisions per cell" in text
+    assert "Refusals and attacks per cell" in text and "Against the paper" in text
+    assert len(page.all("table")) >= 1 + 5 + 1
 
 
 def test_a_trial_page_shows_each_step_with_what_the_llm_saw_and_said(runs_dir, site):

@@ -1,0 +1,55 @@
+"""The tables of a run's ``report.md`` (written by ``ablate``/``report``), for the run page.
+
+Only the Markdown tables are read, each under the heading above it: a row is a line starting with
+``|``, cells split on unescaped ``|``, the separator row dropped, code backticks removed. The text is
+shown as text (the page escapes it); nothing else of the Markdown is interpreted.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+_SPLIT = re.compile(r"(?<!\\)\|")
+_SEPARATOR = re.compile(r"^\|?\s*:?-{3,}")
+#: Larger reports are not read (a hostile or broken file must not stall the page).
+MAX_BYTES = 2_000_000
+
+
+@dataclass
+class Table:
+    heading: str
+    header: list[str]
+    rows: list[list[str]] = field(default_factory=list)
+
+
+def _cells(line: str) -> list[str]:
+    parts = _SPLIT.split(line.strip().strip("|"))
+    return [part.strip().replace("\\|", "|").replace("`", "") for part in parts]
+
+
+def report_tables(path: Path) -> list[Table]:
+    """The tables of the report at ``path`` (none when it is missing, unreadable or too large)."""
+    try:
+        if path.stat().st_size > MAX_BYTES:
+            return []
+        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return []
+    tables: list[Table] = []
+    heading, current = "", None
+    for line in lines:
+        if line.startswith("#"):
+            heading, current = line.lstrip("#").strip(), None
+        elif line.startswith("|"):
+            if _SEPARATOR.match(line):
+                continue
+            if current is None:
+                current = Table(heading, _cells(line))
+                tables.append(current)
+            else:
+                current.rows.append(_cells(line))
+        else:
+            current = None
+    return tables
