@@ -79,7 +79,7 @@ MODELS = {
 @contextmanager
 def llama_server(model: LocalModel, log_dir: Path, threads: int = 2) -> Iterator[str]:
     """The OpenAI-compatible URL of a llama-cpp-python server on ``model``; stopped by PID on exit."""
-    from safeembodai_plugins.backends.local_server import llama_cpp_server
+    from safeembodai_plugins.backends.litellm.local_server import llama_cpp_server
 
     with llama_cpp_server(model.locate(), log_path=log_dir / f"server-{model.name}.log", threads=threads,
                           chat_format=model.chat_format) as url:

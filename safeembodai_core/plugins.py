@@ -43,8 +43,8 @@ DEFAULT_PLUGINS: tuple[tuple[str, str], ...] = (
     ("backend_scripted", "safeembodai_plugins.backends.scripted"),
     ("pybullet_rooms", "safeembodai_plugins.environments.pybullet_rooms"),
     ("state_sqlite", "safeembodai_plugins.state.sqlite_store"),
-    ("backend_litellm", "safeembodai_plugins.backends.litellm_api"),
-    ("backend_mock", "safeembodai_plugins.backends.mock_pilot"),
+    ("backend_litellm", "safeembodai_plugins.backends.litellm"),
+    ("backend_mock", "safeembodai_plugins.backends.mock"),
 )
 
 

@@ -3,7 +3,7 @@
 of its options are the inputs behind the numbers that look like findings.
 
 The built-in simulated backends are known by name (:data:`SIMULATED`): ``mock`` (the offline
-pilot of ``plugins/backends/mock_pilot.py``) and ``scripted`` (replayed answers). A third-party
+pilot of ``plugins/backends/mock/``) and ``scripted`` (replayed answers). A third-party
 backend is taken for an LLM.
 
 The model of litellm's backends (:data:`LITELLM_BACKENDS`) is their ``model`` option, a litellm
@@ -27,7 +27,7 @@ SIMULATED = {
     "scripted": "scripted answers (scripted): not a measurement of an LLM",
 }
 
-#: Backends whose ``model`` option is a litellm model id (``plugins/backends/litellm_api.py``).
+#: Backends whose ``model`` option is a litellm model id (``plugins/backends/litellm/``).
 LITELLM_BACKENDS = ("gpt-4o", "litellm", "local")
 #: litellm provider routes a model id may start with (``openai/`` reaches any OpenAI-compatible server).
 ROUTES = frozenset({

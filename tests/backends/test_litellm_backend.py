@@ -98,7 +98,7 @@ def test_a_hang_past_the_timeout_is_retried_then_reported(built_plugins, fake_se
 
 
 def test_refused_connection_is_a_backend_error(built_plugins, fake_key):
-    from safeembodai_plugins.backends.local_server import free_port
+    from safeembodai_plugins.backends.litellm.local_server import free_port
 
     port = free_port()  # a port nobody listens on
     backend = built_plugins.registry.build("llm_backend", "gpt-4o", {

@@ -17,9 +17,9 @@ from safeembodai_core.models import Prompt, TextPart, read_reply
 from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
 from safeembodai_core.models.strict_json import ResponseParseError
 from safeembodai_core.testing import answer, turn
-from safeembodai_plugins.backends import litellm_call
-from safeembodai_plugins.backends.litellm_errors import scrub_message
-from safeembodai_plugins.backends.litellm_reply import token_count
+from safeembodai_plugins.backends.litellm import call as litellm_call
+from safeembodai_plugins.backends.litellm.errors import scrub_message
+from safeembodai_plugins.backends.litellm.reply import token_count
 
 GOOD = answer(turn(30))
 LATE = answer(turn(90, "right"), planning="late answer")
@@ -172,7 +172,7 @@ def test_a_reflected_key_is_masked_in_the_reply_and_registered_for_redaction(bui
 
 
 def test_credentials_in_completion_kwargs_are_found_and_nothing_else():
-    from safeembodai_plugins.backends.litellm_client import option_secrets
+    from safeembodai_plugins.backends.litellm.client import option_secrets
 
     found = option_secrets({"extra_headers": {"Authorization": "Bearer tok-123456789", "X-Trace": "visible-1"},
                             "aws_secret_access_key": "aws-secret-987654321", "azure_ad_token": "ad-token-55555",

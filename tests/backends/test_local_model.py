@@ -38,7 +38,7 @@ def _smollm2_gguf() -> Path:
 
 @pytest.fixture(scope="module")
 def llama_server(tmp_path_factory):
-    from safeembodai_plugins.backends.local_server import llama_cpp_server
+    from safeembodai_plugins.backends.litellm.local_server import llama_cpp_server
 
     log = tmp_path_factory.mktemp("llama") / "server.log"
     # no chat_format: the GGUF's own chat template (ChatML); one thread: CI machines are small and shared

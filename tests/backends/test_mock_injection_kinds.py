@@ -13,7 +13,7 @@ import pytest
 from backend_helpers import flatland_observation, make_prompt
 from safeembodai_core.models import parse_response
 from safeembodai_plugins.attackers.library import PAPER_KINDS, PAYLOADS
-from safeembodai_plugins.backends.mock_instruction import read_instruction
+from safeembodai_plugins.backends.mock.instruction import read_instruction
 
 BASE = "Find the red can in the room and approach it."
 QUIET = {"token_counting": "estimate", "malformed_p": 0.0, "limit_violation_p": 0.0, "bearing_mirror_p": 0.0,

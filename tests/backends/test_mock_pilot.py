@@ -203,7 +203,7 @@ def test_estimated_usage_counts_images_and_text(built_plugins):
 
 @pytest.mark.slow
 def test_litellm_token_counting_matches_the_gpt4o_tokenizer(built_plugins):
-    from safeembodai_plugins.backends.litellm_runtime import import_litellm
+    from safeembodai_plugins.backends.litellm.runtime import import_litellm
     from safeembodai_plugins.backends.messages import chat_messages
 
     _, observation = flatland_observation(built_plugins, seed=10)
@@ -220,7 +220,7 @@ def test_litellm_token_counting_matches_the_gpt4o_tokenizer(built_plugins):
 
 def test_only_the_latest_refusal_asking_to_wait_makes_the_pilot_wait(built_plugins):
     """A wait asked on attempt 1 and a wall on attempt 2: the pilot turns away, as from a wall."""
-    from safeembodai_plugins.backends.mock_reading import PromptReading
+    from safeembodai_plugins.backends.mock.reading import PromptReading
 
     wait = "attempt 1 (refused plan: x): moving_obstacles: ... wait for it to pass (turn in place a few degrees)"
     wall = "attempt 2 (refused plan: y): lidar_clearance: ... at most 0 mm is safe in that direction"
@@ -277,7 +277,7 @@ def test_amend_drops_what_follows_a_refused_straight_and_waits_when_nothing_is_l
 def test_amend_redraws_when_a_refusal_does_not_say_how_far_is_safe(built_plugins):
     """Only refusals that name their signal and a safe distance are amended by: a static blockage
     with no distance, a refusal without a signal number, or an older attempt's plan are not."""
-    from safeembodai_plugins.backends.mock_reading import PromptReading
+    from safeembodai_plugins.backends.mock.reading import PromptReading
 
     def amendment(*failures: str):
         return PromptReading(instruction=None, has_prefix=False, failures=list(failures)).amendment
@@ -331,7 +331,7 @@ def test_amend_reads_the_feedback_algorithm_1_writes(built_plugins):
 
 
 def test_amend_uses_the_latest_attempt_and_redraws_when_it_cannot_trust_it(built_plugins):
-    from safeembodai_plugins.backends.mock_reading import read_prompt
+    from safeembodai_plugins.backends.mock.reading import read_prompt
 
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
 
@@ -361,7 +361,7 @@ def test_amend_uses_the_latest_attempt_and_redraws_when_it_cannot_trust_it(built
 def test_amend_sends_the_step_aside_a_parking_refusal_advised(built_plugins):
     """``moving_obstacles``' ``park_check`` advises a step aside; the amending pilot sends it as written
     (the redrawing one plans afresh)."""
-    from safeembodai_plugins.backends.mock_reading import PromptReading
+    from safeembodai_plugins.backends.mock.reading import PromptReading
 
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
     failure = _refused("turn left 5 deg", 1, "turn left 5 deg: step out of a moving obstacle's way instead, for "

@@ -244,7 +244,7 @@ def test_a_body_over_4_mib_is_not_read_and_is_a_malformed_reply(built_plugins, f
 
 
 def test_the_recorder_keeps_origin_status_and_body_and_never_a_header(fake_server, fake_key):
-    from safeembodai_plugins.backends.litellm_transport import openai_client, recording
+    from safeembodai_plugins.backends.litellm.transport import openai_client, recording
 
     fake_server.default = Reply(GOOD)
     client = openai_client(fake_server.url, fake_key, 5.0)
@@ -263,7 +263,7 @@ def test_the_recorder_keeps_origin_status_and_body_and_never_a_header(fake_serve
 def test_the_transport_sends_nothing_to_another_origin(fake_server):
     import httpx
 
-    from safeembodai_plugins.backends.litellm_transport import RecordingTransport, recording
+    from safeembodai_plugins.backends.litellm.transport import RecordingTransport, recording
 
     with FakeOpenAI() as other, httpx.Client(transport=RecordingTransport(_origin(fake_server))) as client:
         with recording() as recorder, pytest.raises(httpx.TransportError, match="not the configured server"):
@@ -272,8 +272,8 @@ def test_the_transport_sends_nothing_to_another_origin(fake_server):
 
 
 def test_only_openai_sdk_routes_get_the_strict_reading(built_plugins, fake_server, fake_key):
-    from safeembodai_plugins.backends.litellm_client import strict_route
-    from safeembodai_plugins.backends.litellm_runtime import import_litellm
+    from safeembodai_plugins.backends.litellm.client import strict_route
+    from safeembodai_plugins.backends.litellm.runtime import import_litellm
 
     litellm = import_litellm()
     options = type("Options", (), {"api_base": None, "completion_kwargs": {}})
@@ -288,8 +288,8 @@ def test_only_openai_sdk_routes_get_the_strict_reading(built_plugins, fake_serve
 
 
 def test_the_litellm_object_route_counts_choices_and_keeps_the_reasoning():
-    from safeembodai_plugins.backends.litellm_reply import reply_from_response
-    from safeembodai_plugins.backends.litellm_runtime import import_litellm
+    from safeembodai_plugins.backends.litellm.reply import reply_from_response
+    from safeembodai_plugins.backends.litellm.runtime import import_litellm
 
     litellm = import_litellm()
     response = litellm.ModelResponse(model="claude", choices=[

@@ -15,7 +15,7 @@ from fake_openai import Raw, Reply, Status
 from safeembodai_core.errors import BackendError
 from safeembodai_core.models import ImagePart, Prompt, TextPart
 from safeembodai_core.testing import answer, turn
-from safeembodai_plugins.backends.litellm_errors import (ERROR_IN_200, SERVER_ERROR, TEXT_ONLY, Failure,
+from safeembodai_plugins.backends.litellm.errors import (ERROR_IN_200, SERVER_ERROR, TEXT_ONLY, Failure,
                                                          images_refused)
 
 LLAMA_CPP_500 = json.dumps({"error": {"message": "can only concatenate str (not list) to str"}})

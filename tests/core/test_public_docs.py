@@ -114,7 +114,7 @@ def test_the_geofence_shown_is_the_example_plugins_one_class_of_under_40_lines(r
 
 
 def test_the_mocks_cues_are_listed_in_the_docs_and_read_as_listed(repo):
-    from safeembodai_plugins.backends import mock_instruction
+    from safeembodai_plugins.backends.mock import instruction as mock_instruction
 
     cues = section((repo / "docs" / "backends.md").read_text(), "### The cues it reads")
     rows = {m.group(1): re.findall(r"`([^`]+)`", m.group(2))

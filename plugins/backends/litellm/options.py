@@ -1,22 +1,4 @@
-"""LLM backends through litellm: ``gpt-4o``, ``litellm`` (any model id) and ``local``.
-
-* ``gpt-4o`` -- OpenAI's GPT-4o, the paper's model: camera and LiDAR images as base64 image
-  parts, JSON output requested, key from ``OPENAI_API_KEY``.
-* ``litellm`` -- the same for any model id litellm knows (``anthropic/...``, ``azure/...``);
-  name the key's environment variable with ``api_key_env``.
-* ``local`` -- any OpenAI-compatible server (llama.cpp, vLLM, Ollama) at ``api_base``; a JSON
-  schema carrying the scenario's actuation limits is sent for constrained decoding, in the form
-  ``json_mode`` names (:func:`.messages.response_format`); no key unless ``api_key_env`` names one.
-
-Retries of a step can differ from its first attempt: each attempt sends its own seed
-(``send_seed``) and, with ``retry_temperature_step``, a temperature raised by that much per retry
--- at temperature 0 a seed changes nothing, and a greedy retry repeats the refused answer word
-for word. What an attempt sent is recorded in its ``Attempt.sampling``.
-
-The API key is read from the environment when the backend is built and is never stored in
-options, logs, records or reports. litellm is imported by the implementation module only.
-Every option is documented in ``docs/backends.md``.
-"""
+"""The options of the ``litellm`` backends (the package registers them)."""
 
 from __future__ import annotations
 
@@ -26,9 +8,8 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from safeembodai_core.errors import ComponentError
-from safeembodai_core.hookspecs import hookimpl
 
-from .messages import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode
+from ..messages import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode
 
 _RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries", "n",
              "client", "stream")
@@ -125,22 +106,3 @@ def _api_key(name: str, options: _LiteLLMOptions, local: bool) -> str | None:
         raise ComponentError(f"llm backend {name!r}: environment variable {options.api_key_env} is not set; "
                              "export the API key there, or name another variable with the option api_key_env")
     return key
-
-
-def _factory(name: str, local: bool = False):
-    def build(options: _LiteLLMOptions, context):
-        from .litellm_client import LiteLLMBackend
-
-        return LiteLLMBackend(name, options, _api_key(name, options, local))
-
-    return build
-
-
-@hookimpl
-def register_llm_backends(register):
-    register("gpt-4o", _factory("gpt-4o"), options=LiteLLMOptions,
-             description="OpenAI GPT-4o (or any litellm model id) with camera and LiDAR images")
-    register("litellm", _factory("litellm"), options=LiteLLMOptions,
-             description="any litellm model id; set model and api_key_env")
-    register("local", _factory("local", local=True), options=LocalModelOptions,
-             description="OpenAI-compatible local server (llama.cpp, vLLM, Ollama) at api_base")

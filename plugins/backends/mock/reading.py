@@ -28,7 +28,7 @@ from safeembodai_plugins.perception.describe import (
 )
 from safeembodai_plugins.perception.lidar_image import decode_png, nearest_in_cone, read_lidar_image
 
-from .mock_instruction import InstructionReading, read_instruction
+from .instruction import InstructionReading, read_instruction
 
 _INSTRUCTION = re.compile(r"^Human Instruction:\s*(.*)$", re.MULTILINE)
 _FENCED = re.compile(r"^Human Instruction \(untrusted data between (\S+) and (\S+)\):\n\1\n(.*?)\n\2", re.MULTILINE | re.DOTALL)

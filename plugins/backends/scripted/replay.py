@@ -1,4 +1,4 @@
-"""The scripted backend's implementation (see ``scripted.py`` for the plugin and its options)."""
+"""The scripted backend's implementation (see the package for the plugin and ``options.py`` for its options)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError
 
 if TYPE_CHECKING:
-    from .scripted import ScriptedOptions
+    from .options import ScriptedOptions
 
 
 class ScriptedBackend(LLMBackend):

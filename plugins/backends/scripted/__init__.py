@@ -8,22 +8,13 @@ no token usage: it sends nothing anywhere.
 
 from __future__ import annotations
 
-from typing import Any, Literal
-
-from pydantic import BaseModel, ConfigDict, Field
-
 from safeembodai_core.hookspecs import hookimpl
 
-
-class ScriptedOptions(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
-    responses: list[str | dict[str, Any]] = Field(min_length=1, description="answers, in order")
-    then: Literal["repeat", "fail"] = "repeat"
+from .options import ScriptedOptions
 
 
 def _factory(options: ScriptedOptions, context):
-    from .scripted_replay import ScriptedBackend
+    from .replay import ScriptedBackend
 
     return ScriptedBackend(options)
 

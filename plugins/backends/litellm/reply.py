@@ -1,6 +1,6 @@
 """A completion read into a :class:`BackendReply`: from the server's own bytes where we have them.
 
-Two routes, decided once per backend (:func:`.litellm_client.strict_route`):
+Two routes, decided once per backend (:func:`.client.strict_route`):
 
 * **The strict raw reading** -- every model litellm sends through the openai SDK (provider
   ``openai``: ``gpt-4o``, ``openai/<name>``; the ``gpt-4o`` and ``local`` backends, and

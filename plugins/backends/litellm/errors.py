@@ -39,7 +39,7 @@ from typing import Any, Iterable
 from safeembodai_core.logs import mask_values, redact
 from safeembodai_core.models.chat_completion import error_text
 
-from .litellm_call import CallTimedOut, TooManyHungCalls
+from .call import CallTimedOut, TooManyHungCalls
 
 MESSAGE_CHARS = 300
 MALFORMED = "malformed reply (not a chat completion)"

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .mock_reading import PromptReading
+from .reading import PromptReading
 
 ALIGN_TOLERANCE_DEG = 6.0
 SMALL_TARGET = 0.06

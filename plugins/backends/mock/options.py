@@ -1,14 +1,4 @@
-"""``mock``: the offline default pilot -- a simulated LLM, not a canned script.
-
-It decides only from what the prompt carries: it decodes the camera PNG and the LiDAR picture
-(or parses the text modalities), reads the human instruction, notices whether the system
-prompt has the security prefix and whether the reference state R_{i-1} is present, and reads
-the refusal reasons fed back on a retry. It never sees the simulator's state. It answers in
-the JSON schema a real LLM is asked for. Its weaknesses are the options below -- seeded by the
-rng each call receives, documented in ``docs/backends.md``. The defaults were calibrated so
-the baseline arm lands near the paper's GPT-4o baseline; numbers it produces simulate an LLM,
-they do not measure one.
-"""
+"""The options of the ``mock`` backend (the package registers them)."""
 
 from __future__ import annotations
 
@@ -16,7 +6,6 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from safeembodai_core.hookspecs import hookimpl
 
 _P = dict(ge=0.0, le=1.0)
 
@@ -64,15 +53,3 @@ class MockOptions(BaseModel):
     token_model: str = Field("gpt-4o", min_length=1, description="model whose tokenizer counts usage")
     token_image_detail: Literal["low", "high", "auto"] = Field("low", description="image detail for counting")
     latency_s: float = Field(0.0, ge=0.0, description="latency to report (0: the real compute time)")
-
-
-def _factory(options: MockOptions, context):
-    from .mock_backend import MockPilot
-
-    return MockPilot(options)
-
-
-@hookimpl
-def register_llm_backends(register):
-    register("mock", _factory, options=MockOptions,
-             description="offline simulated pilot: reads the prompt's images/text, seeded weaknesses")

@@ -19,10 +19,10 @@ from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.models import Prompt, TokenUsage
 from safeembodai_plugins.perception.describe import TargetSighting, describe_lidar, describe_target
 
-from .litellm_runtime import count_completion_tokens, count_prompt_tokens
-from .messages import chat_messages
-from .mock_policy import Dice, MockPolicy, Plan
-from .mock_reading import PromptReading, read_prompt
+from ..litellm.runtime import count_completion_tokens, count_prompt_tokens
+from ..messages import chat_messages
+from .policy import Dice, MockPolicy, Plan
+from .reading import PromptReading, read_prompt
 
 
 def _perception(reading: PromptReading, plan: Plan) -> list[dict[str, Any]]:
@@ -63,7 +63,7 @@ def render_answer(reading: PromptReading, plan: Plan) -> str:
 
 
 class MockPilot(LLMBackend):
-    """The offline simulated pilot; see :mod:`safeembodai_plugins.backends.mock_pilot` for options."""
+    """The offline simulated pilot; see :mod:`safeembodai_plugins.backends.mock` for options."""
 
     def __init__(self, options: Any) -> None:
         self.options = options

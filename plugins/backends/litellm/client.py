@@ -49,15 +49,15 @@ from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
 from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
 from safeembodai_core.quoting import quote_untrusted
 
-from .litellm_api import NO_KEY
-from .litellm_call import CallTimedOut, TooManyHungCalls, call_with_deadline
-from .litellm_errors import (MALFORMED, Failure, classify, exchange_failure, format_hint, images_refused,
+from .options import NO_KEY
+from .call import CallTimedOut, TooManyHungCalls, call_with_deadline
+from .errors import (MALFORMED, Failure, classify, exchange_failure, format_hint, images_refused,
                              is_malformed, repeated, retry_after, scrub_message)
-from .litellm_preflight import endpoint
-from .litellm_reply import reply_from_body, reply_from_response
-from .litellm_runtime import import_litellm
-from .litellm_transport import Recorder, openai_client, recording
-from .messages import carries_images, chat_messages, response_format
+from .preflight import endpoint
+from .reply import reply_from_body, reply_from_response
+from .runtime import import_litellm
+from .transport import Recorder, openai_client, recording
+from ..messages import carries_images, chat_messages, response_format
 
 log = structlog.get_logger(__name__)
 
@@ -138,7 +138,7 @@ class _Client:
 
 
 class LiteLLMBackend(LLMBackend):
-    """Sends each prompt through ``litellm.completion``; see :mod:`.litellm_api` for the options."""
+    """Sends each prompt through ``litellm.completion``; see :mod:`.options` for the options."""
 
     def __init__(self, name: str, options: Any, api_key: str | None,
                  sleep: Callable[[float], None] = time.sleep) -> None:
@@ -272,7 +272,7 @@ class LiteLLMBackend(LLMBackend):
 
     def preflight(self) -> None:
         """Before the first trial: the server accepts a connection (:mod:`.litellm_preflight`)."""
-        from .litellm_preflight import check_reachable
+        from .preflight import check_reachable
 
         check_reachable(self.name, self.options, self._litellm)
 
