@@ -112,6 +112,8 @@ class RayExecutor:
         except ImportError:
             raise SafeEmbodAIError('the ray executor needs the ray extra: pip install -e ".[ray]"') from None
         self.ray = ray
+        # a run must not phone home: Ray's usage stats stay off unless the user turned them on
+        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
         if not ray.is_initialized():
             local = {"_node_ip_address": "127.0.0.1"} if address is None else {}
             ray.init(address=address, include_dashboard=False, log_to_driver=False,

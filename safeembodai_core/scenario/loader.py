@@ -84,6 +84,18 @@ def _check_duplicate_keys(node: yaml.Node | None, source: str, path: tuple[Any, 
             _check_duplicate_keys(item, source, path + (index,), checked)
 
 
+#: The keys of a component reference (``ComponentRef``): a component written as its name alone takes them.
+COMPONENT_KEYS = ("use", "options", "label")
+
+
+def _default_component(field: str) -> Any:
+    """The component a scenario gets for ``field`` when it names none (``perception: images``), as
+    ``{use: name}``; ``{}`` for a field that is no component."""
+    info = Scenario.model_fields.get(field)
+    default = info.get_default(call_default_factory=True) if info is not None else None
+    return {"use": default.use} if hasattr(default, "use") else {}
+
+
 def _apply_override(data: dict[str, Any], assignment: str) -> tuple[str, ...]:
     if "=" not in assignment:
         raise ScenarioError(f"--set {assignment!r}: expected dotted.key=value")
@@ -99,11 +111,18 @@ def _apply_override(data: dict[str, Any], assignment: str) -> tuple[str, ...]:
         if isinstance(target, list):
             if not part.isdigit() or int(part) >= len(target):
                 raise ScenarioError(f"--set {key}: {_dotted(parts[:depth + 1])} is not an index of the list")
-            target = target[int(part)]
+            slot: Any = int(part)
         elif isinstance(target, dict):
-            target = target.setdefault(part, {})
+            if part not in target and depth == 0 and parts[1] in COMPONENT_KEYS:
+                target[part] = _default_component(part)  # perception.options.x on a scenario silent on it
+            target.setdefault(part, {})
+            slot = part
         else:
             raise ScenarioError(f"--set {key}: {_dotted(parts[:depth])} is not a mapping or list")
+        if isinstance(target[slot], str) and parts[depth + 1] in COMPONENT_KEYS:
+            # a component named alone (``backend: mock``) is the mapping {use: mock}: its options can be set
+            target[slot] = {"use": target[slot]}
+        target = target[slot]
     last = parts[-1]
     if isinstance(target, list) and last.isdigit() and int(last) < len(target):
         target[int(last)] = value

@@ -87,6 +87,20 @@ def test_overrides_apply_and_are_validated_like_the_file(plugins):
     assert scenario.environments[0].options == {"obstacles": 4}
 
 
+def test_a_component_named_alone_takes_options_from_the_command_line(plugins):
+    """``backend: mock`` (a name, not a mapping) and a perception the scenario never names still take
+    ``--set KEY.options.X=...``: the name becomes ``{use: name}``, a missing one its default's name."""
+    text = "name: demo\nenvironments: [flatland]\nbackend: mock\n"
+    scenario = parse_scenario(text, "demo.yaml",
+                              ["backend.options.ignore_clearance_p=0.5", "perception.options.lidar_image_px=120",
+                               "environments.0.label=room"], plugins.registry)
+    assert (scenario.backend.use, scenario.backend.options) == ("mock", {"ignore_clearance_p": 0.5})
+    assert scenario.perception.use == "images" and scenario.perception.options == {"lidar_image_px": 120}
+    assert scenario.environments[0].key == "room"
+    with pytest.raises(ScenarioError, match=r"backend.options.nope: .*Extra inputs are not permitted"):
+        parse_scenario(text, "demo.yaml", ["backend.options.nope=1"], plugins.registry)
+
+
 def test_repeated_keys_and_broken_yaml_are_errors():
     with pytest.raises(ScenarioError, match="demo.yaml:4: seed: key repeated"):
         parse_scenario(GOOD.replace("trials: 3", "trials: 3\nseed: 8"), "demo.yaml")
