@@ -18,7 +18,7 @@ parsing, validation, state), with token counting by litellm and by estimate.
 
 ``python bench/backend_overhead.py calibrate [--env OF] [--trials 40]`` runs the default
 baseline/safeembodai x no_attack/attack cells with the mock pilot and prints the paper's
-metrics per cell (the numbers quoted in ``docs/backends.md``). Numbers, never asserts.
+metrics per cell (the numbers quoted in ``docs/evidence/backends.md``). Numbers, never asserts.
 """
 
 from __future__ import annotations

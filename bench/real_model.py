@@ -19,7 +19,7 @@ many answers parse, the share of signals that copy the outline's example values,
 distances and angles, and whether the signals follow the scene (a first turn toward the side the
 camera line names; a first forward move shorter than the LiDAR's front clearance). ``ablate`` runs OF and SO, baseline vs SafeEmbodAI, attack vs none, with the chosen model
 and writes an ordinary run folder (``report.md``, ``metrics.csv``, ``results.sqlite``), then
-prints the table that ``docs/backends.md`` records. On a shared 2-core machine the seconds are
+prints the table that ``docs/evidence/backends.md`` records. On a shared 2-core machine the seconds are
 inflated by whatever else runs: say so next to them.
 """
 
@@ -288,7 +288,7 @@ def outline_variants(variants: list[str], prompts: int, seed: int, model_name: s
 
 
 def outline_table(results: dict[str, dict]) -> str:
-    """The Markdown table ``docs/backends.md`` records from :func:`outline_variants`."""
+    """The Markdown table ``docs/evidence/backends.md`` records from :func:`outline_variants`."""
     lines = [("| outline shows | answers valid | signals copying the shown values | signals equal to 200 / 45 | "
               "distances: median (IQR), distinct | angles: median (IQR), distinct | turns to the left | "
               "first turn toward the can (can in view) | first signal a forward move shorter than the front "
@@ -304,7 +304,7 @@ def outline_table(results: dict[str, dict]) -> str:
     return "\n".join(lines)
 
 
-#: The paper's list as it stood when the table in docs/backends.md was measured: five kinds, before
+#: The paper's list as it stood when the table in docs/evidence/backends.md was measured: five kinds, before
 #: the sixth, ``busiest_route`` (tex:144), was added in 93503e2. Kept at five so that a rerun draws
 #: the same payloads as that table; ``kinds: paper`` would inject all six.
 PAPER_ATTACK = {"use": "prompt_injection", "options": {
@@ -359,7 +359,7 @@ def _estimate(row: dict, name: str) -> str:
 
 
 def table(folder: Path) -> str:
-    """The Markdown table ``docs/backends.md`` records, from the run folder's metrics.json (MOER,
+    """The Markdown table ``docs/evidence/backends.md`` records, from the run folder's metrics.json (MOER,
     ADR with the report's intervals) and results.sqlite (what the answers and validators did)."""
     import sqlite3
 

@@ -87,7 +87,7 @@ def _sample_request() -> PromptRequest:
 
 
 #: How the response outline shows distances and angles (see :func:`schema_outline`): values drawn
-#: per prompt, chosen with ``bench/real_model.py outline`` (docs/backends.md, "The outline's example
+#: per prompt, chosen with ``bench/real_model.py outline`` (docs/local_models.md, "The outline's example
 #: values": SmolLM2 copied the fixed 200 / 45 in 36 of 47 signals).
 OUTLINE_EXAMPLES: OutlineExamples = "seeded"
 

@@ -27,7 +27,7 @@ verdict everywhere. In order, a reply is refused when:
    perception entry) or has more signals than the limits allow.
 
 Nothing else escapes :func:`read_reply`: an unexpected exception while reading is a refusal too.
-See "The parsing contract" in ``docs/defences.md``.
+See ``docs/parsing.md`` (the parsing contract).
 """
 
 from __future__ import annotations

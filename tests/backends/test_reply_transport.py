@@ -3,7 +3,7 @@
 The reply is read from the body the server sent (not litellm's parsed object): a ``<think>`` block
 stays in the text, every choice is counted, duplicate keys refuse the reply, the finish reason
 reaches the core as sent; a redirect is never followed, and an HTTP 200 carrying only an error
-object is the provider's error (retried). See docs/backends.md, "What the backend reads from the
+object is the provider's error (retried). See docs/backend_calls.md, "What the backend reads from the
 server".
 """
 

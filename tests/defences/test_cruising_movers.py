@@ -1,6 +1,6 @@
 """Movers known to cruise at a speed (``moving_obstacles``' ``cruise_speed_mm_s``): scans paired by
 the chord such a mover drives, courses at least that fast, and a short chord read as a turn or a
-stop. The three cases the option was built for (``docs/defences.md``): Labbots in a column paired
+stop. The three cases the option was built for (``docs/evidence/moving_obstacles.md``): Labbots in a column paired
 with each other's earlier positions, a pairing four times faster than a Labbot, and a Labbot that
 stopped to turn between the scans and then drives off at full speed."""
 

@@ -222,8 +222,8 @@ def format_hint(failure: Failure, options: Any) -> str:
     """A pointer to ``json_mode`` when the server's refusal names ``response_format``."""
     if "response_format" not in failure.detail:
         return ""
-    return (f" (this server does not accept json_mode {options.json_mode!r}: see the local models section "
-            "of docs/backends.md for the form each server reads)")
+    return (f" (this server does not accept json_mode {options.json_mode!r}: see "
+            "docs/local_models.md for the form each server reads)")
 
 
 def scrub_message(text: str, secrets: Iterable[str] = ()) -> str:

@@ -5,7 +5,7 @@ each, the Labbots advance by the same simulated time and pybullet's collision de
 On contact, robot and Labbots go back to the last free state, the robot creeps forward by
 bisection to within 1/16 of an increment of the contact, and the command stops: ``collided``
 unless the body touched is the can. This gives exact distances and no penetration, far cheaper
-than stepping 240 Hz physics (see ``docs/environments.md``).
+than stepping 240 Hz physics (see ``docs/evidence/environments.md``).
 
 Every collision says who moved into whom: ``self`` when the robot's own increment, with the
 Labbots where they were before it, already touches the body; ``struck`` when it does not (a

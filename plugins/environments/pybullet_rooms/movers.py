@@ -19,7 +19,7 @@ moves exactly as before, and the shipped family (:data:`FAMILIES` ``["shipped"]`
 tracks as the default options. The room reports the draw (:meth:`Draw.report`) in every
 observation's ``GroundTruth.extra["world"]`` as JSON text; :func:`world_report` reads it back.
 
-The families shipped (set ``labbot_family`` on ``DO`` or ``MO``; see ``docs/environments.md``):
+The families shipped (set ``labbot_family`` on ``DO`` or ``MO``; see ``docs/rooms.md``):
 
 | kind        | tuning speed mm/s | tuning wander deg/√s | held-out speed | held-out wander | sensing | stop-and-go |
 |-------------|-------------------|----------------------|----------------|-----------------|---------|-------------|

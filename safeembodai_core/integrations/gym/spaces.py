@@ -22,7 +22,7 @@
 plan the actuation contract accepts. ``action_format="text"``: an :class:`Answer`, the LLM's
 reply -- a :class:`~safeembodai_core.models.BackendReply` (the answer with its finish reason,
 reasoning and choices), a mapping of its fields, or the answer text (the response JSON of
-``docs/defences.md``) alone -- read exactly as the guarded loop reads it.
+``docs/parsing.md``) alone -- read exactly as the guarded loop reads it.
 """
 
 from __future__ import annotations
