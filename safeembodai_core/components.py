@@ -9,8 +9,9 @@ missing method then fails at construction with a clear message instead of mid-tr
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Iterable
 
 import numpy as np
 
@@ -30,11 +31,12 @@ from .models import (
     StepRecord,
     TrialResult,
     TrialSpec,
-    Verdict,
 )
+from .robot import RobotSpec
+from .validation import Validator
 
-if TYPE_CHECKING:
-    from .validation import ValidationContext
+__all__ = ["Attacker", "AttackSurface", "BackendReply", "BuildContext", "Environment", "LLMBackend", "Perception",
+           "PromptBuilder", "RobotSpec", "SceneObject", "StateStore", "StepFacts", "Validator", "WorldSnapshot"]
 
 
 @dataclass(frozen=True)
@@ -53,15 +55,6 @@ class BuildContext:
     seed: int = 0
     label: str | None = None  # the key of this use of the component: its label, else the name
     run_dir: str | None = None
-
-
-@dataclass(frozen=True)
-class RobotSpec:
-    """The robot's body as validators need it (millimetres)."""
-
-    radius_mm: float = 170.0
-    width_mm: float = 340.0
-    length_mm: float = 340.0
 
 
 @dataclass(frozen=True)
@@ -145,6 +138,26 @@ class PromptBuilder(ABC):
         return None
 
 
+@dataclass
+class StepFacts:
+    """What the stored steps of one trial add up to, for the report (:meth:`StateStore.step_facts`).
+
+    ``refusals`` counts, per validator rule, the attempts it refused (judged invalid for at least
+    one of their signals; an attempt refused by two rules counts for each); ``attacked_by_kind``
+    counts, per attack kind, the steps with at least one :class:`~safeembodai_core.models.AttackRecord`
+    of that kind.
+    """
+
+    refusals: Counter = field(default_factory=Counter)  # rule -> attempts it refused
+    attacked_by_kind: Counter = field(default_factory=Counter)  # kind -> steps attacked with it
+
+    def add(self, record: StepRecord) -> None:
+        """Count one step record in."""
+        refused = {(a.index, v.rule) for a in record.attempts for v in a.verdicts if not v.valid}
+        self.refusals.update(rule for _, rule in refused)
+        self.attacked_by_kind.update({a.kind for a in record.attacks})
+
+
 class StateStore(ABC):
     """Keeps per-step records and answers the reference state R_{i-1}.
 
@@ -176,6 +189,21 @@ class StateStore(ABC):
     def steps(self, trial_id: str) -> list[StepRecord]:
         """Every recorded step of a trial, in order."""
 
+    def step_facts(self, trial_ids: Iterable[str]) -> dict[str, StepFacts]:
+        """Refusals per rule and attacked steps per kind of each of ``trial_ids`` (what the report
+        counts; a trial without steps has empty counts).
+
+        The default counts the records :meth:`steps` returns. A store that can count without
+        reading every record back (the ``sqlite`` store asks its tables) may override it; the
+        numbers must be the same.
+        """
+        facts: dict[str, StepFacts] = {}
+        for trial_id in trial_ids:
+            facts[trial_id] = counted = StepFacts()
+            for record in self.steps(trial_id):
+                counted.add(record)
+        return facts
+
     def results(self) -> list[TrialResult]:
         """Every finished trial's result (what resuming and reports read).
 
@@ -191,17 +219,6 @@ class StateStore(ABC):
 
     def close(self) -> None:
         """Flush and release."""
-
-
-class Validator(ABC):
-    """A safety rule applied to each control signal before execution."""
-
-    @abstractmethod
-    def validate(self, signal: ControlSignal, context: "ValidationContext") -> Verdict:
-        """Judge ``signal`` given the (planned) robot state in ``context``.
-
-        The verdict's ``reason`` is shown to the LLM on a retry: say what was wrong and by how much.
-        """
 
 
 class Attacker(ABC):

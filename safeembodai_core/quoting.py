@@ -23,7 +23,7 @@ import json
 import re
 from typing import Any
 
-from .logs import redact
+from .redaction import redact
 
 CLIPPED = "[...]"
 #: Characters that can reorder, hide or break a line a reader sees and that JSON leaves as they
@@ -45,7 +45,7 @@ def _escape(match: re.Match[str]) -> str:
 def quote_untrusted(value: Any, max_chars: int | None = None) -> str:
     """``value`` (made a string) as a JSON string literal that cannot break out of its quotes.
 
-    Configured secrets and bearer-shaped keys are masked first (:func:`~safeembodai_core.logs.redact`).
+    Configured secrets and bearer-shaped keys are masked first (:func:`~safeembodai_core.redaction.redact`).
     With ``max_chars`` only the first ``max_chars`` characters are quoted and ``[...]`` follows
     the closing quote, so what is inside the quotes is always exactly what was written.
     """

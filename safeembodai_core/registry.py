@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 from dataclasses import dataclass
+from importlib import import_module
 from typing import TYPE_CHECKING, Any, Callable
 
 from pydantic import BaseModel, ConfigDict, ValidationError
@@ -47,6 +48,29 @@ class ComponentInfo:
     factory: Callable[[Any, "BuildContext"], Any]
     options: type[BaseModel]
     description: str = ""
+
+
+def lazy(module: str, attribute: str, *args: Any) -> Callable[[Any, "BuildContext"], Any]:
+    """A factory that imports ``attribute`` from ``module`` only when a component is built, and
+    returns ``attribute(*args, options)``.
+
+    For a plugin whose registration module must stay light (the implementation imports numpy,
+    pybullet, rich ...): ``register("lidar_clearance", lazy(f"{__name__}.rules",
+    "LidarClearanceRule"), options=...)`` is ``from .rules import LidarClearanceRule`` inside a
+    factory that returns ``LidarClearanceRule(options)``, failing the same way (``ImportError``).
+    """
+
+    def factory(options: Any, context: "BuildContext") -> Any:
+        imported = import_module(module)
+        try:
+            built = getattr(imported, attribute)
+        except AttributeError:
+            where = getattr(imported, "__file__", None) or "unknown location"
+            raise ImportError(f"cannot import name {attribute!r} from {module!r} ({where})", name=module) from None
+        return built(*args, options)
+
+    factory.__name__ = factory.__qualname__ = f"build_{attribute}"
+    return factory
 
 
 class ComponentOptionsError(ComponentError):

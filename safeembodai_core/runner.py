@@ -21,6 +21,7 @@ from .loop.trial import error_result
 from .models import TrialResult, TrialSpec
 from .plugins import Plugins
 from .refs import ComponentRef
+from .run_files import BAG_STORAGE_FILE, BAGS_DIR
 from .scenario import Scenario
 
 from .logs import get_logger
@@ -64,12 +65,6 @@ class PreflightError(SafeEmbodAIError):
 def trajectory_file(run_dir: str | Path, trial_id: str) -> Path:
     """Where the picture of ``trial_id`` goes in a run folder."""
     return Path(run_dir) / "trajectories" / (trial_id.replace("/", "__") + ".png")
-
-
-#: A run folder whose ``bags/`` holds this file records a ROS 2 bag per trial as it ends (its text:
-#: the storage, ``mcap`` or ``sqlite3``); ``ablate --bags`` writes it.
-BAGS_DIR = "bags"
-BAG_STORAGE_FILE = "storage"
 
 
 def bag_file(run_dir: str | Path, trial_id: str) -> Path:

@@ -4,7 +4,7 @@ An LLM's answer, an attacker's payload and whatever a backend reports end up in 
 store and on the operator's terminal. Two rules, one module:
 
 * **stored** -- :func:`storable` returns a copy of a record (a pydantic model, at any depth) in
-  which every string is redacted (:func:`~safeembodai_core.logs.redact`: registered secrets and
+  which every string is redacted (:func:`~safeembodai_core.redaction.redact`: registered secrets and
   bearer-shaped keys become ``***``) and encodable (lone surrogates, the only code points UTF-8
   cannot encode, become U+FFFD; NUL and other controls are kept, JSON and SQLite hold them), and
   every integer fits SQLite's INTEGER (clamped to +-(2**63-1)). The trial loop applies it before a
@@ -28,7 +28,7 @@ from typing import Any, TypeVar
 
 from pydantic import BaseModel
 
-from .logs import redact
+from .redaction import redact
 from .quoting import UNSAFE_BEYOND_JSON
 
 SQLITE_MAX_INT = 2**63 - 1

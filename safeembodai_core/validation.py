@@ -14,13 +14,14 @@ sensor gave no reading (a ``nan`` beam), never because moved points leave gaps b
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, replace
 from typing import Iterable, Literal, Sequence
 
 import numpy as np
 
-from .components import RobotSpec, Validator
 from .models import DEFAULT_LIMITS, ControlLimits, ControlSignal, LidarScan, Pose, Turn, Verdict
+from .robot import RobotSpec
 
 _UNKNOWN_RAY_STEP_MM = 50.0
 _EDGE_EPS = 1e-9
@@ -241,6 +242,18 @@ class ValidationContext:
         if len(starts):
             unknown = np.fmin(unknown, _ray_hits(n, inc, starts, stops))
         return np.where(np.isnan(measured) | (unknown <= measured), np.nan, measured)
+
+
+class Validator(ABC):
+    """A safety rule applied to each control signal before execution (also importable from
+    :mod:`safeembodai_core.components`, with the other interfaces)."""
+
+    @abstractmethod
+    def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
+        """Judge ``signal`` given the (planned) robot state in ``context``.
+
+        The verdict's ``reason`` is shown to the LLM on a retry: say what was wrong and by how much.
+        """
 
 
 def validate_plan(

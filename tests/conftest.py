@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -70,6 +71,24 @@ def ablate_into(scenario, plugins, path):
 def ablated():
     """:func:`ablate_into`, for module-scoped fixtures that run a whole ablation once."""
     return ablate_into
+
+
+@contextlib.contextmanager
+def open_run_store(scenario, plugins, path):
+    """The state store of the run folder ``path``, open as ``safeembodai report`` opens it."""
+    from safeembodai_core.runner import ScenarioRunner
+
+    runner = ScenarioRunner(scenario, plugins, run_dir=path)
+    try:
+        yield runner.state
+    finally:
+        runner.close()
+
+
+@pytest.fixture(scope="session")
+def run_store():
+    """:func:`open_run_store`: ``with run_store(scenario, plugins, path) as store: ...``."""
+    return open_run_store
 
 
 @pytest.fixture

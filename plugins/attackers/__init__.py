@@ -28,6 +28,7 @@ from pydantic import Field, field_validator, model_validator
 
 from safeembodai_core.attacks import AttackSchedule
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
 
 class PromptInjectionOptions(AttackSchedule):
@@ -113,29 +114,11 @@ class StatePoisoningOptions(AttackSchedule):
         return notes
 
 
-def _injection(options, context):
-    from .injection import PromptInjectionAttacker
-
-    return PromptInjectionAttacker(options)
-
-
-def _spoof(options, context):
-    from .spoof import LidarSpoofAttacker
-
-    return LidarSpoofAttacker(options)
-
-
-def _poisoning(options, context):
-    from .poisoning import StatePoisoningAttacker
-
-    return StatePoisoningAttacker(options)
-
-
 @hookimpl
 def register_attackers(register):
-    register("prompt_injection", _injection, options=PromptInjectionOptions,
+    register("prompt_injection", lazy(f"{__name__}.injection", "PromptInjectionAttacker"), options=PromptInjectionOptions,
              description="malicious prompts injected into the human instruction at a seeded rate")
-    register("lidar_spoof", _spoof, options=LidarSpoofOptions,
+    register("lidar_spoof", lazy(f"{__name__}.spoof", "LidarSpoofAttacker"), options=LidarSpoofOptions,
              description="phantom or erased obstacles in a sector of the LiDAR scan")
-    register("state_poisoning", _poisoning, options=StatePoisoningOptions,
+    register("state_poisoning", lazy(f"{__name__}.poisoning", "StatePoisoningAttacker"), options=StatePoisoningOptions,
              description="a forged entry in the reference state R_{i-1}")

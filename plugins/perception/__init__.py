@@ -12,6 +12,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field
 
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
 
 class ImagesOptions(BaseModel):
@@ -30,21 +31,9 @@ class TextOptions(BaseModel):
     min_target_pixels: int = Field(12, ge=1, description="red pixels needed to call the target seen")
 
 
-def _images(options: ImagesOptions, context):
-    from .render import ImagePerception
-
-    return ImagePerception(options)
-
-
-def _text(options: TextOptions, context):
-    from .render import TextPerception
-
-    return TextPerception(options)
-
-
 @hookimpl
 def register_perceptions(register):
-    register("images", _images, options=ImagesOptions,
+    register("images", lazy(f"{__name__}.render", "ImagePerception"), options=ImagesOptions,
              description="camera image + top-down LiDAR image (the paper's modalities)")
-    register("text", _text, options=TextOptions,
+    register("text", lazy(f"{__name__}.render", "TextPerception"), options=TextOptions,
              description="text descriptions of camera and LiDAR, for models without vision")

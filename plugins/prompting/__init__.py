@@ -14,6 +14,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
 
 class JinjaPromptOptions(BaseModel):
@@ -31,13 +32,7 @@ class JinjaPromptOptions(BaseModel):
     max_failure_chars: int = Field(400, ge=40, le=10_000, description="each refusal reason is cut to this length")
 
 
-def _factory(options: JinjaPromptOptions, context):
-    from .builder import JinjaPromptBuilder
-
-    return JinjaPromptBuilder(options)
-
-
 @hookimpl
 def register_prompt_builders(register):
-    register("jinja", _factory, options=JinjaPromptOptions,
+    register("jinja", lazy(f"{__name__}.builder", "JinjaPromptBuilder"), options=JinjaPromptOptions,
              description="system prompt Y = {B, p} and user prompt I_i from sandboxed Jinja templates")

@@ -10,9 +10,11 @@ run with several worker processes (use ``sqlite``).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from pydantic import BaseModel, ConfigDict
 
-from safeembodai_core.components import StateStore
+from safeembodai_core.components import StateStore, StepFacts
 from safeembodai_core.hookspecs import hookimpl
 from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
 from safeembodai_core.text_safety import storable
@@ -50,6 +52,15 @@ class MemoryStateStore(StateStore):
     def steps(self, trial_id: str) -> list[StepRecord]:
         records = self.records.get(trial_id, {})
         return [records[step].model_copy(deep=True) for step in sorted(records)]
+
+    def step_facts(self, trial_ids: Iterable[str]) -> dict[str, StepFacts]:
+        """Counted from the records kept, without copying them."""
+        facts: dict[str, StepFacts] = {}
+        for trial_id in trial_ids:
+            facts[trial_id] = counted = StepFacts()
+            for record in self.records.get(trial_id, {}).values():
+                counted.add(record)
+        return facts
 
     def results(self) -> list[TrialResult]:
         """The results of the trials finished in this process, in the order they ended."""

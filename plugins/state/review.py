@@ -22,13 +22,13 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from safeembodai_core.cli.run_cmd import plural, trial_ending
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import Attempt, StepRecord
 from safeembodai_core.text_safety import terminal_text as shown
+from safeembodai_core.trial_words import plural, trial_ending
 
 from .sqlite_db import SqliteStateStore
-from .sqlite_store import DEFAULT_FILE
+from .sqlite_file import DEFAULT_FILE
 
 
 def open_run(run: str | Path) -> SqliteStateStore:

@@ -20,7 +20,9 @@ from pydantic import BaseModel, ConfigDict, Field
 from safeembodai_core.errors import ComponentError, StateStoreError
 from safeembodai_core.hookspecs import hookimpl
 
-DEFAULT_FILE = "results.sqlite"
+from .sqlite_file import DEFAULT_FILE
+
+__all__ = ["DEFAULT_FILE", "SqliteOptions", "StateStoreOpenError", "resolve_path"]
 
 
 class SqliteOptions(BaseModel):

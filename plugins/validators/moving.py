@@ -41,6 +41,7 @@ from safeembodai_core.validation import ValidationContext
 
 from .futures import WanderingFutures, WanderSettings, yielding
 from .learning import LearningSettings, learn_movers
+from .options import DEFAULT_SAFETY_DISTANCE_MM
 from .rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 
@@ -340,8 +341,6 @@ class MovingObstaclesRule(Validator):
         then a straight forward, or a straight backward or forward, 200 or 390 mm, clear of the
         scan by the clearance rule's default distance -- whose motion meets no mover's courses and
         whose end lies on no mover's course (:meth:`parked_on`); None if there is none."""
-        from . import DEFAULT_SAFETY_DISTANCE_MM
-
         base = replace(context, offset=(0.0, 0.0, 0.0), earlier_signals=(), later_signals=())
         top = context.limits.max_distance_mm - 1.0
         for turn_deg in (89.0, -89.0, 60.0, -60.0, 180.0, 0.0):

@@ -11,7 +11,7 @@ from safeembodai_core.models import ControlSignal, LidarScan, Straight, Turn, Ve
 from safeembodai_core.models.control import HARD_MAX_ANGLE_DEG, HARD_MAX_DISTANCE_MM
 from safeembodai_core.validation import ValidationContext
 
-from . import DEFAULT_SAFETY_DISTANCE_MM
+from .options import DEFAULT_SAFETY_DISTANCE_MM
 
 
 def checked_scan(context: ValidationContext, rule: str, expected_beams: int | None = None) -> LidarScan:

@@ -1,7 +1,7 @@
 """Run an ablation: pending trials -> executor -> results recorded as they finish -> resumable.
 
-The scenario's state store records every step and every trial result (by default ``sqlite``
-in ``<run>/results.sqlite``, written by the workers themselves as trials finish). A trial counts as
+The scenario's state store records every step and every trial result (by default ``sqlite``,
+one file in the run folder, written by the workers themselves as trials finish). A trial counts as
 done only once its result is in the store, so after Ctrl-C, SIGTERM, ``kill -9`` or a crashed
 worker a resumed run re-runs exactly the missing trials: a trial cut off mid-way starts again from
 scratch (``begin_trial`` drops its partial steps), none runs twice to completion.

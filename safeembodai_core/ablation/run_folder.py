@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SafeEmbodAIError
+from ..run_files import BAG_STORAGE_FILE, BAGS_DIR
 from ..scenario import Scenario
 
 SCENARIO_FILE = "scenario.json"
@@ -71,8 +72,6 @@ class RunFolder:
 
     def record_bags(self, storage: str) -> None:
         """From now on, every trial that ends writes its ROS 2 bag into ``bags/`` (``mcap`` or ``sqlite3``)."""
-        from ..runner import BAG_STORAGE_FILE, BAGS_DIR
-
         folder = self.path / BAGS_DIR
         try:
             folder.mkdir(parents=True, exist_ok=True)

@@ -76,12 +76,11 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     console = Console(emoji=False)
     with StopSignals() as stop:
         try:
-            results = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor, address, bags)
+            results, report = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor,
+                                   address, bags, report=not no_report)
             console.print(summary_table(scenario, results, plugins=plugins))
-            if not no_report:
-                from ..report import write_report
-
-                console.print(f"report: {write_report(folder.path, scenario, results, plugins=plugins)}")
+            if report is not None:
+                console.print(f"report: {report}")
         except (KeyboardInterrupt, SafeEmbodAIError) as error:
             # a signal sent to the whole process group also kills workers: the broken pool is the signal's doing
             if isinstance(error, SafeEmbodAIError) and stop.signum is None:
@@ -98,13 +97,15 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
         raise SafeEmbodAIError(f"{failed} -- once fixed, resume with --resume {folder.path}")
 
 
-def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None):
+def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False):
+    """Run the pending trials; return every result of the run and, with ``report``, the report
+    written from the run's own store (its steps give refusals and attack kinds) before it closes."""
     from rich.markup import escape
 
     from ..ablation import Ablation
     from ..text_safety import terminal_text
+    from ..trial_words import plural
     from .progress import AblationProgress
-    from .run_cmd import plural
 
     ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address,
                         bags=bags)
@@ -127,6 +128,11 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address,
                 if left[cell] == 0:
                     progress.advance(finished_cells)
 
-            return ablation.run(advance)
+            results = ablation.run(advance)
+        if not report:
+            return results, None
+        from ..report import write_report
+
+        return results, write_report(folder.path, scenario, results, store=ablation.store, plugins=plugins)
     finally:
         ablation.close()

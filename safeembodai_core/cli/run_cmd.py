@@ -4,46 +4,12 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import click
 
 from ..errors import ScenarioError
+from ..trial_words import plural, trial_ending
 from .common import load, scenario_options
-
-if TYPE_CHECKING:
-    from ..models import StepRecord, TrialResult
-
-
-def plural(count: int, noun: str) -> str:
-    """``1 step``, ``2 steps``."""
-    return f"{count} {noun}{'' if count == 1 else 's'}"
-
-
-def trial_ending(result: "TrialResult", steps: "list[StepRecord]") -> str:
-    """What ended the trial, in words ("" when its outcome says it all).
-
-    The result's own detail when it has one; for an interrupted trial without one, the collision
-    on record in its last steps: an executed command's result, or a collision while the robot
-    waited (reported in the next observation's ground truth).
-    """
-    from ..models import Outcome
-
-    if result.detail:
-        return result.detail
-    if result.outcome != Outcome.INTERRUPTED:
-        return ""
-    for record in reversed(steps):
-        for item in reversed(record.executed):
-            if item.result.collided:
-                what = item.result.detail or (f"hit {item.result.hit}" if item.result.hit else "collided")
-                return (f"{item.result.collision or 'unattributed'} collision at step {record.step}: "
-                        f"{item.signal.describe()} -> {what}")
-        extra = record.truth.extra
-        if extra.get("collision"):
-            what = extra.get("collision_detail") or "while the robot waited"
-            return f"{extra['collision']} collision before step {record.step}: {what}"
-    return "the environment ended it; no collision on record"
 
 
 def _pick(kind: str, value: str | None, names: list[str]) -> str:

@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from ..components import StateStore
+from ..errors import StateStoreError
+from ..logs import get_logger
 from ..metrics.release import READINGS, ReleaseReadings
 from ..models import TrialResult
 from ..runner import trajectory_file
@@ -24,6 +26,8 @@ from .cells import Cell, CollisionRates, collision_rates, release_of, scenario_c
 from .figures import draw_figures
 from .paper import comparison_rows
 from .run_info import run_info
+
+log = get_logger(__name__)
 
 ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", "tlr_all", "tlr_after_seen", "steps",
              "tokens", "distance_mm", "collisions", "interventions", "retries")
@@ -67,29 +71,32 @@ def _row(cell: Cell, rates: CollisionRates, facts: dict[str, step_facts.TrialFac
     return row
 
 
-def _facts(folder: Path, scenario: Scenario, results: list[TrialResult],
+def _facts(scenario: Scenario, results: list[TrialResult],
            store: StateStore | None) -> dict[str, step_facts.TrialFacts] | None:
+    """What ``store`` counts of the results' trials; None without a store, or one that cannot be read."""
+    if store is None:
+        return None
     ids = [r.spec.trial_id for r in results]
     release = {r.spec.trial_id: r.outcome for r in results} if scenario.metrics.release_readings else None
-    database = step_facts.sqlite_file(folder, scenario.state.use, scenario.state.options)
-    facts = step_facts.from_sqlite(database, ids, release) if database is not None else None
-    if facts is None and store is not None:
-        facts = step_facts.from_store(store, ids, release)
-    return facts
+    try:
+        return step_facts.from_store(store, ids, release)
+    except StateStoreError as error:
+        log.warning("report.steps_unreadable", store=scenario.state.use, error=str(error))
+        return None
 
 
 def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResult], *,
                  store: StateStore | None = None, plugins: Any = None) -> Path:
     """Write the metrics files, figures and report.md into ``folder``; return the report's path.
 
-    ``store`` (open) is read for refusals and attack kinds when the run's store is not the
-    ``sqlite`` file in the folder; ``plugins`` fills in the backend's default options (loaded
-    when not given).
+    ``store`` (the run's, open) is read for refusals and attack kinds (without one the report
+    says they were not read); ``plugins`` fills in the backend's default options (loaded when
+    not given).
     """
     folder = Path(folder)
     info = run_info(scenario, folder, plugins, results)
     cells = scenario_cells(scenario, results)
-    facts = _facts(folder, scenario, results, store)
+    facts = _facts(scenario, results, store)
     rates = collision_rates(scenario, cells)
     asked = scenario.metrics.release_readings
     releases = [release_of(cell, facts) if asked else None for cell in cells]

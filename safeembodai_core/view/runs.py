@@ -11,9 +11,10 @@ import os
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
+from stat import S_ISREG
 from typing import Any
 
-from ..ablation.run_folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
+from ..ablation.run_folder import COORDINATOR_LOCK, SCENARIO_FILE, RunFolder
 from ..errors import SafeEmbodAIError
 from .report_tables import report_tables
 
@@ -51,14 +52,21 @@ def running(folder: Path) -> bool:
 
 
 def signature(folder: Path) -> str:
-    """Changes whenever the run's results may have: the store's, the ledger's and the report's stamps."""
+    """Changes whenever the run's results may have: the size and time of every file directly in
+    the run folder -- scenario, ledger, lock, report, and whatever files the state store keeps
+    there (its name for them is the store's business, not the view's)."""
     parts = []
-    for name in (SCENARIO_FILE, LEDGER_FILE, "results.sqlite", "results.sqlite-wal", "metrics.json", COORDINATOR_LOCK):
+    try:
+        paths = sorted(folder.iterdir())
+    except OSError:
+        return "-"
+    for path in paths:
         try:
-            stat = (folder / name).stat()
-            parts.append(f"{name}:{stat.st_size}:{stat.st_mtime_ns}")
+            stat = path.stat()
         except OSError:
-            parts.append(f"{name}:-")
+            continue
+        if S_ISREG(stat.st_mode):
+            parts.append(f"{path.name}:{stat.st_size}:{stat.st_mtime_ns}")
     return "|".join(parts)
 
 

@@ -30,7 +30,7 @@ from safeembodai_core.models import (
 )
 from safeembodai_core.plugins import load_plugins
 from safeembodai_core.report import write_report
-from safeembodai_core.report.step_facts import from_sqlite, from_store
+from safeembodai_core.report.step_facts import from_store
 from safeembodai_core.scenario import parse_scenario
 
 # -- MOER: s_j and its cap ---------------------------------------------------------------------------
@@ -194,16 +194,20 @@ def release_run(tmp_path_factory, ablated):
     return ablated(scenario, plugins, tmp_path_factory.mktemp("run") / "releaserun")
 
 
-def test_the_report_shows_the_release_readings_only_when_asked(release_run):
+def test_the_report_shows_the_release_readings_only_when_asked(release_run, run_store):
     scenario, plugins, path, results = release_run
-    text = write_report(path, scenario, results, plugins=plugins).read_text()
+    with run_store(scenario, plugins, path) as store:
+        text = write_report(path, scenario, results, store=store, plugins=plugins).read_text()
     header = next(csv.reader((path / "metrics.csv").open()))
     assert "as the authors' release reads them" not in text and not any(name.endswith("_release") for name in header)
     assert "release_readings" not in json.loads((path / "metrics.json").read_text())
     assert "s_j = steps, s_j/S_max capped at 1" in text
 
     asked = scenario.model_copy(update={"metrics": MetricSettings(release_readings=True, s_j="attempts")})
-    text = write_report(path, asked, results, plugins=plugins).read_text()
+    outcomes = {r.spec.trial_id: r.outcome for r in results}
+    with run_store(scenario, plugins, path) as store:
+        text = write_report(path, asked, results, store=store, plugins=plugins).read_text()
+        facts = from_store(store, list(outcomes), outcomes)
     assert "## ADR and TLR as the authors' release reads them" in text and "data_process.py:109-114" in text
     assert "s_j = LLM attempts (steps + retries, the release)" in text
     rows = {r["condition"]: r for r in csv.DictReader((path / "metrics.csv").open())}
@@ -211,8 +215,6 @@ def test_the_report_shows_the_release_readings_only_when_asked(release_run):
     assert set(sources) == {"adr_precision_release", "adr_recall_release", "adr_f1_release", "tlr_release"}
     assert all(value.startswith("the authors' release's reading: eyesimLLM") for value in sources.values())
     # the values are the release's reading of the stored steps, trial by trial
-    outcomes = {r.spec.trial_id: r.outcome for r in results}
-    facts = from_sqlite(path / "results.sqlite", list(outcomes), outcomes)
     for condition, row in rows.items():
         counts = [facts[r.spec.trial_id].release for r in results if r.spec.condition == condition]
         expected = release_readings(counts)
@@ -225,16 +227,19 @@ def test_the_report_shows_the_release_readings_only_when_asked(release_run):
     assert "TLR as the release reads them: report.md" in console.export_text()
 
 
-def test_the_release_rows_read_the_same_through_any_store(release_run):
-    scenario, plugins, path, results = release_run
-    from safeembodai_core.runner import ScenarioRunner
+def test_the_release_rows_read_the_same_through_any_store(release_run, run_store):
+    from safeembodai_plugins.state.memory import MemoryStateStore
 
+    scenario, plugins, path, results = release_run
     outcomes = {r.spec.trial_id: r.outcome for r in results}
-    by_sql = from_sqlite(path / "results.sqlite", list(outcomes), outcomes)
-    runner = ScenarioRunner(scenario, plugins, run_dir=path)
-    try:
-        by_store = from_store(runner.state, list(outcomes), outcomes)
-    finally:
-        runner.close()
-    assert {i: f.release for i, f in by_sql.items()} == {i: f.release for i, f in by_store.items()}
-    assert all(f.release is None for f in from_sqlite(path / "results.sqlite", list(outcomes)).values())
+    copy = MemoryStateStore()
+    with run_store(scenario, plugins, path) as store:
+        by_sqlite = from_store(store, list(outcomes), outcomes)
+        for result in results:
+            copy.begin_trial(result.spec)
+            for record in store.steps(result.spec.trial_id):
+                copy.record_step(record)
+        assert all(f.release is None for f in from_store(store, list(outcomes)).values())
+    by_memory = from_store(copy, list(outcomes), outcomes)
+    assert {i: f.release for i, f in by_sqlite.items()} == {i: f.release for i, f in by_memory.items()}
+    assert sum(f.release.tp for f in by_sqlite.values()) > 0

@@ -13,8 +13,8 @@ from safeembodai_core.metrics import cell_metrics
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
 from safeembodai_core.plugins import load_plugins
 from safeembodai_core.report import write_report
-from safeembodai_core.report.step_facts import from_sqlite, from_store
-from safeembodai_core.runner import ScenarioRunner
+from safeembodai_core.components import StateStore
+from safeembodai_core.report.step_facts import from_store
 from safeembodai_core.scenario import parse_scenario
 
 MOCK_RUN = """
@@ -84,23 +84,37 @@ def test_the_simulated_banner_is_on_every_figure(mock_run, monkeypatch, tmp_path
     assert titles == ["simulated pilot (mock): not a measurement of an LLM"] * len(figures)
 
 
-def test_refusals_and_attack_kinds_come_from_the_stored_steps(scripted_run):
+def memory_copy(store, results):
+    """A ``memory`` store holding what ``store`` holds of ``results``' trials."""
+    from safeembodai_plugins.state.memory import MemoryStateStore
+
+    copy = MemoryStateStore()
+    for result in results:
+        copy.begin_trial(result.spec)
+        for record in store.steps(result.spec.trial_id):
+            copy.record_step(record)
+        copy.end_trial(result)
+    return copy
+
+
+def test_refusals_and_attack_kinds_come_from_the_stored_steps(scripted_run, run_store):
     scenario, plugins, path, results = scripted_run
     ids = [r.spec.trial_id for r in results]
-    fast = from_sqlite(path / "results.sqlite", ids)
-    runner = ScenarioRunner(scenario, plugins, run_dir=path)
-    try:
-        slow = from_store(runner.state, ids)
-    finally:
-        runner.close()
-    assert fast == slow  # the SQL shortcut and the StateStore interface agree
+    with run_store(scenario, plugins, path) as store:
+        fast = from_store(store, ids)  # the sqlite store's two queries
+        by_steps = StateStore.step_facts(store, ids)  # the interface's default: every record counted
+        by_memory = memory_copy(store, results).step_facts(ids)
+        write_report(path, scenario, results, store=store, plugins=plugins)
+    assert type(store).step_facts is not StateStore.step_facts  # sqlite counts in SQL
+    assert {i: (f.refusals, f.attacked_by_kind) for i, f in fast.items()} == \
+        {i: (f.refusals, f.attacked_by_kind) for i, f in by_steps.items()} == \
+        {i: (f.refusals, f.attacked_by_kind) for i, f in by_memory.items()}  # the SQL and the records agree
     guarded = [r for r in results if r.spec.arm == "safeembodai"]
     assert sum(sum(fast[r.spec.trial_id].refusals.values()) for r in guarded) > 0
     assert all(not fast[r.spec.trial_id].refusals for r in results if r.spec.arm == "baseline")
     for result in results:
         kinds = fast[result.spec.trial_id].attacked_by_kind
         assert max(kinds.values(), default=0) <= result.attacked_steps <= sum(kinds.values())
-    write_report(path, scenario, results, plugins=plugins)
     rows = {(r["arm"], r["condition"]): r for r in csv.DictReader((path / "metrics.csv").open())}
     attacked = rows[("safeembodai", "attack")]
     scored = [r for r in results if r.spec.arm == "safeembodai" and r.spec.condition == "attack"]
@@ -114,6 +128,31 @@ def test_refusals_and_attack_kinds_come_from_the_stored_steps(scripted_run):
     assert "| flatland | safeembodai | no_attack | lidar_clearance " in text
     no_attack = rows[("baseline", "no_attack")]
     assert no_attack["adr"] == "" and no_attack["attack_rate"] in ("0.0", "")  # ADR n/a without attackers
+
+
+def test_any_store_gives_the_report_the_same_refusals_and_attack_kinds(scripted_run, run_store, tmp_path):
+    """A third-party store (only ``steps``), the memory store and sqlite: one metrics.csv."""
+    from safeembodai_plugins.state.memory import MemoryStateStore
+
+    class StepsOnly(MemoryStateStore):  # what a store without its own step_facts gets
+        step_facts = StateStore.step_facts
+
+    scenario, plugins, path, results = scripted_run
+    (tmp_path / "scenario.json").write_text((path / "scenario.json").read_text())
+    with run_store(scenario, plugins, path) as store:
+        write_report(tmp_path, scenario, results, store=store, plugins=plugins)
+        expected = (tmp_path / "metrics.csv").read_text()
+        copy = memory_copy(store, results)
+    assert "refusals_lidar_clearance" in expected and "attacked_steps_" in expected
+    write_report(tmp_path, scenario, results, store=copy, plugins=plugins)
+    assert (tmp_path / "metrics.csv").read_text() == expected
+    steps_only = StepsOnly()
+    steps_only.__dict__.update(copy.__dict__)
+    write_report(tmp_path, scenario, results, store=steps_only, plugins=plugins)
+    assert (tmp_path / "metrics.csv").read_text() == expected
+    write_report(tmp_path, scenario, results, plugins=plugins)  # no store: nothing read, and the report says so
+    assert "refusals_" not in (tmp_path / "metrics.csv").read_text()
+    assert "not read" in (tmp_path / "report.md").read_text()
 
 
 def test_outcomes_collisions_small_n_and_na_cells(tmp_path):

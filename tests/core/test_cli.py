@@ -182,7 +182,7 @@ def test_run_summary_says_what_ended_an_interrupted_trial(cli_runner, repo, tmp_
 
 
 def test_trial_ending_and_plural():
-    from safeembodai_core.cli.run_cmd import plural, trial_ending
+    from safeembodai_core.trial_words import plural, trial_ending
     from safeembodai_core.models import Outcome, StepRecord, TrialResult, TrialSpec
     from safeembodai_core.models.observation import GroundTruth
 

@@ -16,7 +16,7 @@ import pytest
 import yaml
 from pydantic import BaseModel, ConfigDict
 
-from safeembodai_core import hookimpl, logs
+from safeembodai_core import hookimpl, redaction
 from safeembodai_core.cli import cli
 from safeembodai_core.components import Attacker, BackendReply, LLMBackend
 from safeembodai_core.models import (
@@ -128,8 +128,8 @@ SECRET = "hunter2-PRIVATE-credential-9f8e7d"
 
 @pytest.fixture
 def registered_secret(monkeypatch):
-    monkeypatch.setattr(logs, "_secrets", set())
-    logs.register_secret(SECRET)
+    monkeypatch.setattr(redaction, "_secrets", set())
+    redaction.register_secret(SECRET)
     return SECRET
 
 

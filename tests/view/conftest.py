@@ -27,7 +27,7 @@ def run_into(path: Path, scenario_file: Path, overrides: list[str]) -> Path:
         results = ablation.run()
         from safeembodai_core.report import write_report
 
-        write_report(path, scenario, results, plugins=plugins)
+        write_report(path, scenario, results, store=ablation.store, plugins=plugins)
     finally:
         ablation.close()
     return path

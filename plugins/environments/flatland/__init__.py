@@ -12,6 +12,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field
 
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
 
 class FlatlandOptions(BaseModel):
@@ -34,13 +35,7 @@ class FlatlandOptions(BaseModel):
     camera_fov_deg: float = Field(60.0, gt=10, lt=170)
 
 
-def _factory(options: FlatlandOptions, context):
-    from .world import FlatlandWorld
-
-    return FlatlandWorld(options)
-
-
 @hookimpl
 def register_environments(register):
-    register("flatland", _factory, options=FlatlandOptions,
+    register("flatland", lazy(f"{__name__}.world", "FlatlandWorld"), options=FlatlandOptions,
              description="2D analytic room with a red can and optional round obstacles (numpy only)")

@@ -13,21 +13,12 @@ This module only registers names and options: pybullet is imported by the factor
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
 from .options import ROOMS
-
-
-def _factory_for(kind: str):
-    def factory(options, context):
-        from .world import PybulletRoom
-
-        return PybulletRoom(kind, options)
-
-    factory.__name__ = f"build_{kind}"
-    return factory
 
 
 @hookimpl
 def register_environments(register):
     for kind, (model, description) in ROOMS.items():
-        register(kind, _factory_for(kind), options=model, description=description)
+        register(kind, lazy(f"{__name__}.world", "PybulletRoom", kind), options=model, description=description)

@@ -29,6 +29,7 @@ from .labbots import LabbotSwarm
 from .layout import bearing_deg, draw_layout
 from .motion import KinematicMotion
 from .options import CAN_RADIUS_MM, RoomOptions
+from .picture import draw_trajectory
 from .quiet import silenced
 from .scene import Scene
 from .sensors import LabbotRangeSensors, Sensors
@@ -158,9 +159,8 @@ class PybulletRoom(KinematicMotion, Environment):
     # -- pictures and teardown ----------------------------------------------------------------
 
     def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
-        from .picture import draw_trajectory
-
-        return draw_trajectory(self, poses, outcome)
+        return draw_trajectory(f"{self.kind}  seed {self._seed}", self.options, self.can_xy, self.balls_xy, self.swarm,
+                               self.collision_xy, poses, outcome)
 
     def snapshot(self) -> WorldSnapshot:
         """The clock, the can, the balls and the Labbots now (ground truth, for exported bags)."""
