@@ -3,7 +3,7 @@
 The store keeps every step of every trial (control signals, verdicts, execution results R_i,
 the LLM's perception and justification text, token usage) and answers R_{i-1}. One file in WAL
 mode, one transaction per step, a versioned schema; several worker processes may write
-different trials to the same file at once. See ``docs/defences.md`` (State management).
+different trials to the same file at once. See ``docs/state.md``.
 
 This module only registers: ``sqlite3`` and ``rich`` are imported by the implementation
 modules, when a store is built or the command runs.

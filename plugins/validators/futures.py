@@ -26,7 +26,7 @@ fixed by ``seed`` (the same check gives the same verdict, whatever was checked b
 noise of later times never changes the courses' earlier parts, so a shorter motion is judged on
 the same futures as a longer one.
 Courses pass through walls (the rule does not map the room): one that would turn at a wall is
-predicted beyond it, away from the robot -- a failure mode ``docs/defences.md`` lists.
+predicted beyond it, away from the robot -- a failure mode ``docs/validation.md`` lists.
 """
 
 from __future__ import annotations

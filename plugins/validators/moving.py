@@ -20,7 +20,7 @@ What the rule assumes:
 * a mover whose earlier position was not seen (it came out of a shadow) has unknown velocity: its
   courses fan out all the way round at ``unknown_speed_mm_s``;
 * a mover wanders as a random walk; one that turns on the spot at a wall, or behaves otherwise,
-  is covered only as far as the courses' spread covers it (``docs/defences.md``);
+  is covered only as far as the courses' spread covers it (``docs/validation.md``);
 * a turn in place is always accepted: the body does not leave its circle, so refusing it keeps
   no mover away (the straights that follow are judged at the times they will run); likewise a
   course counts against a straight only if the motion brings the body nearer to it than standing

@@ -152,7 +152,7 @@ def world_rates_table(rates: list[WorldRates], reference: str) -> list[str]:
         lines.append(f"| {rate.environment} | {rate.world} | {rate.arm} | {rate.trials} | {_per_100(rate.self_rate)} "
                      f"| {_per_100(rate.struck_rate)} | {own} | {struck} |")
     return lines + ["", "Scored trials by the kind of world they met, as their environment reported it (the room's "
-                    "drawn Labbot dynamics: `docs/environments.md`, mover families), both conditions pooled: trials "
+                    "drawn Labbot dynamics: `docs/rooms.md`, mover families), both conditions pooled: trials "
                     "with at least one collision per 100, 95% Wilson intervals; the last two columns against the "
                     f"reference arm `{reference}` in the same environment and world, in points per 100 with "
                     "Newcombe's hybrid score 95% interval (arms taken as independent samples). A world is ground "
