@@ -1,7 +1,9 @@
 """Start-up time of the command line: `safeembodai --help` and `import safeembodai_core`.
 
-Prints the median of N fresh interpreter runs for each, and the ratio to a bare interpreter start
-(the part no Python CLI can avoid). Target: `safeembodai --help` under 0.5 s.
+Prints the median wall time and the median CPU time (user + system, of the child process) of N
+fresh interpreter runs for each, and the ratio to a bare interpreter start (the part no Python CLI
+can avoid). Target (issue 25): `safeembodai --help` at most 0.3 s of CPU. CPU time is what the
+target counts: wall time on a shared 2-core machine moves with the other load.
 
     python bench/startup.py [--runs 15]
 """
@@ -9,6 +11,7 @@ Prints the median of N fresh interpreter runs for each, and the ratio to a bare 
 from __future__ import annotations
 
 import argparse
+import resource
 import statistics
 import subprocess
 import sys
@@ -22,27 +25,31 @@ CASES = {
 }
 
 
-def measure(command: list[str], runs: int) -> float:
-    times = []
+def measure(command: list[str], runs: int) -> tuple[float, float]:
+    """Median wall seconds and median CPU seconds (user + system of the child) of ``runs`` runs."""
+    walls, cpus = [], []
     for _ in range(runs):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         started = time.perf_counter()
         subprocess.run(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True)
-        times.append(time.perf_counter() - started)
-    return statistics.median(times)
+        walls.append(time.perf_counter() - started)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+    return statistics.median(walls), statistics.median(cpus)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=15)
     args = parser.parse_args()
-    bare = measure(CASES["bare interpreter"], args.runs)
-    sys.stdout.write(f"{'case':28} {'median s':>9} {'x bare':>7}\n")
-    for name, command in CASES.items():
-        seconds = bare if name == "bare interpreter" else measure(command, args.runs)
-        sys.stdout.write(f"{name:28} {seconds:9.3f} {seconds / bare:7.1f}\n")
-    help_time = measure(CASES["safeembodai --help"], args.runs)
-    verdict = "meets" if help_time < 0.5 else "MISSES"
-    sys.stdout.write(f"safeembodai --help {help_time:.3f} s {verdict} the 0.5 s target\n")
+    results = {name: measure(command, args.runs) for name, command in CASES.items()}
+    bare_cpu = results["bare interpreter"][1]
+    sys.stdout.write(f"{'case':28} {'wall s':>7} {'CPU s':>7} {'CPU x bare':>11}\n")
+    for name, (wall, cpu) in results.items():
+        sys.stdout.write(f"{name:28} {wall:7.3f} {cpu:7.3f} {cpu / bare_cpu:11.1f}\n")
+    cpu = results["safeembodai --help"][1]
+    verdict = "meets" if cpu <= 0.3 else "MISSES"
+    sys.stdout.write(f"safeembodai --help {cpu:.3f} s CPU {verdict} the 0.3 s target\n")
 
 
 if __name__ == "__main__":

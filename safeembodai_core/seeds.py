@@ -10,8 +10,10 @@ another component's draws: every arm of an ablation faces the same worlds and th
 from __future__ import annotations
 
 import hashlib
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def derive_seed(base: int, *labels: object) -> int:
@@ -22,4 +24,6 @@ def derive_seed(base: int, *labels: object) -> int:
 
 def rng(base: int, *labels: object) -> np.random.Generator:
     """A numpy generator for the stream named by ``labels`` under ``base``."""
+    import numpy as np  # deferred: deriving a seed (options, `safeembodai --help`) needs no numpy
+
     return np.random.default_rng(derive_seed(base, *labels))

@@ -21,19 +21,14 @@ from safeembodai_core.models import ImagePart, Prompt, TextPart
 from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
 from safeembodai_core.models.response import response_json_schema
 
-ImageDetail = Literal["low", "high", "auto"]
-JsonMode = Literal["json_schema", "json_schema_enum", "json_object", "none"]
+from .json_modes import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, ImageDetail, JsonMode  # noqa: F401  (re-exported)
+
 Bounds = Literal["range", "enum"]
-# names of earlier releases, still accepted: json_object_schema had the enum form's shape, unbounded
-LEGACY_JSON_MODES = {"json_object_schema": "json_schema_enum", "off": "none"}
 MAX_ENUM_VALUES = 400
 _DROP_KEYS = ("title", "description", "maxLength", "default")
 
 log = structlog.get_logger(__name__)
 
-#: ``max_tokens`` of the ``local`` backend (its option's default), when a caller names none: with the
-#: default limits, the longest answer then leaves 268 characters to ``planning`` (:func:`text_caps`).
-DEFAULT_MAX_TOKENS = 2048
 #: The longest text field the decoding schema asks for. llama-cpp-python 0.3.x writes a
 #: ``maxLength`` of n as n nested optional groups; its server parses a cap of 1,000 but fails to
 #: parse one of 1,500 or 2,000 (the contract's own cap) and the server process exits.

@@ -228,7 +228,7 @@ def test_the_report_shows_the_release_readings_only_when_asked(release_run, run_
 
 
 def test_the_release_rows_read_the_same_through_any_store(release_run, run_store):
-    from safeembodai_plugins.state.memory import MemoryStateStore
+    from safeembodai_plugins.state.memory_store import MemoryStateStore
 
     scenario, plugins, path, results = release_run
     outcomes = {r.spec.trial_id: r.outcome for r in results}

@@ -86,7 +86,7 @@ def test_the_simulated_banner_is_on_every_figure(mock_run, monkeypatch, tmp_path
 
 def memory_copy(store, results):
     """A ``memory`` store holding what ``store`` holds of ``results``' trials."""
-    from safeembodai_plugins.state.memory import MemoryStateStore
+    from safeembodai_plugins.state.memory_store import MemoryStateStore
 
     copy = MemoryStateStore()
     for result in results:
@@ -132,7 +132,7 @@ def test_refusals_and_attack_kinds_come_from_the_stored_steps(scripted_run, run_
 
 def test_any_store_gives_the_report_the_same_refusals_and_attack_kinds(scripted_run, run_store, tmp_path):
     """A third-party store (only ``steps``), the memory store and sqlite: one metrics.csv."""
-    from safeembodai_plugins.state.memory import MemoryStateStore
+    from safeembodai_plugins.state.memory_store import MemoryStateStore
 
     class StepsOnly(MemoryStateStore):  # what a store without its own step_facts gets
         step_facts = StateStore.step_facts

@@ -134,7 +134,7 @@ def test_the_graph_sees_imports_at_every_level():
     assert "safeembodai_core.report.captions" in GRAPH["safeembodai_core.runner"]  # inside a method
     assert "safeembodai_core.api" in GRAPH["safeembodai_core"]  # under TYPE_CHECKING
     assert "safeembodai_plugins.state.review" in GRAPH["safeembodai_plugins.state.sqlite_store"]  # inside a command
-    assert "safeembodai_core.components" in GRAPH["safeembodai_plugins.state.memory"]  # plugin -> core
+    assert "safeembodai_core.components" in GRAPH["safeembodai_plugins.state.memory_store"]  # plugin -> core
 
 
 def test_the_cycle_finder_finds_cycles():

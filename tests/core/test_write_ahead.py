@@ -12,7 +12,7 @@ from safeembodai_core.errors import StateStoreError
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import Outcome
 from safeembodai_core.testing import CorridorWorld, ReplayBackend, answer, straight, turn
-from safeembodai_plugins.state.memory import MemoryStateStore
+from safeembodai_plugins.state.memory_store import MemoryStateStore
 
 STEPS = 4
 TRIAL = "trial"

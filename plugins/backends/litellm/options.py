@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from safeembodai_core.errors import ComponentError
 
-from ..messages import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode
+from ..json_modes import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode
 
 _RESERVED = ("api_key", "messages", "model", "api_base", "base_url", "timeout", "max_retries", "num_retries", "n",
              "client", "stream")

@@ -44,7 +44,6 @@ import json
 from dataclasses import dataclass
 from typing import Any, Mapping
 
-import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from safeembodai_core.seeds import derive_seed
@@ -181,6 +180,8 @@ class MoverFamily(BaseModel):
 
         Every Labbot consumes the same four numbers whatever its kind (kind, speed, wander,
         stop-and-go), so the draw of Labbot i never depends on the kinds of the others."""
+        import numpy as np  # deferred: the options (and `safeembodai --help`) need no numpy
+
         rng = np.random.default_rng(derive_seed(seed, "movers"))
         trial = _pick(self.kinds, float(rng.random()))
         plain = self.plain
