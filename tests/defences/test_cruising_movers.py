@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 import pytest
-from safeembodai_plugins.validators.futures import TURN_QUANTILE, WanderingFutures, WanderSettings
-from safeembodai_plugins.validators.tracking import Blob, chord_share, chord_share_quantile
+from safeembodai_plugins.validators.moving.futures import TURN_QUANTILE, WanderingFutures, WanderSettings
+from safeembodai_plugins.validators.moving.tracking import Blob, chord_share, chord_share_quantile
 
 from safeembodai_core.models import Pose
 

@@ -1,5 +1,5 @@
 """The futures ``moving_obstacles`` judges a plan against: wandering courses drawn around a
-mover's measured velocity (``plugins/validators/futures.py``), and what they change in verdicts:
+mover's measured velocity (``plugins/validators/moving/futures.py``), and what they change in verdicts:
 a mover whose straight course stays clear of the robot's path but that may turn into it."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from safeembodai_core.models import Pose
-from safeembodai_plugins.validators.futures import WanderingFutures, WanderSettings, yielding
-from safeembodai_plugins.validators.tracking import Blob
+from safeembodai_plugins.validators.moving.futures import WanderingFutures, WanderSettings, yielding
+from safeembodai_plugins.validators.moving.tracking import Blob
 
 from .test_moving_obstacles import LABBOT_MM, context_for, go, refusals, rotate, rule
 

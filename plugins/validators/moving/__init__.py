@@ -41,8 +41,8 @@ from safeembodai_core.validation import ValidationContext
 
 from .futures import WanderingFutures, WanderSettings, yielding
 from .learning import LearningSettings, learn_movers
-from .options import DEFAULT_SAFETY_DISTANCE_MM
-from .rules import checked_scan, direction_words
+from ..options import DEFAULT_SAFETY_DISTANCE_MM
+from ..rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 
 _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
