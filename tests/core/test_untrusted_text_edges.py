@@ -1,4 +1,5 @@
-"""Regressions from the adversarial review of the untrusted-answer path (issue 9 follow-up)."""
+"""Edges of the untrusted-answer path: secrets cut by a quotation or written with JSON escapes, padded
+finish reasons, emoji codes in the step table (found in an adversarial review)."""
 
 from __future__ import annotations
 
