@@ -13,17 +13,12 @@ they do not measure one.
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
 from .options import MockOptions
 
 
-def _factory(options: MockOptions, context):
-    from .backend import MockPilot
-
-    return MockPilot(options)
-
-
 @hookimpl
 def register_llm_backends(register):
-    register("mock", _factory, options=MockOptions,
+    register("mock", lazy(f"{__name__}.backend", "MockPilot"), options=MockOptions,
              description="offline simulated pilot: reads the prompt's images/text, seeded weaknesses")

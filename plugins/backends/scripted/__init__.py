@@ -9,17 +9,12 @@ no token usage: it sends nothing anywhere.
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
 from .options import ScriptedOptions
 
 
-def _factory(options: ScriptedOptions, context):
-    from .replay import ScriptedBackend
-
-    return ScriptedBackend(options)
-
-
 @hookimpl
 def register_llm_backends(register):
-    register("scripted", _factory, options=ScriptedOptions,
+    register("scripted", lazy(f"{__name__}.replay", "ScriptedBackend"), options=ScriptedOptions,
              description="replays answers from its options (tests, demos)")
