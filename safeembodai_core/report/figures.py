@@ -75,6 +75,7 @@ def metric_figure(cells: list[CellMetrics], name: str, note: str | None = None, 
     fig, axes = plt.subplots(1, len(conditions), figsize=(3.2 * len(conditions) + 1, 3.9), squeeze=False, sharey=True)
     paper_drawn = False
     for axis, condition in zip(axes[0], conditions):
+        drawn = 0
         for a, arm in enumerate(arms):
             xs, values, lows, highs, paper_x, paper_y, few = [], [], [], [], [], [], []
             for e, environment in enumerate(environments):
@@ -93,6 +94,7 @@ def metric_figure(cells: list[CellMetrics], name: str, note: str | None = None, 
                 if theirs is not None:
                     paper_x.append(x)
                     paper_y.append(theirs)
+            drawn += len(xs)
             axis.bar(xs, values, width=width * 0.95, yerr=[lows, highs], capsize=2, color=_colour(a))
             for x, value, n in few:
                 axis.annotate(f"n={n}", (x, value), ha="center", va="bottom", fontsize="x-small",
@@ -104,6 +106,9 @@ def metric_figure(cells: list[CellMetrics], name: str, note: str | None = None, 
         axis.set_xticks(range(len(environments)), environments)
         axis.set_xlim(-0.5, len(environments) - 0.5)  # an empty panel spans the environments as the others do
         axis.set_title(condition.replace("_", " "))
+        if not drawn:  # say why a panel is empty (ADR without attacks), rather than leave it blank
+            axis.text(0.5, 0.5, "n/a: nothing to estimate", transform=axis.transAxes, ha="center", va="center",
+                      fontsize="small", color="grey")
         if limits:
             axis.set_ylim(*limits)
     axes[0][0].set_ylabel(label)

@@ -163,3 +163,15 @@ def test_the_simulated_pilots_figures_say_it_is_not_an_llm(tmp_path, monkeypatch
     titles = _legend_titles(monkeypatch)
     write_report(tmp_path, scenario, _results(), plugins=plugins)
     assert titles == ["bars: simulated pilot (mock), not an LLM, N = 3 trials per cell"] * len(FIGURES)
+
+
+def test_an_empty_panel_says_there_is_nothing_to_estimate():
+    figure = metric_figure(_cells(), "adr")
+    try:
+        first, second = figure.axes[:2]
+        assert [t.get_text() for t in first.texts] == ["n/a: nothing to estimate"]  # no attacks: no ADR
+        assert "n/a: nothing to estimate" not in [t.get_text() for t in second.texts]
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(figure)
