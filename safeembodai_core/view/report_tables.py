@@ -30,13 +30,14 @@ def _cells(line: str) -> list[str]:
 
 
 def report_tables(path: Path) -> list[Table]:
-    """The tables of the report at ``path`` (none when it is missing, unreadable or too large)."""
-    try:
-        if path.stat().st_size > MAX_BYTES:
-            return []
-        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
-    except OSError:
+    """The tables of the report at ``path`` (none when it is missing, unreadable, too large or not a
+    regular file)."""
+    from .files import read_run_file  # a regular file only: never a FIFO, a device or a symlink
+
+    data = read_run_file(path, MAX_BYTES)
+    if data is None:
         return []
+    lines = data.decode("utf-8", errors="replace").splitlines()
     tables: list[Table] = []
     heading, current = "", None
     for line in lines:

@@ -116,11 +116,14 @@ class RunSummary:
     figures: list[str] = field(default_factory=list)
     tables: list[Any] = field(default_factory=list)  # report.md's tables (report_tables.Table)
     error: str | None = None
+    page: str = ""  # the run page, relative to the site (none for an unreadable run)
 
 
 def trial_page(trial_id: str) -> str:
-    """The file name of a trial's page (also its images' folder)."""
-    return trial_id.replace("/", "__")
+    """The file name of a trial's page (also its images' folder): one safe file name."""
+    from .files import safe_name
+
+    return safe_name(trial_id.replace("/", "__"))
 
 
 def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:

@@ -8,10 +8,12 @@ only changed runs), and the pages ask the browser to reload every ``refresh`` se
 from __future__ import annotations
 
 import functools
+import os
 import threading
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any, Callable
+from urllib.parse import unquote, urlsplit
 
 from ..logs import get_logger
 from .html import CSP_HEADER
@@ -20,6 +22,26 @@ log = get_logger(__name__)
 
 
 class _Handler(SimpleHTTPRequestHandler):
+    """Serves the site's own files only: nothing a symlink in it points to outside it, no folder
+    listing, no dot-file (a page being written), and only to requests addressed to this server
+    (a ``Host`` header naming another host is refused: no DNS rebinding onto it)."""
+
+    allowed_hosts: frozenset[str] = frozenset()
+
+    def send_head(self):  # type: ignore[override]
+        host = (self.headers.get("Host") or "").lower()
+        if host not in self.allowed_hosts:
+            self.send_error(421, "Misdirected Request")
+            return None
+        asked = unquote(urlsplit(self.path).path)
+        path = Path(self.translate_path(self.path))
+        root = Path(os.path.realpath(self.directory))
+        real = Path(os.path.realpath(path))
+        if (root not in real.parents) or real.is_dir() or any(part.startswith(".") for part in asked.split("/")):
+            self.send_error(404, "File not found")
+            return None
+        return super().send_head()
+
     def end_headers(self) -> None:
         self.send_header("Content-Security-Policy", CSP_HEADER)
         self.send_header("X-Content-Type-Options", "nosniff")
@@ -36,8 +58,11 @@ class SiteServer:
 
     def __init__(self, folder: Path, rebuild: Callable[[], Any], host: str = "127.0.0.1", port: int = 8000,
                  interval_s: float = 2.0) -> None:
-        handler = functools.partial(_Handler, directory=str(folder))
-        self.httpd = ThreadingHTTPServer((host, port), handler)
+        handler = type("SiteHandler", (_Handler,), {})
+        self.httpd = ThreadingHTTPServer((host, port), functools.partial(handler, directory=str(folder)))
+        bound_host, bound_port = self.httpd.server_address[:2]
+        names = {host, str(bound_host)} | ({"localhost", "127.0.0.1", "[::1]"} if host in ("127.0.0.1", "localhost", "::1") else set())
+        handler.allowed_hosts = frozenset(f"{name}:{bound_port}".lower() for name in names)
         self.rebuild, self.interval_s = rebuild, interval_s
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []

@@ -9,25 +9,36 @@ rendered again, and within a run only new or changed trials' pages are.
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 from typing import Any
 
 from ..logs import get_logger
-from .html import STATIC, render, write_atomic
-from .runs import CellRow, RunSummary, broken, find_runs, signature, summarise, trial_page
+from .files import MANIFEST, Site, read_run_file, safe_name
+from .html import STATIC, render
+from .runs import CellRow, RunSummary, broken, find_runs, running, signature, summarise, trial_page
 from .trial_steps import replayed_prompts, step_views
 
 log = get_logger(__name__)
-MANIFEST = "manifest.json"
+#: Bumped whenever what the manifest keeps of a run changes: an older manifest is rendered anew.
+MANIFEST_VERSION = 2
 
 
-def _manifest(out: Path) -> dict[str, Any]:
+def _manifest(site: Site) -> dict[str, Any]:
     try:
-        value = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        value = json.loads(site.read(MANIFEST) or "")
+    except ValueError:
         return {}
-    return value if isinstance(value, dict) and value.get("version") == 1 else {}
+    return value if isinstance(value, dict) and value.get("version") == MANIFEST_VERSION else {}
+
+
+def _cached(known: dict[str, Any], folder: Path) -> RunSummary | None:
+    """The index row the manifest kept of a run, or None when it does not fit (then it is rendered anew)."""
+    try:
+        cached = dict(known["summary"])
+        cached["cells"] = [CellRow(**c) for c in cached["cells"]]
+        return RunSummary(**{**cached, "path": folder})
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh: int = 0) -> dict[str, int]:
@@ -36,35 +47,35 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
     the pages of running runs ask the browser to reload (0: never)."""
     from ..plugins import load_plugins
 
-    source, out = Path(source), Path(out)
+    source = Path(source)
+    site = Site(Path(out))
     plugins = plugins or load_plugins()
-    out.mkdir(parents=True, exist_ok=True)
     for asset in ("view.css", "view.js", "favicon.png"):
-        write_atomic(out / asset, (STATIC / asset).read_bytes())
-    manifest = _manifest(out)
-    runs: dict[str, Any] = manifest.get("runs", {})
+        site.write(asset, (STATIC / asset).read_bytes())
+    runs: dict[str, Any] = _manifest(site).get("runs", {})
     summaries: list[RunSummary] = []
     counts = {"runs": 0, "trials": 0}
     for folder in find_runs(source):
-        stamp = signature(folder)
+        stamp = f"{signature(folder)}|running:{running(folder)}"  # a run that stopped is rendered anew
         known = runs.get(folder.name, {})
-        if known.get("signature") == stamp and (out / "runs" / folder.name / "index.html").is_file():
-            cached = known["summary"]
-            summaries.append(RunSummary(**{**cached, "path": folder, "cells": [CellRow(**c) for c in cached["cells"]]}))
+        name = safe_name(folder.name)
+        cached = _cached(known, folder) if known.get("signature") == stamp else None
+        if cached is not None and (site.out / "runs" / name / "index.html").is_file():
+            summaries.append(cached)
             continue
         try:
-            summary, trials = _render_run(folder, out / "runs" / folder.name, plugins, known.get("trials", {}),
-                                          refresh)
+            summary, trials = _render_run(folder, site, f"runs/{name}", plugins, known.get("trials", {}), refresh)
         except Exception as error:  # one unreadable folder must not hide the others
             log.warning("view.run_unreadable", run=str(folder), error=str(error))
             summary, trials = broken(folder, error), {}
+        summary.page = f"runs/{name}/index.html"
         counts["runs"] += 1
         counts["trials"] += sum(1 for t in trials.values() if t.get("rendered"))
         runs[folder.name] = {"signature": stamp, "trials": {k: {"key": v["key"]} for k, v in trials.items()},
                              "summary": _plain(summary)}
         summaries.append(summary)
-    write_atomic(out / "index.html", render("index.html.j2", runs=summaries, refresh=refresh))
-    write_atomic(out / MANIFEST, json.dumps({"version": 1, "runs": runs}, indent=1))
+    site.write("index.html", render("index.html.j2", runs=summaries, refresh=refresh))
+    site.write(MANIFEST, json.dumps({"version": MANIFEST_VERSION, "runs": runs}, indent=1))
     return counts
 
 
@@ -77,41 +88,44 @@ def _plain(summary: RunSummary) -> dict[str, Any]:
     return fields
 
 
-def _render_run(folder: Path, target: Path, plugins: Any, known: dict[str, Any],
+def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[str, Any],
                 refresh: int) -> tuple[RunSummary, dict]:
     summary, runner, results = summarise(folder, plugins)
     try:
+        shown = []
         for name in summary.figures:
-            target.joinpath("figures").mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(folder / "figures" / name, target / "figures" / name)
+            picture = read_run_file(folder / "figures" / name, png=True)  # a regular PNG, never a symlink
+            if picture is not None:
+                site.write(f"{base}/figures/{safe_name(name)}", picture)
+                shown.append(safe_name(name))
+        summary.figures = shown
         trials: dict[str, dict[str, Any]] = {}
         for result in results:
             spec = result.spec
             key = result.model_dump_json()
-            page = target / "trials" / f"{trial_page(spec.trial_id)}.html"
+            page = site.out / base / "trials" / f"{trial_page(spec.trial_id)}.html"
             rendered = not (known.get(spec.trial_id, {}).get("key") == key and page.is_file())
             if rendered:
-                _render_trial(folder, target, runner, summary, result)
+                _render_trial(folder, site, base, runner, summary, result)
             trials[spec.trial_id] = {"key": key, "rendered": rendered}
-        write_atomic(target / "index.html", render("run.html.j2", run=summary,
-                                                   refresh=refresh if summary.status == "running" else 0))
+        site.write(f"{base}/index.html", render("run.html.j2", run=summary,
+                                               refresh=refresh if summary.status == "running" else 0))
     finally:
         runner.close()
     return summary, trials
 
 
-def _render_trial(folder: Path, target: Path, runner: Any, summary: RunSummary, result: Any) -> None:
+def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: RunSummary, result: Any) -> None:
     spec = result.spec
     name = trial_page(spec.trial_id)
     records = runner.state.steps(spec.trial_id)
     prompts, missing = replayed_prompts(runner, spec, records) if records else ({}, "no step was recorded")
-    steps = step_views(records, prompts, target / "img" / name, f"../img/{name}")
-    picture = folder / "trajectories" / f"{name}.png"
+    steps = step_views(records, prompts, site, f"{base}/img/{name}", f"../img/{name}")
+    picture = read_run_file(folder / "trajectories" / f"{spec.trial_id.replace('/', '__')}.png", png=True)
     trajectory = None
-    if picture.is_file():
-        (target / "img").mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(picture, target / "img" / f"{name}.png")
+    if picture is not None:
+        site.write(f"{base}/img/{name}.png", picture)
         trajectory = f"../img/{name}.png"
-    write_atomic(target / "trials" / f"{name}.html",
-                 render("trial.html.j2", run=summary, result=result, steps=steps, trajectory=trajectory,
-                        missing=missing, refresh=0))
+    site.write(f"{base}/trials/{name}.html",
+               render("trial.html.j2", run=summary, result=result, steps=steps, trajectory=trajectory,
+                      missing=missing, refresh=0))

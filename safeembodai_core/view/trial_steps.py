@@ -10,11 +10,11 @@ the page without them and says why, with everything recorded still shown.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 from ..models import StepRecord, TrialSpec
 from ..models.observation import ImagePart, TextPart
+from .files import safe_name
 
 _SUFFIX = {"image/png": "png", "image/jpeg": "jpg"}
 
@@ -53,10 +53,10 @@ def _result(item: Any) -> str:
     return f"moved {moved}{hit}{said}"
 
 
-def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, image_dir: Path,
+def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, site: Any, image_dir: str,
                image_href: str) -> list[StepView]:
-    """One view per recorded step; the images of each step's first prompt written into ``image_dir``
-    (linked as ``image_href/<file>``)."""
+    """One view per recorded step; the images of each step's first prompt written into the site's
+    ``image_dir`` (linked as ``image_href/<file>``), under names of their own making."""
     views = []
     for record in records:
         view = StepView(step=record.step, instruction=record.instruction, sim_time_s=record.sim_time_s,
@@ -67,9 +67,8 @@ def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, 
             view.system = first.system
             view.user = "\n".join(part.text for part in first.user if isinstance(part, TextPart))
             for image in (part for part in first.user if isinstance(part, ImagePart)):
-                name = f"step{record.step:03d}-{image.name}.{_SUFFIX.get(image.media_type, 'img')}"
-                image_dir.mkdir(parents=True, exist_ok=True)
-                (image_dir / name).write_bytes(image.data)
+                name = f"step{record.step:03d}-{safe_name(image.name)}.{_SUFFIX.get(image.media_type, 'img')}"
+                site.write(f"{image_dir}/{name}", image.data)
                 view.images.append((image.name, f"{image_href}/{name}"))
         for attempt in record.attempts:
             view.attempts.append(AttemptView(

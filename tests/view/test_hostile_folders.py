@@ -1,0 +1,113 @@
+"""A run folder from someone else cannot make ``view`` write or serve files outside the site, nor
+copy in files it points to (review findings: symlinks, special files, foreign hosts)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+from safeembodai_core.errors import SafeEmbodAIError
+from safeembodai_core.view import build_site
+from safeembodai_core.view.files import Site, read_run_file
+from safeembodai_core.view.report_tables import report_tables
+from safeembodai_core.view.serve import SiteServer
+
+
+@pytest.fixture
+def run(runs_dir, tmp_path) -> Path:
+    folder = tmp_path / "runs" / "hostile"
+    shutil.copytree(runs_dir / "hostile", folder)
+    return folder
+
+
+def test_a_planted_site_folder_symlink_is_refused(run, tmp_path):
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (run / "view").symlink_to(victim)
+    with pytest.raises(SafeEmbodAIError, match="is a symlink"):
+        build_site(run, run / "view")
+    assert list(victim.iterdir()) == []
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    with pytest.raises(SafeEmbodAIError, match="no site of ours"):
+        build_site(run, foreign)
+
+
+def test_symlinks_inside_a_site_are_replaced_or_refused_never_written_through(run, tmp_path):
+    out = tmp_path / "site"
+    build_site(run, out)
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    page = out / "runs" / "hostile" / "index.html"
+    page.unlink()
+    page.symlink_to(victim)  # a page planted as a symlink: replaced by the new page
+    (out / "manifest.json").write_text("{}")  # render everything anew
+    build_site(run, out)
+    assert victim.read_text() == "precious" and not page.is_symlink() and "<html" in page.read_text()
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    trials = out / "runs" / "hostile" / "trials"
+    shutil.rmtree(trials)
+    trials.symlink_to(outside)  # a folder planted as a symlink: refused
+    (out / "manifest.json").write_text("{}")
+    with pytest.raises(SafeEmbodAIError, match="outside the site"):
+        Site(out).write("runs/hostile/trials/x.html", "x")
+    build_site(run, out)  # the run is reported unreadable rather than written outside
+    assert list(outside.iterdir()) == [] and "unreadable" in (out / "index.html").read_text()
+
+
+def test_files_a_run_folder_points_elsewhere_are_not_copied(run, tmp_path):
+    secret = tmp_path / "secret.png"
+    secret.write_bytes(b"\x89PNG\r\n\x1a\nTOP-SECRET")
+    figures = run / "figures"
+    figures.mkdir(exist_ok=True)
+    (figures / "zz_leak.png").symlink_to(secret)
+    trajectory = next((run / "trajectories").glob("*.png"))
+    trajectory.unlink()
+    trajectory.symlink_to(secret)
+    out = tmp_path / "site"
+    build_site(run, out)
+    for path in out.rglob("*"):
+        if path.is_file():
+            assert b"TOP-SECRET" not in path.read_bytes(), path
+    assert read_run_file(secret, png=True) is not None and read_run_file(figures / "zz_leak.png") is None
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_a_report_that_is_a_fifo_or_a_device_is_not_read(tmp_path):
+    fifo = tmp_path / "report.md"
+    os.mkfifo(fifo)
+    assert report_tables(fifo) == []  # returns at once: never blocks on the FIFO
+    assert report_tables(Path("/dev/zero")) == []
+
+
+def test_the_server_serves_the_site_only(run, tmp_path):
+    out = tmp_path / "site"
+    build_site(run, out)
+    secret = tmp_path / "secret.txt"
+    secret.write_text("TOP-SECRET")
+    (out / "leak.txt").symlink_to(secret)
+    (out / ".draft.html.partial").write_text("half")
+    server = SiteServer(out, lambda: None, port=0).start()
+    base = server.url.rsplit("/", 1)[0]
+
+    def status(path: str, host: str | None = None) -> int:
+        request = urllib.request.Request(base + path, headers={"Host": host} if host else {})
+        try:
+            with urllib.request.urlopen(request, timeout=10) as response:
+                return response.status
+        except urllib.error.HTTPError as error:
+            return error.code
+
+    try:
+        assert status("/index.html") == 200
+        assert status("/leak.txt") == 404 and status("/runs/") == 404 and status("/.draft.html.partial") == 404
+        assert status("/index.html", host="evil.example:80") == 421
+    finally:
+        server.stop()
