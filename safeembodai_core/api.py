@@ -48,6 +48,7 @@ from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
 from .ros import LaserScan, Twist, arc_signals
+from .ros.twist import MAX_PIECES, longest_judged_s
 from .validation import PastScan, ValidationContext, validate_plan
 
 _SIGNALS = TypeAdapter(list[ControlSignal])
@@ -209,17 +210,23 @@ class Guard:
         rest are as for :meth:`check`. A non-finite or non-planar command raises ``ValueError``."""
         if not isinstance(twist, Twist):
             twist = Twist(*twist) if isinstance(twist, (tuple, list)) else Twist.from_ros(twist)
-        signals = arc_signals(twist, duration_s)
+        duration_s = float(duration_s)
+        longest = longest_judged_s(twist)
+        signals = arc_signals(twist, min(duration_s, longest))  # raises ValueError for a bad duration
         context = self._context(lidar_mm, max_range_mm, pose, time_s)
 
         def judged(parts: list[Any]) -> list[Verdict]:
             return validate_plan(parts, context, self.rules) if parts else []
 
         verdicts = judged(signals)
-        report = TwistReport(signals=signals, verdicts=verdicts, twist=twist, duration_s=float(duration_s),
-                             safe_duration_s=float(duration_s))
+        if duration_s > longest:  # too long an arc to judge piece by piece: refused, whatever the rest says
+            verdicts.append(Verdict(rule="twist", valid=False, reason=(
+                f"held {duration_s:g} s the command sweeps more than {MAX_PIECES} pieces of arc; only the first "
+                f"{longest:.2f} s were judged")))
+        report = TwistReport(signals=signals, verdicts=verdicts, twist=twist, duration_s=duration_s,
+                             safe_duration_s=duration_s)
         if not report.valid:
-            low, high = 0.0, float(duration_s)  # the longest safe duration, by bisection on the same arc
+            low, high = 0.0, min(duration_s, longest)  # the longest safe duration, by bisection on the same arc
             while high - low > resolution_s:
                 middle = (low + high) / 2
                 if all(v.valid for v in judged(arc_signals(twist, middle))):

@@ -120,6 +120,8 @@ def main(argv: list[str] | None = None) -> None:
     except SafeEmbodAIError as error:
         if debug:
             traceback.print_exc()
-        click.echo(f"Error: {error}", err=True)
+        from ..text_safety import terminal_text  # an error may quote a bag's topic, a file name, a server
+
+        click.echo(f"Error: {terminal_text(str(error), keep_layout=True)}", err=True)
         code = error.exit_code
     sys.exit(code if isinstance(code, int) else 0)

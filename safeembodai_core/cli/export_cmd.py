@@ -39,8 +39,17 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
     scenario, plugins = load_recorded(run_dir)
     runner = ScenarioRunner(scenario, plugins, run_dir=run_dir)
     console = Console(stderr=True, emoji=False)
+    def read(what: str, call):  # a corrupt row is an error naming the run and what could not be read
+        try:
+            return call()
+        except SafeEmbodAIError:
+            raise
+        except Exception as error:
+            raise SafeEmbodAIError(f"{run_dir}: cannot read {what} from its state store: "
+                                   f"{type(error).__name__}: {str(error).splitlines()[0]}") from None
+
     try:
-        results = {r.spec.trial_id: r for r in runner.state.results()}
+        results = {r.spec.trial_id: r for r in read("the trials' results", runner.state.results)}
         specs = {spec.trial_id: spec for spec in runner.specs()}
         if trials:
             unknown = [t for t in trials if t not in specs]
@@ -66,7 +75,7 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
             task = progress.add_task("replaying and writing bags", total=len(paths))
             for trial_id, path in paths.items():
                 spec = specs[trial_id]
-                records = runner.state.steps(trial_id)
+                records = read(f"the steps of {trial_id}", lambda: runner.state.steps(trial_id))
                 if not records:
                     raise SafeEmbodAIError(f"trial {trial_id} has no recorded step in {run_dir}")
                 capture, replayed, _ = replay_trial(runner, spec, records)

@@ -2,14 +2,16 @@
 
 Reads a ROS 2 bag (MCAP or SQLite) with ``rosbags`` -- no ROS install -- and judges every command on
 ``--cmd`` with the latest ``--scan`` before it (:func:`~safeembodai_core.ros.bag_guard.guard_bag`).
-Rules: ``--rules`` (names, or JSON ``{"use": ..., "options": {...}}``), else the rules a bag written
-by ``safeembodai`` recorded for its trial (``/safeembodai/trial``), else the Guard's defaults. The
+Rules: ``--rules`` (names, or JSON ``{"use": ..., "options": {...}}``), else -- with
+``--rules-from-bag`` -- the rules a bag written by ``safeembodai`` recorded for its trial
+(``/safeembodai/trial``), else the Guard's defaults. The
 report (a table, or ``--json``) is printed only once the whole bag has been judged.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from typing import Any
 
 import click
@@ -37,18 +39,18 @@ def recorded_trial(bag: str) -> dict[str, Any]:
         found = [c for c in reader.connections if c.topic == "/safeembodai/trial" and c.msgtype == "std_msgs/msg/String"]
         if not found:  # (rosbags reads every topic when given none)
             return {}
-        for connection, _, raw in reader.messages(connections=found):
-            try:
+        try:
+            for connection, _, raw in reader.messages(connections=found):
                 value = json.loads(reader.deserialize(raw, connection.msgtype).data)
-            except Exception:  # a corrupt or foreign record: the bag then says nothing of its trial
-                return {}
-            return value if isinstance(value, dict) else {}
+                return value if isinstance(value, dict) else {}
+        except Exception:  # a corrupt or foreign record: the bag then says nothing of its trial
+            return {}
     finally:
         reader.close()
     return {}
 
 
-def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None):
+def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None, from_bag: bool = False):
     from ..api import Guard
     from ..components import RobotSpec
     from ..errors import SafeEmbodAIError
@@ -56,13 +58,16 @@ def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None):
 
     chosen: list[Any] = [_rule(r) for r in rules]
     robot, limits, source = RobotSpec(), None, "given" if chosen else "the Guard's defaults"
-    trial = recorded_trial(bag)
+    # a bag is judged by the rules it recorded only when asked: otherwise it could choose its own judge
+    trial = recorded_trial(bag) if from_bag else {}
     try:
         if not chosen and isinstance(trial.get("arm"), dict) and trial["arm"].get("safety_validation"):
             chosen, source = list(trial["arm"].get("validators") or []), "recorded in the bag"
         if isinstance(trial.get("robot"), dict):
-            robot = RobotSpec(**{k: float(v) for k, v in trial["robot"].items()
-                                 if k in ("radius_mm", "width_mm", "length_mm")})
+            sizes = {k: float(v) for k, v in trial["robot"].items() if k in ("radius_mm", "width_mm", "length_mm")}
+            if not all(math.isfinite(v) and 0 < v <= 10_000 for v in sizes.values()):
+                raise ValueError(f"robot sizes must be positive and finite millimetres, got {sizes}")
+            robot = RobotSpec(**sizes)
         if isinstance(trial.get("limits"), dict):
             limits = ControlLimits.model_validate(trial["limits"])
     except (TypeError, ValueError) as error:
@@ -95,9 +100,14 @@ def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None):
               help="Judge every Twist held this long (default: until the next command, at most --max-hold).")
 @click.option("--max-hold", "max_hold_s", type=click.FloatRange(min=0.0, min_open=True), default=1.0,
               show_default=True, help="Longest a Twist counts as held when the next command is late or absent.")
+@click.option("--min-hold", "min_hold_s", type=click.FloatRange(min=0.0, min_open=True), default=0.1,
+              show_default=True, help="Shortest a Twist counts as held, however soon the next command comes.")
+@click.option("--rules-from-bag", is_flag=True,
+              help="Judge by the rules, robot size and limits the bag recorded (/safeembodai/trial of an exported "
+                   "trial) when --rules is not given; without it a bag never chooses its own rules.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document: a record per command and its verdict.")
-def guard_bag(bag, scan_topic, cmd_topic, pose_topic, rules, mount, robot_radius_mm, hold_s, max_hold_s,
-              as_json) -> None:
+def guard_bag(bag, scan_topic, cmd_topic, pose_topic, rules, mount, robot_radius_mm, hold_s, max_hold_s, min_hold_s,
+              rules_from_bag, as_json) -> None:
     """Judge every command recorded in BAG with the guard: which would it have refused, when, and why."""
     from ..ros.bag_guard import guard_bag as judge
     from ..ros.laser_scan import SensorMount
@@ -109,9 +119,9 @@ def guard_bag(bag, scan_topic, cmd_topic, pose_topic, rules, mount, robot_radius
             sensor = SensorMount(x, y, yaw)
         except ValueError as error:
             raise click.BadParameter(f"{mount!r}: {error} (expected X_MM,Y_MM,YAW_DEG)", param_hint="--mount") from None
-    guard, source = _guard(rules, bag, robot_radius_mm)
+    guard, source = _guard(rules, bag, robot_radius_mm, rules_from_bag)
     report = judge(bag, guard, scan_topic=scan_topic, cmd_topic=cmd_topic, pose_topic=pose_topic, mount=sensor,
-                   hold_s=hold_s, max_hold_s=max_hold_s)
+                   hold_s=hold_s, max_hold_s=max_hold_s, min_hold_s=min(min_hold_s, max_hold_s))
     if as_json:
         click.echo(json.dumps({**report.as_dict(), "rules_from": source}, indent=1, allow_nan=False))
         return

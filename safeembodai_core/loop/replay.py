@@ -61,12 +61,19 @@ def difference(recorded: StepRecord, replayed: StepRecord | None) -> str | None:
     """How ``replayed`` differs from ``recorded`` (None when they agree on everything that moved the robot)."""
     if replayed is None:
         return "the replay ended before this step"
+    if recorded.instruction != replayed.instruction:
+        return "the instruction differs (an attacker or the scenario changed)"
+    if [(a.kind, a.channel, a.payload) for a in recorded.attacks] != \
+            [(a.kind, a.channel, a.payload) for a in replayed.attacks]:
+        return "the attacks injected differ"
     if len(recorded.attempts) != len(replayed.attempts):
         return f"{len(recorded.attempts)} attempts recorded, {len(replayed.attempts)} replayed"
     for old, new in zip(recorded.attempts, replayed.attempts):
         if old.accepted != new.accepted or (old.parse_error is None) != (new.parse_error is None):
-            return f"attempt {old.index + 1}: recorded {'accepted' if old.accepted else 'refused'}, " \
-                   f"replayed {'accepted' if new.accepted else 'refused'}"
+            def said(attempt: Any) -> str:
+                return "not read" if attempt.parse_error is not None else "accepted" if attempt.accepted else "refused"
+
+            return f"attempt {old.index + 1}: recorded {said(old)}, replayed {said(new)}"
         if [(v.rule, v.valid, v.signal_index) for v in old.verdicts] != \
                 [(v.rule, v.valid, v.signal_index) for v in new.verdicts]:
             return f"attempt {old.index + 1}: the rules' verdicts differ"

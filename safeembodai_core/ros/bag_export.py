@@ -34,6 +34,7 @@ import json
 import math
 import os
 import shutil
+import tempfile
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -270,11 +271,16 @@ def write_bag(path: str | Path, items: Iterable[tuple[str, int, Any]], storage: 
     target = Path(path)
     if target.exists() and not replace:
         raise BagWriteError(f"{target} exists: choose a new --out (a bag is never written over)")
-    partial = target.with_name(f".{target.name}.{os.getpid()}.partial")
-    shutil.rmtree(partial, ignore_errors=True)
     store = m.typestore()
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
+        # written as <a fresh hidden folder>/<the final name>: rosbags names its storage file and
+        # metadata.yaml after the bag's folder, so the bag reads the same once moved into place
+        aside = Path(tempfile.mkdtemp(prefix=f".{target.name[:40]}.", suffix=".partial", dir=target.parent))
+    except OSError as error:
+        raise BagWriteError(f"cannot write the bag {target}: {error.strerror or error}") from None
+    partial = aside / target.name
+    try:
         plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
         with Writer(partial, version=8, storage_plugin=plugin) as writer:
             connections: dict[str, Any] = {}
@@ -283,28 +289,11 @@ def write_bag(path: str | Path, items: Iterable[tuple[str, int, Any]], storage: 
                 if topic not in connections:
                     connections[topic] = writer.add_connection(topic, typename, typestore=store)
                 writer.write(connections[topic], ns, m.serialize(message, typename))
-        _rename_inside(partial, target.name)
-        if replace and target.is_dir():
+        if replace and target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
         os.replace(partial, target)
-    except BaseException as error:
-        shutil.rmtree(partial, ignore_errors=True)
-        if isinstance(error, (OSError, ValueError, TypeError)) or type(error).__module__.startswith("rosbags"):
-            raise BagWriteError(f"cannot write the bag {target}: {error}") from None
-        raise
+    except Exception as error:  # rosbags', struct's or the file system's: the bag is not written, nothing is left
+        raise BagWriteError(f"cannot write the bag {target}: {type(error).__name__}: {error}") from None
+    finally:
+        shutil.rmtree(aside, ignore_errors=True)
     return target
-
-
-def _rename_inside(folder: Path, name: str) -> None:
-    """rosbags names the storage file after the folder; give it the final folder's name (and say so
-    in metadata.yaml) so the bag reads the same once renamed."""
-    metadata = folder / "metadata.yaml"
-    text = metadata.read_text(encoding="utf-8")
-    for file in sorted(folder.iterdir()):
-        if file.name == "metadata.yaml":
-            continue
-        renamed = file.with_name(name + file.name[len(folder.name):]) if file.name.startswith(folder.name) else file
-        if renamed != file:
-            file.rename(renamed)
-            text = text.replace(file.name, renamed.name)
-    metadata.write_text(text, encoding="utf-8")

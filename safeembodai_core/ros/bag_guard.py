@@ -117,8 +117,11 @@ def _plan(text: str) -> tuple[Any, dict[str, Any] | None]:
     """The control list of a plan message, and what the export recorded of it (or None)."""
     if len(text) > MAX_PLAN_CHARS:
         raise ValueError(f"a plan message of {len(text)} characters (more than {MAX_PLAN_CHARS})")
+    def constant(name: str) -> Any:
+        raise ValueError(f"not a JSON plan: {name} is not a JSON number")
+
     try:
-        payload = json.loads(text)
+        payload = json.loads(text, parse_constant=constant)
     except (json.JSONDecodeError, RecursionError) as error:
         raise ValueError(f"not a JSON plan: {error}") from None
     if isinstance(payload, list):
@@ -185,9 +188,13 @@ def _messages(reader: Any, bag: Path, connections: list[Any]) -> Iterator[tuple[
 
 def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_topic: str = "/cmd_vel",
               pose_topic: str | None = None, mount: SensorMount | None = None, hold_s: float | None = None,
-              max_hold_s: float = 1.0) -> BagReport:
-    """Judge every command on ``cmd_topic`` of the bag at ``path`` with ``guard`` (module docstring)."""
-    for name, value in (("hold_s", hold_s), ("max_hold_s", max_hold_s)):
+              max_hold_s: float = 1.0, min_hold_s: float = 0.1) -> BagReport:
+    """Judge every command on ``cmd_topic`` of the bag at ``path`` with ``guard`` (module docstring).
+    A Twist counts as held until the next command, at least ``min_hold_s`` (a command replaced at
+    once still moves the robot for a control period) and at most ``max_hold_s``; ``hold_s`` fixes it."""
+    if min_hold_s is not None and max_hold_s is not None and min_hold_s > max_hold_s:
+        raise BagInputError(f"min_hold_s {min_hold_s!r} is more than max_hold_s {max_hold_s!r}")
+    for name, value in (("hold_s", hold_s), ("max_hold_s", max_hold_s), ("min_hold_s", min_hold_s)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise BagInputError(f"{name} must be a positive number of seconds, got {value!r}")
     bag = Path(path)
@@ -197,7 +204,7 @@ def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_to
         commands = _connection(reader, bag, cmd_topic, TWIST_TYPES + PLAN_TYPES, "command")
         poses = _connection(reader, bag, pose_topic, POSE_TYPES, "pose") if pose_topic else []
         verdicts = list(_judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, pose_topic,
-                               mount, hold_s, max_hold_s))
+                               mount, hold_s, max_hold_s, min_hold_s))
     finally:
         reader.close()
     rules = [name for name, _ in guard.rules]
@@ -205,7 +212,7 @@ def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_to
 
 
 def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, pose_topic, mount, hold_s,
-           max_hold_s) -> Iterator[CommandVerdict]:
+           max_hold_s, min_hold_s) -> Iterator[CommandVerdict]:
     scan: LaserScan | None = None
     scan_time: float | None = None
     scan_pose: tuple[float, float, float] | None = None
@@ -219,8 +226,8 @@ def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, po
 
     def twist_verdict(item, until: float | None) -> CommandVerdict:
         index, time_s, twist, seen, seen_time, where, still = item
-        duration = hold_s if hold_s is not None else min(max_hold_s, until - time_s) if until is not None \
-            else max_hold_s
+        duration = hold_s if hold_s is not None else max(min_hold_s, min(max_hold_s, until - time_s)) \
+            if until is not None else max_hold_s
         # history for motion rules only from a scan taken where the robot stands (module docstring)
         report = guard.check_twist(twist, max(duration, 0.0), lidar_mm=seen, pose=where,
                                    time_s=seen_time if where is not None and still else None)
@@ -243,17 +250,20 @@ def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, po
             elif connection.msgtype in TWIST_TYPES:
                 twist = Twist.from_ros(message)
                 if pending is not None:
-                    yield twist_verdict(pending, time_s)
+                    yield twist_verdict(pending, time_s)  # judged now that its hold is known
                 seen, still = as_seen()
                 pending = (index, time_s, twist, seen, scan_time, pose, still)
             else:
                 control, recorded = _plan(message.data)
                 seen, still = as_seen()
                 yield _plan_verdict(guard, index, time_s, control, recorded, seen, scan_time, pose, still)
-        except ValueError as error:
+        except (ValueError, ArithmeticError) as error:  # a bad number, or one too large to compute with
             raise BagInputError(f"{where}: {error}") from None
     if pending is not None:
-        yield twist_verdict(pending, None)
+        try:
+            yield twist_verdict(pending, None)
+        except (ValueError, ArithmeticError) as error:
+            raise BagInputError(f"{bag}: {cmd_topic} message {pending[0]} (at {pending[1]:.3f} s): {error}") from None
 
 
 def _plan_verdict(guard, index, time_s, control, recorded, scan, scan_time, pose, still) -> CommandVerdict:

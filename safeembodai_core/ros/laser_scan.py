@@ -28,6 +28,10 @@ from ..models import LidarScan
 
 #: Most beams a converted scan gets (0.05 degree): beyond this a finer sensor is binned coarser.
 MAX_BEAMS = 7200
+#: The finest increment read (radians): finer is no scanner's, and would overflow the beam count.
+MIN_INCREMENT = 1e-6
+#: The farthest range read (metres): no scanner's reaches it, and millimetres stay finite.
+MAX_RANGE_M = 100_000.0
 
 
 def finite_number(owner: str, name: str, value: Any) -> float:
@@ -78,8 +82,11 @@ class LaserScan:
             object.__setattr__(self, name, finite_number("LaserScan", name, getattr(self, name)))
         if self.angle_max is not None:
             object.__setattr__(self, "angle_max", finite_number("LaserScan", "angle_max", self.angle_max))
-        if self.angle_increment == 0.0:
-            raise ValueError("LaserScan.angle_increment must not be 0")
+        if not MIN_INCREMENT <= abs(self.angle_increment) <= 2 * math.pi:
+            raise ValueError(f"LaserScan.angle_increment must be between {MIN_INCREMENT:g} and 2 pi radians (either "
+                             f"sign), got {self.angle_increment!r}")
+        if self.range_max > MAX_RANGE_M:
+            raise ValueError(f"LaserScan.range_max must be at most {MAX_RANGE_M:g} m, got {self.range_max!r}")
         if not 0.0 <= self.range_min < self.range_max:
             raise ValueError(f"LaserScan needs 0 <= range_min < range_max, got range_min {self.range_min!r}, "
                              f"range_max {self.range_max!r}")

@@ -22,6 +22,14 @@ from .laser_scan import finite_number
 #: The longest straight and the largest turn of one piece of an arc.
 STEP_MM = 50.0
 STEP_DEG = 5.0
+#: Most pieces one command is cut into (100 m, or 28 turns): a longer arc is not judged, but refused.
+MAX_PIECES = 2000
+
+
+def longest_judged_s(twist: "Twist", step_mm: float = STEP_MM, step_deg: float = STEP_DEG) -> float:
+    """How long ``twist`` can be held before its arc needs more than :data:`MAX_PIECES` pieces."""
+    per_second = max(abs(twist.linear_x) * 1000.0 / step_mm, abs(math.degrees(twist.angular_z)) / step_deg)
+    return math.inf if per_second == 0 else MAX_PIECES / per_second
 
 
 def _finite(name: str, value: Any) -> float:
@@ -70,6 +78,9 @@ def arc_signals(twist: Twist, duration_s: float, step_mm: float = STEP_MM,
     distance = abs(twist.linear_x) * 1000.0 * duration_s
     angle = math.degrees(twist.angular_z * duration_s)
     pieces = max(1, math.ceil(distance / step_mm), math.ceil(abs(angle) / step_deg))
+    if pieces > MAX_PIECES:
+        raise ValueError(f"the arc of {distance:.0f} mm and {abs(angle):.0f} degrees needs {pieces} pieces, more than "
+                         f"{MAX_PIECES}: judge a shorter hold (longest_judged_s)")
     direction = "forward" if twist.linear_x >= 0 else "backward"
     side = "left" if angle >= 0 else "right"
 

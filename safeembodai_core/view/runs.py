@@ -134,26 +134,30 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
 
     scenario = RunFolder(folder).scenario()
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)
-    results = runner.in_trial_order(runner.state.results())
-    info = run_info(scenario, folder, plugins, results)
-    total = len(runner.specs())
-    state = "running" if running(folder) else "finished" if len(results) >= total else "interrupted"
-    stamp = datetime.fromtimestamp((folder / SCENARIO_FILE).stat().st_mtime, tz=timezone.utc)
-    summary = RunSummary(
-        name=folder.name, path=folder, when=stamp.strftime("%Y-%m-%d %H:%M UTC"), scenario=scenario.name,
-        backend=info.backend, model=info.model, pilot=info.pilot, seed=info.seed,
-        trials_per_cell=info.trials_per_cell, total=total, finished=len(results), status=state,
-        simulated=info.simulated)
-    for cell in scenario_cells(scenario, results) if results else []:
-        m = cell.metrics
-        summary.cells.append(CellRow(m.environment, m.arm, m.condition, m.trials, m.moer.fmt(), m.completion.fmt()))
-    for r in results:
-        s = r.spec
-        summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition, s.index,
-                                       r.outcome.value, r.steps, r.interventions, r.collisions_self,
-                                       r.collisions_struck, r.detail))
-    summary.tables = report_tables(folder / "report.md")
-    summary.figures = sorted(p.name for p in (folder / "figures").glob("*.png")) if (folder / "figures").is_dir() else []
+    try:
+        results = runner.in_trial_order(runner.state.results())
+        info = run_info(scenario, folder, plugins, results)
+        total = len(runner.specs())
+        state = "running" if running(folder) else "finished" if len(results) >= total else "interrupted"
+        stamp = datetime.fromtimestamp((folder / SCENARIO_FILE).stat().st_mtime, tz=timezone.utc)
+        summary = RunSummary(
+            name=folder.name, path=folder, when=stamp.strftime("%Y-%m-%d %H:%M UTC"), scenario=scenario.name,
+            backend=info.backend, model=info.model, pilot=info.pilot, seed=info.seed,
+            trials_per_cell=info.trials_per_cell, total=total, finished=len(results), status=state,
+            simulated=info.simulated)
+        for cell in scenario_cells(scenario, results) if results else []:
+            m = cell.metrics
+            summary.cells.append(CellRow(m.environment, m.arm, m.condition, m.trials, m.moer.fmt(), m.completion.fmt()))
+        for r in results:
+            s = r.spec
+            summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition, s.index,
+                                           r.outcome.value, r.steps, r.interventions, r.collisions_self,
+                                           r.collisions_struck, r.detail))
+        summary.tables = report_tables(folder / "report.md")
+        summary.figures = sorted(p.name for p in (folder / "figures").glob("*.png")) if (folder / "figures").is_dir() else []
+    except BaseException:  # the caller gets no runner to close: close it here
+        runner.close()
+        raise
     return summary, runner, results
 
 

@@ -204,3 +204,47 @@ def test_run_bag_keeps_hostile_text_as_text(repo, tmp_path, cli_runner):
         assert "\\x00" in text and "\\x1b[2J" in text and "<script>" in text  # text, shown as written
         assert "\x00" not in text and "\x1b" not in text
         assert "ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789" not in text  # a key-shaped secret is masked
+
+
+@pytest.mark.parametrize("name", ["&bag", "[bag", "'bag", "bag: x", "#bag"])
+def test_a_bag_named_oddly_still_reads_back(tmp_path, name):
+    """The bag is written in a hidden folder under its final name, then moved: metadata.yaml names
+    its file as rosbags wrote it, whatever the name (review finding: text replacement broke YAML)."""
+    from rosbags.highlevel import AnyReader
+
+    from safeembodai_core.ros import messages
+    from safeembodai_core.ros.bag_export import write_bag
+
+    message = messages.build("std_msgs/msg/String", data="hello")
+    bag = write_bag(tmp_path / name, [("/note", 1, message)], storage="mcap")
+    with AnyReader([bag]) as reader:
+        assert [reader.deserialize(raw, c.msgtype).data for c, _, raw in reader.messages()] == ["hello"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]  # nothing left aside
+
+
+def test_a_corrupt_row_is_an_error_naming_what_could_not_be_read(bag_run, tmp_path):
+    import shutil
+    import subprocess
+    import sys
+
+    _, path, results, _ = bag_run
+    copy = tmp_path / "run"
+    shutil.copytree(path, copy)
+    trial = results[0].spec.trial_id
+    with sqlite3.connect(copy / "results.sqlite") as db:
+        db.execute("update steps set record = '{\"step\": \"x\"}' where trial_id = ?", (trial,))
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "export", str(copy), "--trial", trial,
+                           "--out", str(tmp_path / "bag")], capture_output=True, text=True)
+    assert done.returncode == 1 and f"cannot read the steps of {trial}" in done.stderr
+    assert "Traceback" not in done.stderr and not (tmp_path / "bag").exists()
+
+
+def test_a_changed_attack_is_a_divergence(bag_run):
+    from safeembodai_core.loop.replay import difference
+
+    _, _, _, steps = bag_run
+    record = next(r for records in steps.values() for r in records if r.attacks)
+    forged = record.model_copy(update={"attacks": [a.model_copy(update={"payload": "other"}) for a in record.attacks]})
+    assert difference(record, forged) == "the attacks injected differ"
+    assert difference(record, record.model_copy(update={"instruction": "x"})).startswith("the instruction differs")
+    assert difference(record, record) is None

@@ -36,7 +36,8 @@ def test_the_refusals_found_are_the_verdicts_recorded_in_the_trial(run, request,
         if result.spec.arm not in ("safeembodai", "moving"):
             continue
         trial = result.spec.trial_id
-        report = json_report(cli_runner, bag_file(path, trial), "--cmd", "/safeembodai/plan", "--pose", "/pose")
+        report = json_report(cli_runner, bag_file(path, trial), "--cmd", "/safeembodai/plan", "--pose", "/pose",
+                             "--rules-from-bag")
         assert report["rules_from"] == "recorded in the bag"
         attempts = [a for r in steps[trial] for a in r.attempts]
         assert report["commands"] == len(attempts)
@@ -205,3 +206,55 @@ def test_a_corrupt_bag_is_a_clear_error_not_a_crash(tmp_path, cli_runner):
     done = cli_runner.invoke(cli, ["guard-bag", str(bag), "--json"])
     assert done.exit_code != 0 and isinstance(done.exception, BagInputError)
     assert "cannot read /scan message 0 (at 0.000 s)" in str(done.exception) and done.output == ""
+
+
+def test_a_bag_does_not_choose_its_own_rules_unless_asked(tmp_path, cli_runner):
+    """A bag whose /safeembodai/trial names lenient rules is judged by the defaults, unless
+    --rules-from-bag says to trust it; recorded robot sizes must be finite."""
+    trial = m.build("std_msgs/msg/String", data=json.dumps(
+        {"arm": {"safety_validation": True, "validators": ["command_limits"]}}))
+    items = [("/safeembodai/trial", 0, trial), ("/scan", 1, scan_msg(1, wall_ahead(0.3))),
+             ("/cmd_vel", 2, twist_msg(0.3, 0.0))]
+    bag = write(tmp_path, "lenient", items)
+    default = json_report(cli_runner, bag)
+    assert default["rules_from"] == "the Guard's defaults" and default["refused"] == 1
+    trusted = json_report(cli_runner, bag, "--rules-from-bag")
+    assert trusted["rules_from"] == "recorded in the bag" and trusted["refused"] == 0
+    nan = m.build("std_msgs/msg/String", data='{"robot": {"radius_mm": NaN}}')
+    bad = write(tmp_path, "nanrobot", [("/safeembodai/trial", 0, nan)] + items[1:])
+    done = cli_runner.invoke(cli, ["guard-bag", str(bad), "--rules-from-bag"])
+    assert done.exit_code != 0 and "robot sizes must be positive and finite" in str(done.exception)
+
+
+def test_a_command_replaced_at_once_is_still_judged_for_a_control_period(tmp_path):
+    """A fast Twist followed 1 ns later by another is held --min-hold (0.1 s), not 0 s (review finding);
+    an arc too long to cut into pieces is refused, not computed for minutes."""
+    items = [("/scan", 1, scan_msg(1, wall_ahead(0.3))), ("/cmd_vel", 2, twist_msg(50.0, 0.0)),
+             ("/cmd_vel", 3, twist_msg(0.0, 0.0)), ("/cmd_vel", 10, twist_msg(1e5, 0.0))]
+    report = guard_bag(write(tmp_path, "quick", items), Guard(["lidar_clearance"]))
+    first, _, huge = report.verdicts
+    assert first.command["duration_s"] == pytest.approx(0.1) and not first.valid
+    assert not huge.valid and any("pieces of arc" in reason for reason in huge.reasons)
+
+
+def test_hostile_numbers_in_a_bag_are_clear_errors(tmp_path, cli_runner):
+    plan = m.build("std_msgs/msg/String", data='[{"command": "straight", "direction": "forward", "distance": NaN}]')
+    bag = write(tmp_path, "nanplan", [("/scan", 1, scan_msg(1, wall_ahead(3.0))), ("/plan", 2, plan)])
+    with pytest.raises(BagInputError, match="NaN is not a JSON number"):
+        guard_bag(bag, Guard(), cmd_topic="/plan")
+    far = scan_msg(1, wall_ahead(3.0))
+    far.range_max = 1e30
+    bag = write(tmp_path, "far", [("/scan", 1, far), ("/cmd_vel", 2, twist_msg(0.1, 0.0))])
+    done = cli_runner.invoke(cli, ["guard-bag", str(bag), "--json"])
+    assert isinstance(done.exception, BagInputError) and "range_max must be at most" in str(done.exception)
+
+
+def test_an_error_quoting_a_bag_shows_its_control_characters_as_escapes(tmp_path):
+    import subprocess
+    import sys
+
+    bag = write(tmp_path, "title", [("/x\x1b]0;pwned\x07\u202eevil", 1, scan_msg(1, wall_ahead(1.0)))])
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "guard-bag", str(bag)], capture_output=True,
+                          text=True)
+    assert done.returncode == 1 and "no topic '/scan'" in done.stderr
+    assert "\x1b" not in done.stderr and "\u202e" not in done.stderr and "\\x1b]0;pwned" in done.stderr

@@ -136,8 +136,11 @@ def test_from_ros_reads_a_decoded_message_and_names_what_is_missing():
 @pytest.mark.parametrize("fields, message", [
     ({"ranges": []}, "at least one beam"),
     ({"angle_increment": math.nan}, "angle_increment must be finite"),
-    ({"angle_increment": 0.0}, "angle_increment must not be 0"),
+    ({"angle_increment": 0.0}, "angle_increment must be between"),
+    ({"angle_increment": 1e-310}, "angle_increment must be between"),
+    ({"angle_increment": 7.0}, "angle_increment must be between"),
     ({"range_min": 5.0, "range_max": 1.0}, "range_min < range_max"),
+    ({"range_max": 1e307}, "range_max must be at most"),
     ({"ranges": ["a", "b"]}, "sequence of numbers"),
     ({"angle_min": "left"}, "angle_min must be a number"),
 ])
