@@ -11,3 +11,9 @@ from __future__ import annotations
 #: the storage, ``mcap`` or ``sqlite3``); ``ablate --bags`` writes it.
 BAGS_DIR = "bags"
 BAG_STORAGE_FILE = "storage"
+
+
+def trial_file_name(trial_id: str) -> str:
+    """A trial's id as one file name (``MO/safeembodai/attack/3`` -> ``MO__safeembodai__attack__3``): its
+    picture, its bag and its exported bag are named so."""
+    return trial_id.replace("/", "__")

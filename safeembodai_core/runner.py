@@ -21,7 +21,7 @@ from .loop.trial import error_result
 from .models import TrialResult, TrialSpec
 from .plugins import Plugins
 from .refs import ComponentRef
-from .run_files import BAG_STORAGE_FILE, BAGS_DIR
+from .run_files import BAG_STORAGE_FILE, BAGS_DIR, trial_file_name
 from .scenario import Scenario
 
 from .logs import get_logger
@@ -64,12 +64,12 @@ class PreflightError(SafeEmbodAIError):
 
 def trajectory_file(run_dir: str | Path, trial_id: str) -> Path:
     """Where the picture of ``trial_id`` goes in a run folder."""
-    return Path(run_dir) / "trajectories" / (trial_id.replace("/", "__") + ".png")
+    return Path(run_dir) / "trajectories" / (trial_file_name(trial_id) + ".png")
 
 
 def bag_file(run_dir: str | Path, trial_id: str) -> Path:
     """Where the bag of ``trial_id`` goes in a run folder that records bags."""
-    return Path(run_dir) / BAGS_DIR / trial_id.replace("/", "__")
+    return Path(run_dir) / BAGS_DIR / trial_file_name(trial_id)
 
 
 def recorded_bag_storage(run_dir: str | Path | None) -> str | None:

@@ -32,6 +32,7 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
     from ..errors import SafeEmbodAIError
     from ..loop.replay import replay_trial
     from ..ros.bag_export import write_bag
+    from ..run_files import trial_file_name
     from ..runner import ScenarioRunner
     from ..text_safety import terminal_markup
     from .common import load_recorded
@@ -65,7 +66,7 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
         if len(chosen) > 1 or not trials:
             if target.exists() and not target.is_dir():
                 raise SafeEmbodAIError(f"--out {out} is a file: give a folder for several bags")
-            paths = {t: target / t.replace("/", "__") for t in chosen}
+            paths = {t: target / trial_file_name(t) for t in chosen}
         else:
             paths = {chosen[0]: target}
         for trial_id, path in paths.items():

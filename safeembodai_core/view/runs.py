@@ -123,7 +123,9 @@ def trial_page(trial_id: str) -> str:
     """The file name of a trial's page (also its images' folder): one safe file name."""
     from .files import safe_name
 
-    return safe_name(trial_id.replace("/", "__"))
+    from ..run_files import trial_file_name
+
+    return safe_name(trial_file_name(trial_id))
 
 
 def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ..logs import get_logger
+from ..runner import trajectory_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
 from .runs import CellRow, RunSummary, broken, find_runs, running, signature, summarise, trial_page
@@ -121,7 +122,7 @@ def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: Run
     records = runner.state.steps(spec.trial_id)
     prompts, missing = replayed_prompts(runner, spec, records) if records else ({}, "no step was recorded")
     steps = step_views(records, prompts, site, f"{base}/img/{name}", f"../img/{name}")
-    picture = read_run_file(folder / "trajectories" / f"{spec.trial_id.replace('/', '__')}.png", png=True)
+    picture = read_run_file(trajectory_file(folder, spec.trial_id), png=True)
     trajectory = None
     if picture is not None:
         site.write(f"{base}/img/{name}.png", picture)
