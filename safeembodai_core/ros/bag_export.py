@@ -97,6 +97,11 @@ class _Timeline:
         self.last = max(_ns(seconds), self.last + 1)
         return self.last
 
+    def next(self) -> int:
+        """The instant right after the last event (1 ns on): for what happens without the clock moving."""
+        self.last += 1
+        return self.last
+
     def add(self, topic: str, ns: int, message: Any) -> None:
         self.messages.append((topic, ns, message))
 
@@ -190,11 +195,11 @@ def _step_messages(line: _Timeline, ns: int, seen: Seen, record: StepRecord | No
     if record is None:
         return
     for attack in record.attacks:
-        _log(line, line.at(0), WARN, "attacker",
+        _log(line, line.next(), WARN, "attacker",
              f"step {record.step}: {attack.kind} injected through the {attack.channel}: {attack.payload}")
-    _log(line, line.at(0), INFO, "instruction", f"step {record.step}: {record.instruction}")
+    _log(line, line.next(), INFO, "instruction", f"step {record.step}: {record.instruction}")
     for attempt in record.attempts:
-        at = line.at(0)
+        at = line.next()
         _log(line, at, INFO, "llm", f"step {record.step}, attempt {attempt.index + 1}: {attempt.raw_text}")
         control = [s.model_dump(mode="json") for s in attempt.response.control] if attempt.response else None
         _string(line, "/safeembodai/plan", at, {
