@@ -31,7 +31,7 @@ def _run(folder: Path) -> tuple[str, list[dict]]:
 
 
 def main(folders: list[Path]) -> None:
-    from safeembodai_core.report.paper import COMPARED, paper_value
+    from safeembodai_core.report.paper import compared, paper_value
 
     runs = [_run(folder) for folder in folders]
     moer: dict[tuple, dict[str, str]] = defaultdict(dict)
@@ -39,7 +39,7 @@ def main(folders: list[Path]) -> None:
         inside: dict[str, list[bool]] = defaultdict(list)
         for cell in cells:
             key = (cell["environment"], cell["arm"], cell["condition"])
-            for ours, theirs in COMPARED.items():
+            for ours, theirs in compared().items():
                 paper = paper_value(theirs, *key)
                 low, high = cell.get(f"{ours}_low"), cell.get(f"{ours}_high")
                 if paper is None or low is None or high is None:

@@ -105,6 +105,22 @@ def register_llm_backends(register: Register) -> None:
     """
 
 
+# --- Metrics -----------------------------------------------------------------------------------
+
+
+@hookspec
+def register_metrics(register: Register) -> None:
+    """Add metrics to the catalog every report reads (``metrics.json``/``.csv``, report.md, figures,
+    the terminal summary, the Inspect scorers).
+
+    :param register: call ``register(Metric(name, label, compute, ...))`` once per metric, with a
+        :class:`~safeembodai_core.metrics.Metric` whose ``compute(cell)`` returns an
+        :class:`~safeembodai_core.metrics.Estimate` from a
+        :class:`~safeembodai_core.metrics.CellTrials` (the cell's scored trials). A name the
+        catalog already has is refused, naming both owners.
+    """
+
+
 # --- Command line ------------------------------------------------------------------------------
 
 

@@ -28,6 +28,7 @@ from . import hookspecs
 from .errors import PluginError
 
 if TYPE_CHECKING:
+    from .metrics.catalog import Metric
     from .registry import ComponentRegistry
 
 ENTRY_POINT_GROUP = "safeembodai"
@@ -73,6 +74,7 @@ class Plugins:
     origins: dict[str, PluginOrigin] = field(default_factory=dict)
     trace: bool = False
     _registry: "ComponentRegistry | None" = None
+    _metrics: "tuple[Metric, ...] | None" = None
 
     @property
     def hook(self) -> Any:
@@ -90,6 +92,19 @@ class Plugins:
                     self._call_plugin(plugin_name, hook_name, function, register=registry.registrar(kind, plugin_name))
             self._registry = registry
         return self._registry
+
+    @property
+    def metrics(self) -> "tuple[Metric, ...]":
+        """The metric catalog: the built-in metrics, then every plugin's (collected on first use)."""
+        if self._metrics is None:
+            from .metrics.builtin import BUILTIN
+            from .metrics.catalog import CatalogBuilder
+
+            catalog = CatalogBuilder(BUILTIN)
+            for plugin_name, function in self.implementations("register_metrics"):
+                self._call_plugin(plugin_name, "register_metrics", function, register=catalog.registrar(plugin_name))
+            self._metrics = catalog.catalog()
+        return self._metrics
 
     def implementations(self, hook_name: str) -> list[tuple[str, Any]]:
         """(plugin name, function) for ``hook_name`` in pluggy's call order."""

@@ -43,10 +43,12 @@ def preflight(scenario: Scenario, plugins: Plugins) -> None:
     """Fail before the first trial, with one line, when the scenario's backend cannot work.
 
     Builds the backend once (a missing API key fails its factory) and calls its optional
-    ``preflight()`` (the built-in litellm backends check that the server accepts a connection).
+    ``preflight()`` (the built-in litellm backends check that the server accepts a connection),
+    and collects the metric catalog (a plugin's clashing metric fails here, not at the report).
     Nothing is written anywhere: ``run`` and ``ablate`` call this before making any folder.
     """
     try:
+        plugins.metrics
         backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
         try:
             check = getattr(backend, "preflight", None)

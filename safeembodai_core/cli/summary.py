@@ -9,6 +9,8 @@ from typing import Any
 from rich.markup import escape
 from rich.table import Table
 
+from ..metrics import metric_catalog
+from ..metrics.catalog import CORE
 from ..models import TrialResult
 from ..report.cells import scenario_cells
 from ..report.run_info import RunInfo, run_info
@@ -27,25 +29,33 @@ def title(scenario: Scenario, info: RunInfo) -> str:
 
 def summary_table(scenario: Scenario, results: list[TrialResult], *, info: RunInfo | None = None,
                   plugins: Any = None) -> Table:
+    if plugins is None:
+        from ..plugins import load_plugins
+
+        plugins = load_plugins()
+    catalog = metric_catalog(plugins)
     info = info or run_info(scenario, plugins=plugins, results=results)
     table = Table(title=title(scenario, info), box=None, padding=(0, 1, 0, 0), pad_edge=False,
                   header_style="bold underline")
-    cells = scenario_cells(scenario, results)
+    cells = scenario_cells(scenario, results, catalog)
     crashes = any(cell.crashed for cell in cells)  # the column only when needed: the table fits 80 columns
-    columns = ("env", "arm", "condition", "n", "MOER", "done", "ADR", "TLR", "steps*", "tokens*", "ref", "err")
+    shown = [entry for entry in catalog if entry.console]
+    columns = ("env", "arm", "condition", "n", *(str(entry.console) for entry in shown), "err")
     for column in columns + (("crash",) if crashes else ()):
-        table.add_column(column, no_wrap=True, justify="left" if column in ("env", "arm", "condition") else "right")
+        table.add_column(escape(column), no_wrap=True,
+                         justify="left" if column in ("env", "arm", "condition") else "right")
     for cell in cells:
         m = cell.metrics
-        table.add_row(escape(m.environment), escape(m.arm), escape(m.condition), str(m.trials), _value(m.moer, 2),
-                      _value(m.completion, 2), _value(m.adr, 2), _value(m.tlr_all, 2), _value(m.steps, 1),
-                      _value(m.tokens, 0), _value(m.interventions, 1), str(cell.errors),
+        table.add_row(escape(m.environment), escape(m.arm), escape(m.condition), str(m.trials),
+                      *(_value(m.estimates[entry.name], entry.digits) for entry in shown), str(cell.errors),
                       *((str(cell.crashed),) if crashes else ()))
     table.caption = "\n".join([
         "done = completed share; TLR = lost steps / all steps (the paper's)",
         "* over completed trials; ref = validator refusals per trial",
         "err = backend, store or other failures" + ("; crash = a component's bug" if crashes else ""),
-        "n/a = nothing to estimate (ADR without attacks); intervals in report.md", *_settings(scenario)])
+        "n/a = nothing to estimate (ADR without attacks); intervals in report.md",
+        *(escape(f"{entry.console} = {entry.description or entry.name} (plugin {entry.origin})")
+          for entry in shown if entry.origin != CORE), *_settings(scenario)])
     return table
 
 

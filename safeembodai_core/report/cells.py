@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from typing import Mapping
+from typing import Mapping, Sequence
 
 from ..ablation.error_kinds import error_kind
-from ..metrics import CellMetrics, Estimate, cell_metrics, group_by_cell, newcombe, wilson
+from ..metrics import CellMetrics, Estimate, Metric, cell_metrics, group_by_cell, newcombe, wilson
 from ..metrics.release import ReleaseReadings, release_readings
 from ..models import TrialResult
 from ..scenario import Scenario
@@ -46,8 +46,10 @@ def attacked(scenario: Scenario, condition: str) -> bool:
     return known is None or bool(known.attackers)
 
 
-def scenario_cells(scenario: Scenario, results: list[TrialResult]) -> list[Cell]:
-    """Every cell of ``results`` in first-seen order, scored with ``scenario.metrics``."""
+def scenario_cells(scenario: Scenario, results: list[TrialResult],
+                   catalog: Sequence[Metric] | None = None) -> list[Cell]:
+    """Every cell of ``results`` in first-seen order, scored with ``scenario.metrics``: each metric of
+    ``catalog`` (the built-ins when None)."""
     cells = []
     for (_, _, condition), cell in group_by_cell(results).items():
         kinds: dict[str, int] = {}
@@ -56,7 +58,7 @@ def scenario_cells(scenario: Scenario, results: list[TrialResult]) -> list[Cell]
             if kind is not None:
                 kinds[kind] = kinds.get(kind, 0) + 1
         metrics = cell_metrics(cell, scenario.max_steps, settings=scenario.metrics,
-                               attacked=attacked(scenario, condition))
+                               attacked=attacked(scenario, condition), catalog=catalog)
         cells.append(Cell(metrics, cell, kinds))
     return cells
 

@@ -16,32 +16,30 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Sequence
 
-from ..metrics import CellMetrics
+from ..metrics import CellMetrics, Metric, metric_catalog
 from ..metrics.intervals import MIN_N_FOR_INTERVAL
 from .paper import paper_value
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-#: file name -> (attribute of CellMetrics, axis label, y limits, the paper's metric or None)
-FIGURES = {
-    "moer": ("moer", "MOER", (0, 1.05), "moer"),
-    "adr": ("adr", "ADR", (0, 1.0), "adr"),
-    "tlr": ("tlr_all", "TLR (lost steps / all steps)", (0, 1.0), "tlr"),
-    "tlr_after_seen": ("tlr_after_seen", "TLR after first sighting (ours)", (0, 1.0), None),
-    "steps": ("steps", "Steps (completed)", None, "steps"),
-    "tokens": ("tokens", "Tokens (completed)", None, "tokens"),
-    "distance_mm": ("distance_mm", "Distance mm (completed)", None, "distance_mm"),
-}
+
+
+def figures(catalog: Sequence[Metric] | None = None) -> dict[str, Metric]:
+    """File name (without ``.png``) -> the metric drawn in it: every entry of ``catalog`` (the
+    built-ins when None) that asks for a figure, in catalog order."""
+    return {entry.figure: entry for entry in (catalog or metric_catalog()) if entry.figure}
+
+
 #: The legend's word on the diamonds.
 PAPER_LABEL = "paper: GPT-4o in EyeSim (diamonds)"
 
 
-def draw_figures(cells: list[CellMetrics], folder: Path, note: str | None = None,
-                 bars: str | None = None) -> list[Path]:
-    """Write one PNG per metric into ``folder``; return their paths.
+def draw_figures(cells: list[CellMetrics], folder: Path, catalog: Sequence[Metric] | None = None,
+                 note: str | None = None, bars: str | None = None) -> list[Path]:
+    """Write one PNG per metric of ``catalog`` with a figure (:func:`figures`) into ``folder``; return their paths.
 
     ``note`` is printed above every figure (a simulated pilot's banner); ``bars`` titles the legend
     (what the bars are: :meth:`~safeembodai_core.report.run_info.RunInfo.bars`).
@@ -50,8 +48,8 @@ def draw_figures(cells: list[CellMetrics], folder: Path, note: str | None = None
 
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name in FIGURES:
-        fig = metric_figure(cells, name, note=note, bars=bars)
+    for name, entry in figures(catalog).items():
+        fig = metric_figure(cells, entry, note=note, bars=bars)
         path = folder / f"{name}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
@@ -59,14 +57,17 @@ def draw_figures(cells: list[CellMetrics], folder: Path, note: str | None = None
     return paths
 
 
-def metric_figure(cells: list[CellMetrics], name: str, note: str | None = None, bars: str | None = None) -> "Figure":
-    """The figure of one metric of :data:`FIGURES` (a pyplot figure: close it when done)."""
+def metric_figure(cells: list[CellMetrics], metric: Metric | str, note: str | None = None,
+                  bars: str | None = None) -> "Figure":
+    """The figure of one metric (an entry, or a built-in's figure name such as ``tlr``): a pyplot
+    figure, close it when done."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    metric, label, limits, theirs_metric = FIGURES[name]
+    entry = figures()[metric] if isinstance(metric, str) else metric
+    label, limits, theirs_metric = entry.figure_axis, entry.limits, entry.paper
     environments = list(dict.fromkeys(m.environment for m in cells))
     arms = list(dict.fromkeys(m.arm for m in cells))
     conditions = list(dict.fromkeys(m.condition for m in cells))
@@ -80,7 +81,7 @@ def metric_figure(cells: list[CellMetrics], name: str, note: str | None = None, 
             xs, values, lows, highs, paper_x, paper_y, few = [], [], [], [], [], [], []
             for e, environment in enumerate(environments):
                 m = lookup.get((environment, arm, condition))
-                estimate = getattr(m, metric) if m else None
+                estimate = m.estimates.get(entry.name) if m else None
                 x = e + (a - (len(arms) - 1) / 2) * width
                 if estimate is not None and estimate.value is not None:
                     xs.append(x)

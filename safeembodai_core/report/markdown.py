@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 from collections import Counter
+from typing import Sequence
 
 from ..ablation.error_kinds import KINDS
-from ..metrics import Estimate
+from ..metrics import Estimate, Metric, metric_catalog
+from ..metrics.catalog import CORE
 from ..metrics.release import ReleaseReadings
 from ..models import Outcome
 from ..scenario import Scenario
@@ -71,18 +73,30 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
     return lines
 
 
-def metrics_table(cells: list[Cell]) -> list[str]:
+def metrics_table(cells: list[Cell], catalog: Sequence[Metric] | None = None) -> list[str]:
+    """The *Metrics per cell* table: a column per metric of ``catalog`` (the built-ins when None) that
+    asks for one, a plugin's metrics described under it."""
+    shown = [entry for entry in (catalog or metric_catalog()) if entry.table]
     lines = ["## Metrics per cell", "",
-             "| env | arm | condition | n | MOER | completed | ADR | TLR | TLR after seen | steps* | tokens* | distance mm* |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| env | arm | condition | n | " + " | ".join(entry.label for entry in shown) + " |",
+             "|---|---|---|---|" + "---|" * len(shown)]
     for cell in cells:
         m = cell.metrics
-        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {m.trials} | {m.moer.fmt()} | {m.completion.fmt()} "
-                     f"| {m.adr.fmt()} | {m.tlr_all.fmt()} | {m.tlr_after_seen.fmt()} | {m.steps.fmt(1)} "
-                     f"| {m.tokens.fmt(0)} | {m.distance_mm.fmt(0)} |")
-    return lines + ["", "\\* over completed trials. Intervals are 95% (bootstrap for means, Wilson for proportions); "
-                    "see docs/metrics.md for every formula. Trials that ended in `error` are not in n or the metrics "
-                    "(counted in the next table) and run again on resume.", ""]
+        values = " | ".join(m.estimates[entry.name].fmt(entry.digits) for entry in shown)
+        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {m.trials} | {values} |")
+    lines += ["", "\\* over completed trials. Intervals are 95% (bootstrap for means, Wilson for proportions); "
+              "see docs/metrics.md for every formula. Trials that ended in `error` are not in n or the metrics "
+              "(counted in the next table) and run again on resume.", ""]
+    added = [entry for entry in shown if entry.origin != CORE]
+    if added:
+        lines += [f"{_plugin_metric(entry)}." for entry in added] + [""]
+    return lines
+
+
+def _plugin_metric(entry: Metric) -> str:
+    """A plugin's metric as the report describes it: its column, what it measures, who defined it."""
+    what = f": {entry.description}" if entry.description else ""
+    return f"{entry.label}{what} ({entry.interval} interval; metric `{entry.name}` of the plugin `{entry.origin}`)"
 
 
 def _errors(cell: Cell) -> str:

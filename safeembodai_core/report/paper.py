@@ -13,11 +13,16 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from ..metrics import CellMetrics
+from typing import Sequence
 
-#: Our metric -> the paper's metric (the key in ``data/paper_results.json``) it is compared with.
-COMPARED = {"moer": "moer", "adr": "adr", "tlr_all": "tlr", "steps": "steps", "tokens": "tokens",
-            "distance_mm": "distance_mm"}
+from ..metrics import CellMetrics, Metric, metric_catalog
+
+
+def compared(catalog: Sequence[Metric] | None = None) -> dict[str, str]:
+    """Our metric -> the paper's metric (the key in ``data/paper_results.json``) it is compared with,
+    as the catalog (the built-ins when None) says."""
+    return {entry.name: entry.paper for entry in (catalog or metric_catalog()) if entry.paper}
+
 _ROUNDING = 1e-9  # 1 - 6/20 is 0.7000000000000001: a value on the bound is inside
 
 
@@ -34,17 +39,17 @@ def paper_value(metric: str, environment: str, arm: str, condition: str) -> floa
     return table.get(arm, {}).get(condition, {}).get(environment)
 
 
-def comparison_rows(cells: list[CellMetrics]) -> list[dict[str, Any]]:
+def comparison_rows(cells: list[CellMetrics], catalog: Sequence[Metric] | None = None) -> list[dict[str, Any]]:
     """One row per (cell, metric) the paper reports: ours with its interval, the paper's, inside or not.
 
     ``metric`` is the paper's name, ``ours_metric`` the attribute of :class:`CellMetrics` compared.
     """
     rows = []
     for m in cells:
-        for ours_metric, metric in COMPARED.items():
+        for ours_metric, metric in compared(catalog).items():
             theirs = paper_value(metric, m.environment, m.arm, m.condition)
-            ours = getattr(m, ours_metric)
-            if theirs is None or ours.value is None:
+            ours = m.estimates.get(ours_metric)
+            if theirs is None or ours is None or ours.value is None:
                 continue
             inside = None if ours.low is None else ours.low - _ROUNDING <= theirs <= ours.high + _ROUNDING
             rows.append({"environment": m.environment, "arm": m.arm, "condition": m.condition, "metric": metric,

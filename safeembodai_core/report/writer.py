@@ -17,6 +17,7 @@ from typing import Any
 from ..components import StateStore
 from ..errors import StateStoreError
 from ..logs import get_logger
+from ..metrics import Metric, metric_catalog
 from ..metrics.release import READINGS, ReleaseReadings
 from ..models import TrialResult
 from ..runner import trajectory_file
@@ -29,11 +30,8 @@ from .run_info import run_info
 
 log = get_logger(__name__)
 
-ESTIMATES = ("moer", "completion", "adr", "precision", "recall", "false_alarm", "tlr_all", "tlr_after_seen", "steps",
-             "tokens", "distance_mm", "collisions", "interventions", "retries")
 
-
-def _row(cell: Cell, rates: CollisionRates, facts: dict[str, step_facts.TrialFacts] | None,
+def _row(cell: Cell, catalog: tuple[Metric, ...], rates: CollisionRates, facts: dict[str, step_facts.TrialFacts] | None,
          release: ReleaseReadings | None = None, asked: bool = False) -> dict[str, object]:
     m, scored = cell.metrics, cell.scored
     steps = sum(r.steps for r in scored)
@@ -42,8 +40,8 @@ def _row(cell: Cell, rates: CollisionRates, facts: dict[str, step_facts.TrialFac
                               "s_max": m.s_max, "s_max_from": m.s_max_from}
     row.update({f"outcome_{k}": v for k, v in m.outcomes.items()})
     row.update({f"errors_{k}": v for k, v in sorted(cell.error_kinds.items())})
-    for name in ESTIMATES:
-        estimate = getattr(m, name)
+    for entry in catalog:
+        name, estimate = entry.name, m.estimates[entry.name]
         row[name], row[f"{name}_low"], row[f"{name}_high"], row[f"{name}_n"] = (
             estimate.value, estimate.low, estimate.high, estimate.n)
     row["collisions_self"] = sum(r.collisions_self for r in scored)
@@ -90,17 +88,22 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     """Write the metrics files, figures and report.md into ``folder``; return the report's path.
 
     ``store`` (the run's, open) is read for refusals and attack kinds (without one the report
-    says they were not read); ``plugins`` fills in the backend's default options (loaded when
-    not given).
+    says they were not read); ``plugins`` (loaded when not given) gives the metric catalog (the
+    built-in metrics and the plugins') and fills in the backend's default options.
     """
     folder = Path(folder)
+    if plugins is None:
+        from ..plugins import load_plugins
+
+        plugins = load_plugins()
+    catalog = metric_catalog(plugins)
     info = run_info(scenario, folder, plugins, results)
-    cells = scenario_cells(scenario, results)
+    cells = scenario_cells(scenario, results, catalog)
     facts = _facts(scenario, results, store)
     rates = collision_rates(scenario, cells)
     asked = scenario.metrics.release_readings
     releases = [release_of(cell, facts) if asked else None for cell in cells]
-    rows = [_row(cell, rate, facts, release, asked) for cell, rate, release in zip(cells, rates, releases)]
+    rows = [_row(cell, catalog, rate, facts, release, asked) for cell, rate, release in zip(cells, rates, releases)]
     summary: dict[str, object] = {"scenario": scenario.name, "run": info.as_dict(), "cells": rows}
     if asked:
         summary["release_readings"] = {name: f"the authors' release's reading: {source}"
@@ -114,25 +117,25 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
         writer.writerows(rows)
     metrics = [cell.metrics for cell in cells]
     lines = markdown.header(scenario, info, len(results))
-    lines += markdown.metrics_table(cells) + markdown.outcomes_table(cells)
+    lines += markdown.metrics_table(cells, catalog) + markdown.outcomes_table(cells)
     lines += markdown.collision_rates_table(cells, rates)
     lines += markdown.world_rates_table(world_rates(scenario, cells), next(iter(scenario.arms)))
     lines += markdown.defences_table(cells, facts, scenario.state.use)
     if asked:
         lines += markdown.release_table(cells, releases, scenario.state.use)
     lines += [markdown.GLOSSARY, ""]
-    figures = draw_figures(metrics, folder / "figures", note=info.simulated, bars=info.bars()) if metrics else []
+    figures = draw_figures(metrics, folder / "figures", catalog, note=info.simulated, bars=info.bars()) if metrics else []
     if figures:
         lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
-    lines += _against_the_paper(metrics, info.simulated)
+    lines += _against_the_paper(metrics, catalog, info.simulated)
     lines += _trajectories(folder, results)
     report = folder / "report.md"
     report.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return report
 
 
-def _against_the_paper(metrics: list, simulated: str | None) -> list[str]:
-    comparison = comparison_rows(metrics)
+def _against_the_paper(metrics: list, catalog: tuple[Metric, ...], simulated: str | None) -> list[str]:
+    comparison = comparison_rows(metrics, catalog)
     lines = ["## Against the paper", ""]
     if not comparison:
         return lines + ["No cell of this run matches a cell of the paper (environments OF/SO/DO/MO, arms "

@@ -13,7 +13,7 @@ from safeembodai_core.metrics import cell_metrics
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
 from safeembodai_core.plugins import load_plugins
 from safeembodai_core.report import write_report
-from safeembodai_core.report.figures import FIGURES, draw_figures, metric_figure
+from safeembodai_core.report.figures import draw_figures, figures, metric_figure
 from safeembodai_core.report.run_info import model_without_route, run_info
 from safeembodai_core.scenario import parse_scenario
 
@@ -72,7 +72,7 @@ def test_each_arm_has_its_own_colour_in_every_legend_even_when_the_first_panel_i
 
     monkeypatch.setattr(Figure, "savefig", keep)
     draw_figures(cells, tmp_path)
-    assert set(saved) == set(FIGURES)
+    assert set(saved) == set(figures())
     for name, fig in saved.items():
         legend, labels = _legend(fig)
         colours = {label: to_rgba(handle.get_facecolor()) for handle, label in zip(legend.legend_handles, labels)
@@ -128,7 +128,7 @@ def test_a_local_run_names_the_model_not_litellms_route(tmp_path, monkeypatch):
     assert row.startswith("| model | `SmolLM2-135M-Instruct` (the configured litellm id `openai/SmolLM2-135M-Instruct` "
                           "without its route `openai/`;")
     assert "no reply named a model" in row  # said, not guessed: these results name none
-    assert titles == ["bars: local/SmolLM2-135M-Instruct, N = 3 trials per cell"] * len(FIGURES)
+    assert titles == ["bars: local/SmolLM2-135M-Instruct, N = 3 trials per cell"] * len(figures())
 
 
 def test_a_run_whose_replies_named_the_model_is_reported_by_that_name(tmp_path, monkeypatch):
@@ -162,7 +162,7 @@ def test_the_simulated_pilots_figures_say_it_is_not_an_llm(tmp_path, monkeypatch
                               registry=plugins.registry)
     titles = _legend_titles(monkeypatch)
     write_report(tmp_path, scenario, _results(), plugins=plugins)
-    assert titles == ["bars: simulated pilot (mock), not an LLM, N = 3 trials per cell"] * len(FIGURES)
+    assert titles == ["bars: simulated pilot (mock), not an LLM, N = 3 trials per cell"] * len(figures())
 
 
 def test_an_empty_panel_says_there_is_nothing_to_estimate():

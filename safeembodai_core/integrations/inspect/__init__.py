@@ -8,12 +8,12 @@ defines them; ``docs/inspect.md``). Importing this package needs ``inspect-ai`` 
 
 from .bridge import InspectBackend, prompt_from_messages, prompt_messages
 from .provider import SafeEmbodAIModelAPI
-from .scorers import attack_detection_scorer, collisions_scorer, moer_scorer, outcome_scorer
+from .scorers import catalog_metric, catalog_scorers
 from .solver import RESULT_KEY, trial_solver
 from .task import SHIPPED, scenario_path, scenario_task
 
 __all__ = [
-    "InspectBackend", "RESULT_KEY", "SHIPPED", "SafeEmbodAIModelAPI", "attack_detection_scorer", "collisions_scorer",
-    "moer_scorer", "outcome_scorer", "prompt_from_messages", "prompt_messages", "scenario_path", "scenario_task",
+    "InspectBackend", "RESULT_KEY", "SHIPPED", "SafeEmbodAIModelAPI", "catalog_metric", "catalog_scorers",
+    "prompt_from_messages", "prompt_messages", "scenario_path", "scenario_task",
     "trial_solver",
 ]

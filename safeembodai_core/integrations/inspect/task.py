@@ -20,7 +20,7 @@ from ...plugins import Plugins, load_plugins
 from ...report.cells import attacked
 from ...runner import ScenarioRunner
 from ...scenario import load_scenario
-from .scorers import CELL, attack_detection_scorer, collisions_scorer, moer_scorer, outcome_scorer
+from .scorers import CELL, catalog_scorers
 from .solver import RunnerPool, trial_solver
 
 #: The source tree's ``scenarios/`` folder (absent from a wheel: there, pass -T scenario=PATH).
@@ -79,8 +79,7 @@ def scenario_task(scenario: str | None, trials: int | None = None, seed: int | N
         name=loaded.name,
         dataset=MemoryDataset(samples, name=loaded.name),
         solver=trial_solver(RunnerPool(loaded, plugins), specs, image_detail),
-        scorer=[moer_scorer(settings, loaded.max_steps), outcome_scorer(),
-                attack_detection_scorer(attacked_conditions), collisions_scorer()],
+        scorer=catalog_scorers(plugins.metrics, settings, loaded.max_steps, attacked_conditions),
         metadata={"scenario": loaded.name, "seed": loaded.seed, "trials": loaded.trials,
                   "max_steps": loaded.max_steps, "cells": [list(cell) for cell in loaded.cells()]},
     )
