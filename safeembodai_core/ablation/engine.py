@@ -45,7 +45,7 @@ EXECUTORS = ("serial", "process", "ray")
 
 
 def _not_persistent(executor: str, scenario: Scenario) -> AblationError:
-    return AblationError(f"--workers/--executor {executor} needs a persistent state store "
+    return AblationError(f"--workers/--concurrency/--executor {executor} needs a persistent state store "
                          f"(e.g. sqlite); the scenario uses {scenario.state.use!r}")
 
 
@@ -60,16 +60,24 @@ def _store_is_persistent(scenario: Scenario, plugins: Plugins) -> bool:
             runner.close()
 
 
-def executor_name(workers: int = 1, executor: str | None = None, address: str | None = None) -> str:
-    """The executor the options choose; options it would ignore are refused in one line."""
+def executor_name(workers: int = 1, executor: str | None = None, address: str | None = None,
+                  concurrency: int = 1) -> str:
+    """The executor the options choose; options it would ignore are refused in one line.
+
+    Trials run at once in threads (``concurrency`` > 1) run in worker processes, even with one
+    worker: pybullet's chatter is silenced through the process-wide descriptors 1 and 2, which the
+    coordinator's progress display and logs need."""
     if workers < 1:
         raise AblationError("--workers must be at least 1")
-    name = executor or ("process" if workers > 1 else "serial")
+    if concurrency < 1:
+        raise AblationError("--concurrency must be at least 1")
+    name = executor or ("process" if workers > 1 or concurrency > 1 else "serial")
     if name not in EXECUTORS:
         raise AblationError(f"unknown executor {name!r}; choose serial, process or ray")
-    if name == "serial" and workers > 1:
-        raise AblationError(f"--executor serial runs one trial at a time, not --workers {workers}: "
-                            "drop --workers, or use --executor process or ray")
+    if name == "serial" and (workers > 1 or concurrency > 1):
+        option = f"--workers {workers}" if workers > 1 else f"--concurrency {concurrency}"
+        raise AblationError(f"--executor serial runs one trial at a time, not {option}: "
+                            f"drop {option.split()[0]}, or use --executor process or ray")
     if address is not None and name != "ray":
         raise AblationError(f"--address is the address of a Ray cluster: use it with --executor ray "
                             f"(the {name} executor would ignore it)")
@@ -77,10 +85,10 @@ def executor_name(workers: int = 1, executor: str | None = None, address: str | 
 
 
 def check_executor(scenario: Scenario, plugins: Plugins, *, workers: int = 1, executor: str | None = None,
-                   address: str | None = None) -> str:
+                   address: str | None = None, concurrency: int = 1) -> str:
     """:func:`executor_name`, and that its workers can run the scenario: no inline plugins, a
     persistent store. Called before the run folder is made, so a refused run leaves nothing behind."""
-    name = executor_name(workers, executor, address)
+    name = executor_name(workers, executor, address, concurrency)
     if name == "serial":
         return name
     inline = sorted(n for n, origin in plugins.origins.items() if origin.source == "inline")
@@ -97,10 +105,11 @@ class Ablation:
 
     def __init__(self, scenario: Scenario, plugins: Plugins, folder: RunFolder, *, resume: bool = False,
                  workers: int = 1, executor: str | None = None, address: str | None = None,
-                 bags: str | None = None) -> None:
+                 bags: str | None = None, concurrency: int = 1) -> None:
         self.scenario, self.plugins, self.folder = scenario, plugins, folder
-        self.workers, self.address = workers, address
-        self.executor_name = check_executor(scenario, plugins, workers=workers, executor=executor, address=address)
+        self.workers, self.address, self.concurrency = workers, address, concurrency
+        self.executor_name = check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
+                                            concurrency=concurrency)
         if resume:
             folder.check_same(scenario)
         else:
@@ -205,8 +214,8 @@ class Ablation:
         if not self.store.persistent:  # checked before the run folder was made; a store may still change its mind
             raise _not_persistent(self.executor_name, self.scenario)
         if self.executor_name == "process":
-            return ProcessExecutor(scenario_json, str(self.folder.path), self.workers)
-        return RayExecutor(scenario_json, str(self.folder.path), self.workers, self.address)
+            return ProcessExecutor(scenario_json, str(self.folder.path), self.workers, self.concurrency)
+        return RayExecutor(scenario_json, str(self.folder.path), self.workers, self.address, self.concurrency)
 
     def redraw_missing_trajectories(self) -> int:
         """Draw the pictures of recorded trials that have none (see ``ScenarioRunner``)."""

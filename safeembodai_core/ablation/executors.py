@@ -10,43 +10,119 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+import queue
+import threading
 from typing import Any, Iterator
 
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult, TrialSpec
 
-_WORKER: dict[str, Any] = {}
+#: How often the coordinator looks for a dead worker while it waits for results.
+POLL_S = 0.5
+#: The environment variable that tells a worker how many workers split a backend's rate limits.
+RATE_SHARE = "SAFEEMBODAI_RATE_SHARE"
 
 
-def build_worker_runner(scenario_json: dict[str, Any], run_dir: str) -> Any:
-    """What every worker (process or Ray actor) runs trials with: its own plugins, worlds and store."""
-    from ..logs import configure_logging
+def build_worker_runner(scenario_json: dict[str, Any], run_dir: str, plugins: Any = None) -> Any:
+    """What every worker thread (of a process or a Ray actor) runs trials with: its own worlds and
+    store, built from the recorded scenario; ``plugins`` may be shared by a process's threads."""
     from ..plugins import load_plugins
     from ..runner import ScenarioRunner
     from ..scenario import Scenario
 
-    configure_logging(os.environ.get("SAFEEMBODAI_WORKER_LOG_LEVEL", "warning"))
     scenario = Scenario.model_validate(scenario_json)
-    return ScenarioRunner(scenario, load_plugins(), run_dir=run_dir, save_trajectories=True)
+    return ScenarioRunner(scenario, plugins or load_plugins(), run_dir=run_dir, save_trajectories=True)
 
 
-def _init_worker(scenario_json: dict[str, Any], run_dir: str, coordinator: int) -> None:
-    from .lifeline import bind_to_coordinator
+def _worker_logging() -> None:
+    """Logs go to a copy of stderr: a thread's ``silenced`` block (pybullet's chatter sent to
+    /dev/null through the process-wide descriptors 1 and 2) must not swallow another thread's warning."""
+    import sys
+
+    from ..logs import configure_logging
+
+    try:
+        sys.stderr = os.fdopen(os.dup(2), "w", buffering=1, encoding="utf-8", errors="replace")
+    except OSError:  # no stderr to copy: logs go where they would have gone
+        pass
+    configure_logging(os.environ.get("SAFEEMBODAI_WORKER_LOG_LEVEL", "warning"))
+
+
+class RunnerPool:
+    """Up to ``size`` trial runners, one per thread at a time, built when first needed."""
+
+    def __init__(self, scenario_json: dict[str, Any], run_dir: str, size: int, plugins: Any = None) -> None:
+        self.scenario_json, self.run_dir, self.size, self.plugins = scenario_json, run_dir, size, plugins
+        self._idle: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._built = 0
+        self._lock = threading.Lock()
+
+    def run(self, spec: TrialSpec) -> TrialResult:
+        runner = self._take()
+        try:
+            return runner.run(spec)
+        finally:
+            self._idle.put(runner)
+
+    def _take(self) -> Any:
+        try:
+            return self._idle.get_nowait()
+        except queue.Empty:
+            pass
+        with self._lock:
+            build = self._built < self.size
+            if build:
+                self._built += 1
+        if not build:
+            return self._idle.get()
+        if self.plugins is None:
+            from ..plugins import load_plugins
+
+            self.plugins = load_plugins()
+        return build_worker_runner(self.scenario_json, self.run_dir, self.plugins)
+
+    def close(self) -> None:
+        while True:
+            try:
+                self._idle.get_nowait().close()
+            except queue.Empty:
+                return
+
+
+def _worker_main(scenario_json: dict[str, Any], run_dir: str, coordinator: int, concurrency: int,
+                 tasks: Any, results: Any, workers: int = 1) -> None:
+    """A worker process: ``concurrency`` threads, each taking specs from ``tasks`` until it meets
+    None, running them and putting ``("result", result)`` (or ``("failed", message)``) on ``results``.
+    ``workers`` processes split a backend's rate limits (``SAFEEMBODAI_RATE_SHARE``)."""
+    from .lifeline import bind_to_coordinator, orphaned
     from .run_folder import hold_worker_lock
 
     bind_to_coordinator(coordinator)
-    _WORKER["lock"] = hold_worker_lock(run_dir)
-    _WORKER["runner"] = build_worker_runner(scenario_json, run_dir)
-    _WORKER["coordinator"] = coordinator
+    os.environ[RATE_SHARE] = str(workers)
+    _worker_logging()
+    lock = hold_worker_lock(run_dir)  # noqa: F841 -- held until the process exits
+    pool = RunnerPool(scenario_json, run_dir, concurrency)
 
+    def work() -> None:
+        while True:
+            spec_json = tasks.get()
+            if spec_json is None:
+                return
+            if orphaned(coordinator):  # start no trial nobody will count
+                os._exit(1)
+            try:
+                result = pool.run(TrialSpec.model_validate(spec_json))
+            except BaseException as error:  # the runner records component failures itself: this is a bug
+                results.put(("failed", f"{type(error).__name__}: {error}"))
+                return
+            results.put(("result", result.model_dump(mode="json")))
 
-def _run_in_worker(spec_json: dict[str, Any]) -> dict[str, Any]:
-    if os.getppid() != _WORKER["coordinator"]:  # the coordinator died: start no trial nobody will count
-        os._exit(1)
-    result = _WORKER["runner"].run(TrialSpec.model_validate(spec_json))
-    return result.model_dump(mode="json")
+    threads = [threading.Thread(target=work, name=f"trial-{k}", daemon=True) for k in range(concurrency)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    pool.close()
 
 
 class SerialExecutor:
@@ -66,47 +142,73 @@ class SerialExecutor:
 
 
 class ProcessExecutor:
-    """A pool of ``workers`` spawned processes, each with one environment per label, reused."""
+    """``workers`` spawned processes, each running up to ``concurrency`` trials at once in threads
+    (one trial runner per thread: its own worlds and store connection), fed from one queue.
 
-    def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int) -> None:
-        self.pool = ProcessPoolExecutor(
-            max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-            initializer=_init_worker, initargs=(scenario_json, run_dir, os.getpid()),
-        )
-        self.workers = workers
+    Threads suit trials that wait (a remote model answers in seconds); processes suit trials that
+    compute (the mock pilot, many rooms). Results come back in completion order.
+    """
+
+    def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int, concurrency: int = 1) -> None:
+        context = multiprocessing.get_context("spawn")
+        self.tasks, self.results = context.Queue(), context.Queue()
+        self.workers, self.concurrency = workers, concurrency
+        self.processes = [context.Process(target=_worker_main, name=f"safeembodai-worker-{k}", daemon=True,
+                                          args=(scenario_json, run_dir, os.getpid(), concurrency, self.tasks,
+                                                self.results, workers)) for k in range(workers)]
+        for process in self.processes:
+            process.start()
 
     def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
-        queue = list(specs)
-        running: dict[Any, TrialSpec] = {}
-        try:
-            while queue or running:
-                while queue and len(running) < 2 * self.workers:  # bounded: no burst of futures
-                    spec = queue.pop(0)
-                    running[self.pool.submit(_run_in_worker, spec.model_dump(mode="json"))] = spec
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
-                for future in done:
-                    spec = running.pop(future)
-                    yield TrialResult.model_validate(future.result())
-        except BrokenProcessPool:
-            raise SafeEmbodAIError("a worker process died (killed or out of memory); finished trials are recorded: "
-                                   "resume the run to finish the rest") from None
+        for spec in specs:
+            self.tasks.put(spec.model_dump(mode="json"))
+        for _ in range(self.workers * self.concurrency):
+            self.tasks.put(None)  # one stop per thread: workers end once the queue is drained
+        remaining = len(specs)
+        while remaining:
+            try:
+                kind, payload = self.results.get(timeout=POLL_S)
+            except queue.Empty:
+                if any(p.exitcode not in (None, 0) for p in self.processes) or all(
+                        p.exitcode is not None for p in self.processes):
+                    raise SafeEmbodAIError("a worker process died (killed or out of memory); finished trials are "
+                                           "recorded: resume the run to finish the rest") from None
+                continue
+            if kind != "result":
+                raise SafeEmbodAIError(f"a worker failed: {payload}; finished trials are recorded: resume the run "
+                                       "to finish the rest")
+            remaining -= 1
+            yield TrialResult.model_validate(payload)
 
     def close(self) -> None:
-        """Wait for the trials that run, then stop the workers (the run ended normally)."""
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        """Wait for the workers to finish (the run ended normally)."""
+        for process in self.processes:
+            process.join()
+        self._close_queues()
 
     def abort(self) -> None:
         """Kill the workers now (the run was interrupted or failed): the trials they were running
         are not recorded as finished and run again, from scratch, on resume."""
-        for process in list((getattr(self.pool, "_processes", None) or {}).values()):
-            process.kill()
-        self.pool.shutdown(wait=True, cancel_futures=True)
+        for process in self.processes:
+            if process.is_alive():
+                process.kill()
+        for process in self.processes:
+            process.join()
+        self._close_queues()
+
+    def _close_queues(self) -> None:
+        for channel in (self.tasks, self.results):
+            channel.cancel_join_thread()  # never block on data no worker will read
+            channel.close()
 
 
 class RayExecutor:
-    """One Ray actor per worker on a (local or remote) Ray cluster; needs the ``ray`` extra."""
+    """One Ray actor per worker on a (local or remote) Ray cluster, each running up to
+    ``concurrency`` trials at once (a threaded actor, one trial runner per thread); needs the
+    ``ray`` extra."""
 
-    def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int, address: str | None) -> None:
+    def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int, address: str | None,
+                 concurrency: int = 1) -> None:
         try:
             import ray
         except ImportError:
@@ -121,21 +223,31 @@ class RayExecutor:
 
         @ray.remote
         class TrialWorker:
-            def __init__(self, scenario_json, run_dir):
-                self.runner = build_worker_runner(scenario_json, run_dir)
+            def __init__(self, scenario_json, run_dir, concurrency, workers):
+                os.environ[RATE_SHARE] = str(workers)
+                _worker_logging()
+                self.pool = RunnerPool(scenario_json, run_dir, concurrency)
 
             def run(self, spec_json):
-                return self.runner.run(TrialSpec.model_validate(spec_json)).model_dump(mode="json")
+                return self.pool.run(TrialSpec.model_validate(spec_json)).model_dump(mode="json")
 
-        self.actors = [TrialWorker.remote(scenario_json, run_dir) for _ in range(workers)]
+        self.concurrency = concurrency
+        self.actors = [TrialWorker.options(max_concurrency=concurrency).remote(scenario_json, run_dir, concurrency,
+                                                                               workers) for _ in range(workers)]
 
     def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
-        from ray.util import ActorPool
-
-        pool = ActorPool(self.actors)
-        payload = [spec.model_dump(mode="json") for spec in specs]
-        for result in pool.map_unordered(lambda actor, spec: actor.run.remote(spec), payload):
-            yield TrialResult.model_validate(result)
+        queue_ = [spec.model_dump(mode="json") for spec in specs]
+        load = {index: 0 for index in range(len(self.actors))}
+        running: dict[Any, int] = {}
+        while queue_ or running:
+            for index in load:
+                while queue_ and load[index] < self.concurrency:
+                    running[self.actors[index].run.remote(queue_.pop(0))] = index
+                    load[index] += 1
+            done, _ = self.ray.wait(list(running), num_returns=1)
+            for ref in done:
+                load[running.pop(ref)] -= 1
+                yield TrialResult.model_validate(self.ray.get(ref))
 
     def close(self) -> None:
         for actor in self.actors:

@@ -29,9 +29,12 @@ def _check_ray() -> None:
 
 @click.command("ablate")
 @scenario_options(required=False)
-@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True, help="Trials in parallel.")
+@click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Worker processes (for trials that compute: the mock, many rooms).")
+@click.option("--concurrency", type=click.IntRange(min=1, max=256), default=1, show_default=True,
+              help="Trials in flight per worker, in threads (for trials that wait on a remote model: 16-64).")
 @click.option("--executor", type=click.Choice(["serial", "process", "ray"]), default=None,
-              help="Where trials run (default: serial for 1 worker, process otherwise).")
+              help="Where trials run (default: serial for 1 worker and --concurrency 1, process otherwise).")
 @click.option("--address", default=None, help="Ray cluster address (with --executor ray; default: a local Ray).")
 @click.option("--out", "out_root", type=click.Path(file_okay=False), default="runs", show_default=True,
               help="Folder that receives the run folder <scenario>-<time>.")
@@ -41,8 +44,8 @@ def _check_ray() -> None:
 @click.option("--no-report", is_flag=True, help="Skip report.md and figures at the end.")
 @click.option("--bags", type=click.Choice(["mcap", "sqlite3"]), default=None,
               help="Also write each trial's ROS 2 bag into RUN/bags/ as it ends (docs/robots.md).")
-def ablate(scenario_path, backend, seed, overrides, workers, executor, address, out_root, resume_dir, no_report,
-           bags) -> None:
+def ablate(scenario_path, backend, seed, overrides, workers, concurrency, executor, address, out_root, resume_dir,
+           no_report, bags) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials.
 
     With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
@@ -56,7 +59,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     from ..errors import SafeEmbodAIError
     from .summary import summary_table
 
-    executor_name(workers, executor, address)  # options the executor would ignore: refused at once
+    executor_name(workers, executor, address, concurrency)  # options the executor would ignore: refused at once
     if scenario_path is not None:
         scenario, plugins = load(scenario_path, backend, seed, overrides)
     elif resume_dir is None:
@@ -71,13 +74,14 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
     from ..runner import preflight
 
     preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
-    check_executor(scenario, plugins, workers=workers, executor=executor, address=address)  # e.g. store: memory
+    check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
+                   concurrency=concurrency)  # e.g. store: memory
     folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
     console = Console(emoji=False)
     with StopSignals() as stop:
         try:
             results, report = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor,
-                                   address, bags, report=not no_report)
+                                   address, bags, report=not no_report, concurrency=concurrency)
             console.print(summary_table(scenario, results, plugins=plugins))
             if report is not None:
                 console.print(f"report: {report}")
@@ -97,7 +101,8 @@ def ablate(scenario_path, backend, seed, overrides, workers, executor, address, 
         raise SafeEmbodAIError(f"{failed} -- once fixed, resume with --resume {folder.path}")
 
 
-def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False):
+def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False,
+         concurrency=1):
     """Run the pending trials; return every result of the run and, with ``report``, the report
     written from the run's own store (its steps give refusals and attack kinds) before it closes."""
     from rich.markup import escape
@@ -108,13 +113,14 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address,
     from .progress import AblationProgress
 
     ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address,
-                        bags=bags)
+                        bags=bags, concurrency=concurrency)
     try:
         pending = ablation.pending()
         cells = {(s.environment, s.arm, s.condition) for s in pending}
         console.print(f"run folder: {escape(str(folder.path))}", soft_wrap=True)  # whole, to copy
+        in_flight = f", {concurrency} in flight per worker" if concurrency > 1 else ""
         console.print(f"{plural(len(pending), 'trial')} to run in {plural(len(cells), 'cell')}"
-                      f" ({ablation.executor_name}, {plural(workers, 'worker')})")
+                      f" ({ablation.executor_name}, {plural(workers, 'worker')}{in_flight})")
         left = {cell: sum(1 for s in pending if (s.environment, s.arm, s.condition) == cell) for cell in cells}
         with AblationProgress(console) as progress:
             trials = progress.add_task("trials", total=len(pending))

@@ -106,9 +106,12 @@ def test_sigterm_stops_a_serial_run_cleanly(repo, tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("stop", [signal.SIGKILL, signal.SIGTERM], ids=["SIGKILL", "SIGTERM"])
-def test_killed_coordinator_leaves_no_process_and_resume_completes_the_run(repo, plugins, tmp_path, stop):
-    coordinator = Coordinator(repo, tmp_path / "runs", "--workers", "2")
+@pytest.mark.parametrize(("stop", "parallel"), [
+    (signal.SIGKILL, ("--workers", "2")), (signal.SIGTERM, ("--workers", "2")),
+    (signal.SIGKILL, ("--workers", "2", "--concurrency", "3")),  # three trials in flight in each worker's threads
+], ids=["SIGKILL", "SIGTERM", "SIGKILL-concurrency"])
+def test_killed_coordinator_leaves_no_process_and_resume_completes_the_run(repo, plugins, tmp_path, stop, parallel):
+    coordinator = Coordinator(repo, tmp_path / "runs", *parallel)
     try:
         folder = coordinator.wait_for_results(3)
         children = alive_in_group(coordinator.process.pid) - {coordinator.process.pid}
@@ -125,7 +128,7 @@ def test_killed_coordinator_leaves_no_process_and_resume_completes_the_run(repo,
     assert 3 <= len(before) < 100, len(before)
 
     resumed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(repo / "scenarios" / "quickstart.yaml"),
-                              *OVERRIDES, "--workers", "2", "--no-report", "--resume", str(folder)],
+                              *OVERRIDES, *parallel, "--no-report", "--resume", str(folder)],
                              capture_output=True, text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
     after = stored(folder)

@@ -124,6 +124,7 @@ class FakeOpenAI:
         self.default = default or Reply("{}")
         self.queue: deque = deque()
         self.requests: list[Recorded] = []
+        self.in_flight = self.peak_in_flight = 0  # requests being answered now, and the most at once
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._server = ThreadingHTTPServer(("127.0.0.1", 0), self._handler())
@@ -207,6 +208,9 @@ class FakeOpenAI:
                 request = Recorded(self.path, {k.lower(): v for k, v in self.headers.items()}, body, self.command)
                 fake.requests.append(request)
                 behaviour = fake._next(body)
+                with fake._lock:
+                    fake.in_flight += 1
+                    fake.peak_in_flight = max(fake.peak_in_flight, fake.in_flight)
                 try:
                     if isinstance(behaviour, Hang):
                         if fake._stop.wait(behaviour.seconds):
@@ -238,6 +242,9 @@ class FakeOpenAI:
                         self._send_bytes(200, data)
                 except (BrokenPipeError, ConnectionResetError):
                     pass
+                finally:
+                    with fake._lock:
+                        fake.in_flight -= 1
 
         return Handler
 

@@ -60,6 +60,56 @@ def test_rate_limit_is_retried_then_succeeds(built_plugins, fake_server, fake_ke
     assert len(fake_server.requests) == 3
 
 
+def test_a_429_storm_slows_the_call_down_without_spending_its_retries(built_plugins, fake_server, fake_key):
+    """Twelve 429s in a row with ``max_retries: 0``: the call waits each ``Retry-After`` out and gets its
+    answer; 429s are bounded by ``rate_limit_wait_s``, not by the retries meant for broken servers."""
+    fake_server.push(*[Status(429, retry_after=0.05)] * 12, Reply(GOOD))
+    assert _backend(built_plugins, fake_server, max_retries=0).complete(_prompt(), _rng()).text == GOOD
+    assert len(fake_server.requests) == 13
+    fake_server.default = Status(429, retry_after=0.3)
+    with pytest.raises(BackendError, match=r"gave up: still rate limited \(HTTP 429\) after 4 answers and 1 s "
+                                           r"\(rate_limit_wait_s 1\)"):
+        _backend(built_plugins, fake_server, max_retries=0, backoff_max_s=5.0,
+                 rate_limit_wait_s=1.0).complete(_prompt(), _rng())
+    assert len(fake_server.requests) == 13 + 4  # 0.3 s each: the fourth wait would pass the second
+    fake_server.requests.clear()
+    with pytest.raises(BackendError, match="gave up: still rate limited"):  # backoff_max_s 0: still 0.1 s apart
+        _backend(built_plugins, fake_server, max_retries=0, rate_limit_wait_s=0.5).complete(_prompt(), _rng())
+    assert 4 <= len(fake_server.requests) <= 6
+
+
+def test_a_429_holds_back_every_call_to_the_model_not_only_its_own(built_plugins, fake_server, fake_key):
+    """Two trials' backends of one model on one server: the first meets a 429 asking for 0.6 s; the
+    second, calling meanwhile, waits that out too instead of provoking another."""
+    import threading
+    import time
+
+    fake_server.push(Status(429, retry_after=0.6))
+    fake_server.default = Reply(GOOD)
+    first, second = (_backend(built_plugins, fake_server, backoff_max_s=5.0) for _ in range(2))
+    started = time.monotonic()
+    thread = threading.Thread(target=lambda: first.complete(_prompt(), _rng()))
+    thread.start()
+    while not fake_server.requests:
+        time.sleep(0.01)
+    time.sleep(0.1)  # the 429 has been answered and the model held back
+    second.complete(_prompt(), _rng())
+    thread.join()
+    assert time.monotonic() - started >= 0.6
+    assert [r.body.get("model") for r in fake_server.requests].count("gpt-4o") == 3  # one 429, two answers
+
+
+def test_requests_per_minute_spaces_the_calls(built_plugins, fake_server, fake_key):
+    import time
+
+    fake_server.default = Reply(GOOD)
+    backend = _backend(built_plugins, fake_server, requests_per_minute=200)  # 0.3 s apart
+    started = time.monotonic()
+    for _ in range(3):
+        backend.complete(_prompt(), _rng())
+    assert time.monotonic() - started >= 0.6 - 0.02
+
+
 def test_server_errors_exhaust_the_retries_into_a_backend_error(built_plugins, fake_server, fake_key):
     fake_server.push(Status(500, "boom 1"), Status(500, "boom 2"), Status(500, "boom 3"))
     with pytest.raises(BackendError, match=r"gave up after 3 tries: server error \(HTTP 500\)"):
@@ -74,7 +124,8 @@ def test_backoff_doubles_and_honours_retry_after(built_plugins, fake_server, fak
     backend._sleep = delays.append
     backend.complete(_prompt(), _rng())
     assert 0.5 <= delays[0] <= 1.5  # 1 s with jitter in [0.5, 1.5)
-    assert delays[1] == pytest.approx(7.0)  # the server asked for 7 s, more than the 2 s backoff
+    assert delays[1] == pytest.approx(7.0, abs=0.05)  # the server asked for 7 s: every call to the model holds back
+    assert len(delays) == 2
 
 
 @pytest.mark.parametrize("status,kind", [(401, "authentication failed"), (403, "permission denied"),

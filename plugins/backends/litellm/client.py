@@ -51,8 +51,9 @@ from safeembodai_core.quoting import quote_untrusted
 
 from .options import NO_KEY
 from .call import CallTimedOut, TooManyHungCalls, call_with_deadline
-from .errors import (MALFORMED, Failure, classify, exchange_failure, format_hint, images_refused,
-                             is_malformed, repeated, retry_after, scrub_message)
+from .errors import (MALFORMED, RATE_LIMITED, Failure, classify, exchange_failure, format_hint, images_refused,
+                     is_malformed, repeated, retry_after, scrub_message)
+from .limiter import limiter_for
 from .preflight import endpoint
 from .reply import reply_from_body, reply_from_response
 from .runtime import import_litellm
@@ -62,6 +63,8 @@ from ..messages import carries_images, chat_messages, response_format
 log = structlog.get_logger(__name__)
 
 _MALFORMED_RETRIES = 1
+#: The shortest hold-off after a 429, whatever ``backoff_max_s`` or ``Retry-After`` say.
+MIN_RATE_LIMIT_WAIT_S = 0.1
 _SECRET_NAME = re.compile(r"authorization|api[-_]?key|secret|password|passwd|credential|cookie|(^|[-_])token$", re.I)
 _MIN_SECRET_CHARS = 4
 
@@ -155,6 +158,7 @@ class LiteLLMBackend(LLMBackend):
         self._limits = DEFAULT_LIMITS
         self._sampling: dict[str, float | int] | None = None
         self._client: _Client | None = None
+        self._limiter = limiter_for(options.api_base or "", options.model)
         if strict_route(options, self._litellm):
             self._client = _Client(self._strict_client(api_key))
             # a backend dropped without close() still lets go of its connections
@@ -227,10 +231,12 @@ class LiteLLMBackend(LLMBackend):
             kwargs["api_key"] = key
         if self._client is not None:
             kwargs["client"] = self._client.value
-        malformed = 0
+        malformed = attempt = limited = 0
+        first_429 = 0.0
         previous: Failure | None = None
         images = carries_images(kwargs["messages"])
-        for attempt in range(o.max_retries + 1):
+        while True:
+            self._pace()
             started = time.perf_counter()
             with recording() as recorder:  # call_with_deadline's worker sees it (a context copy)
                 try:
@@ -238,7 +244,14 @@ class LiteLLMBackend(LLMBackend):
                 except Exception as error:  # every provider error is classified below
                     failure = self._failure(error, recorder, images)
                 else:
-                    return self._reply(response, recorder, time.perf_counter() - started)
+                    reply = self._reply(response, recorder, time.perf_counter() - started)
+                    self._limiter.spent(reply.usage.total, o.tokens_per_minute)
+                    return reply
+            if failure.kind == RATE_LIMITED:  # not a retry: the run slows down until the provider lets it on
+                first_429 = first_429 or time.monotonic()
+                self._rate_limited(failure, limited, first_429, rng)
+                limited += 1
+                continue
             if is_malformed(failure.kind):
                 malformed += 1
                 failure = Failure(failure.kind, malformed <= _MALFORMED_RETRIES, failure.detail, failure.retry_after_s)
@@ -253,8 +266,35 @@ class LiteLLMBackend(LLMBackend):
                 delay = min(o.backoff_max_s, max(delay, failure.retry_after_s))
             log.info("backend.retry", backend=self.name, model=o.model, reason=failure.kind,
                      attempt=attempt + 1, delay_s=round(delay, 3))
+            attempt += 1
             self._sleep(delay)
-        raise AssertionError("unreachable")  # pragma: no cover
+
+    def _pace(self) -> None:
+        """Wait for this model's turn (:mod:`.limiter`): its pace and any 429 hold-off."""
+        wait = self._limiter.reserve(self.options.requests_per_minute)
+        if wait > 0:
+            self._sleep(wait)
+
+    def _rate_limited(self, failure: Failure, limited: int, since: float, rng: np.random.Generator) -> None:
+        """A 429: every call to this model now holds back for the server's ``Retry-After``, else a
+        doubling backoff -- at most ``backoff_max_s``, at least :data:`MIN_RATE_LIMIT_WAIT_S` (a 429
+        always means wait); a call still refused ``rate_limit_wait_s`` after its first 429 gives up
+        with a :class:`BackendError`."""
+        o = self.options
+        if failure.retry_after_s is not None:
+            delay = min(o.backoff_max_s, failure.retry_after_s)
+        else:
+            delay = min(o.backoff_max_s, max(o.backoff_s, 0.25) * 2**min(limited, 16)) * (0.5 + float(rng.random()))
+        delay = max(MIN_RATE_LIMIT_WAIT_S, delay)
+        waited = time.monotonic() - since
+        if waited + delay > o.rate_limit_wait_s:
+            log.warning("backend.failed", backend=self.name, model=o.model, reason=failure.kind, waited_s=round(waited, 1))
+            raise BackendError(f"llm backend {self.name!r} (model {o.model}) gave up: still {failure.kind} after "
+                               f"{limited + 1} answers and {waited:.0f} s (rate_limit_wait_s {o.rate_limit_wait_s:g}); "
+                               f"provider said: {failure.detail}") from None
+        log.info("backend.rate_limited", backend=self.name, model=o.model, times=limited + 1, delay_s=round(delay, 3),
+                 retry_after_s=failure.retry_after_s, waited_s=round(waited, 1))
+        self._limiter.hold(delay)
 
     def _failure(self, error: Exception, recorder: Recorder, images: bool) -> Failure:
         """What went wrong: from the transport's record when it shows it, else from the exception;

@@ -47,6 +47,7 @@ TOO_LARGE = "malformed reply (body too large to read)"
 TIMED_OUT = "timed out"
 SERVER_ERROR = "server error"
 ERROR_IN_200 = "provider error in an HTTP 200 reply"
+RATE_LIMITED = "rate limited (HTTP 429)"
 TEXT_ONLY = ("this model does not take images (the server failed on the request's image parts); give it the "
              "text-only perception: set `perception: text` in the scenario (docs/backends.md, "
              "\"Perception for text-only models\")")
@@ -130,7 +131,7 @@ def classify(error: Exception) -> tuple[str, bool]:
     if isinstance(error, openai.AuthenticationError):
         status = 401
     if isinstance(error, openai.RateLimitError) or status == 429:
-        return "rate limited (HTTP 429)", True
+        return RATE_LIMITED, True
     if status in _NOT_RETRIED:
         return _NOT_RETRIED[status], False
     if isinstance(error, (openai.BadRequestError, openai.UnprocessableEntityError)) or status in (400, 422):

@@ -40,7 +40,15 @@ class _LiteLLMOptions(BaseModel):
     timeout_s: float = Field(60.0, gt=0, le=3600, description="per-request timeout")
     max_retries: int = Field(3, ge=0, le=20, description="retries on 429/5xx/timeouts/connection errors")
     backoff_s: float = Field(1.0, ge=0, le=600, description="first retry delay, doubled each retry")
-    backoff_max_s: float = Field(30.0, ge=0, le=3600, description="longest delay between retries")
+    backoff_max_s: float = Field(30.0, ge=0, le=3600, description="longest delay between retries (and longest "
+                                                                   "Retry-After honoured at once)")
+    requests_per_minute: float | None = Field(None, gt=0, le=1_000_000,
+                                              description="pace calls to this model (per run, shared by its trials)")
+    tokens_per_minute: int | None = Field(None, gt=0, le=1_000_000_000,
+                                          description="pace calls by the tokens answers use (per run)")
+    rate_limit_wait_s: float = Field(600.0, ge=0, le=86_400,
+                                     description="how long one call may wait out HTTP 429s before the trial fails "
+                                                 "(429s do not count as retries)")
     drop_params: bool = Field(True, description="let litellm drop parameters a provider does not support")
     completion_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra litellm.completion arguments")
 

@@ -13,10 +13,12 @@ from __future__ import annotations
 import ctypes
 import os
 import sys
+import threading
 from contextlib import contextmanager
 from typing import Any, Iterator
 
 _libc: Any = None
+_FDS = (1, 2)
 
 
 def _flush_c_stdio() -> None:
@@ -30,27 +32,56 @@ def _flush_c_stdio() -> None:
         _libc.fflush(None)
 
 
+_lock = threading.Lock()
+_depth = 0
+_saved: list[int] = []
+
+
 @contextmanager
-def silenced(fds: tuple[int, ...] = (1, 2)) -> Iterator[None]:
-    """Send everything written to ``fds`` (stdout and stderr) inside the block to ``/dev/null``."""
+def silenced() -> Iterator[None]:
+    """Send everything written to file descriptors 1 and 2 (stdout and stderr) inside the block to
+    ``/dev/null``.
+
+    Thread-safe and nestable: the descriptors are process-wide, so the first block to enter
+    redirects them and the last to leave restores them (two threads each saving and restoring on
+    their own would leave ``/dev/null`` behind when their blocks overlap).
+    """
+    global _depth
+    with _lock:
+        if _depth == 0:
+            _redirect()
+        _depth += 1
+    try:
+        yield
+    finally:
+        with _lock:
+            _depth -= 1
+            if _depth == 0:
+                _restore()
+
+
+def _redirect() -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
         except (AttributeError, ValueError):
             pass
     _flush_c_stdio()
-    saved = [os.dup(fd) for fd in fds]
+    _saved[:] = [os.dup(fd) for fd in _FDS]
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
-        for fd in fds:
+        for fd in _FDS:
             os.dup2(devnull, fd)
-        yield
     finally:
-        _flush_c_stdio()
-        for fd, copy in zip(fds, saved):
-            os.dup2(copy, fd)
-            os.close(copy)
         os.close(devnull)
+
+
+def _restore() -> None:
+    _flush_c_stdio()
+    for fd, copy in zip(_FDS, _saved):
+        os.dup2(copy, fd)
+        os.close(copy)
+    _saved.clear()
 
 
 def import_pybullet() -> tuple[Any, str]:
