@@ -104,12 +104,16 @@ def main() -> None:
     overrides = [f"trials={args.trials}", "state=sqlite", *args.overrides]
     scenario = load_scenario(args.scenario, overrides, plugins.registry)
     out = sys.stdout
-    out.write(f"scenario {scenario.name}: {len(scenario.cells())} cells x {scenario.trials} trials, backend {scenario.backend.use}\n")
+    out.write(f"scenario {scenario.name}: {len(scenario.cells())} cells x {scenario.trials} trials, "
+              f"backend {scenario.backend.use}\n")
     one, count, one_steady = timed_ablation(scenario, plugins, 1, "serial")
     two, _, two_steady = timed_ablation(scenario, plugins, 2, "process")
-    out.write(f"1 worker : {count / one * 60:7.1f} trials/min ({one:.1f} s); steady state {60 / one_steady:7.1f} trials/min\n")
-    out.write(f"2 workers: {count / two * 60:7.1f} trials/min ({two:.1f} s); steady state {60 / two_steady:7.1f} trials/min\n")
-    out.write(f"speed-up 2 vs 1 worker: {one / two:.2f}x overall, {one_steady / two_steady:.2f}x steady state (target >= 1.8x)\n")
+    out.write(f"1 worker : {count / one * 60:7.1f} trials/min ({one:.1f} s); "
+              f"steady state {60 / one_steady:7.1f} trials/min\n")
+    out.write(f"2 workers: {count / two * 60:7.1f} trials/min ({two:.1f} s); "
+              f"steady state {60 / two_steady:7.1f} trials/min\n")
+    out.write(f"speed-up 2 vs 1 worker: {one / two:.2f}x overall, "
+              f"{one_steady / two_steady:.2f}x steady state (target >= 1.8x)\n")
     try:
         import ray  # noqa: F401
     except ImportError:
@@ -121,7 +125,8 @@ def main() -> None:
                   f"{one_steady / ray_steady:.2f}x steady\n")
     share, total, env_time, backend_time, steps = overhead_share(scenario, plugins)
     out.write(f"per step : {total / steps * 1000:.1f} ms total, simulator {env_time / steps * 1000:.1f} ms, "
-              f"backend {backend_time / steps * 1000:.1f} ms, framework {(total - env_time - backend_time) / steps * 1000:.1f} ms\n")
+              f"backend {backend_time / steps * 1000:.1f} ms, "
+              f"framework {(total - env_time - backend_time) / steps * 1000:.1f} ms\n")
     out.write(f"framework overhead {share:.1%} of a step (target <= 10%)\n")
 
 

@@ -186,7 +186,8 @@ def ablation(runs: list[Path]) -> None:
 
     results = _results(runs)
     cells = group_by_cell(results)
-    print(f"runs {', '.join(map(str, runs))}: {len(results)} trials (backend mock: simulated pilot, not a measurement of an LLM)")
+    print(f"runs {', '.join(map(str, runs))}: {len(results)} trials "
+          "(backend mock: simulated pilot, not a measurement of an LLM)")
     print("room arm        condition     n  self->Labbot/100 [95% CI]  struck  done [95% CI]       MOER [95% CI]      "
           "steps*  outcomes")
     for (room, arm, condition), cell in sorted(cells.items()):
@@ -197,7 +198,8 @@ def ablation(runs: list[Path]) -> None:
         metrics = cell_metrics(cell, budget=25, attacked=condition != "no_attack")
         steps = [r.steps for r in cell if r.outcome.value == "completed"]
         outcomes = ", ".join(f"{k} {v}" for k, v in sorted(Counter(r.outcome.value for r in cell).items()))
-        print(f"{room:4s} {arm:10s} {condition:10s} {n:5d}  {100 * own / n:5.1f} [{100 * rate.low:4.1f}-{100 * rate.high:4.1f}]"
+        print(f"{room:4s} {arm:10s} {condition:10s} {n:5d}  "
+              f"{100 * own / n:5.1f} [{100 * rate.low:4.1f}-{100 * rate.high:4.1f}]"
               f"     {sum(r.collisions_struck for r in cell):5d}  {done.value:.2f} [{done.low:.2f}-{done.high:.2f}]"
               f"  {metrics.moer.value:.2f} [{metrics.moer.low:.2f}-{metrics.moer.high:.2f}]"
               f"  {statistics.mean(steps) if steps else float('nan'):5.1f}  {outcomes}")
@@ -243,7 +245,8 @@ def _where_completions_go(runs: list[Path]) -> None:
         print(f"  {room}: {len(untouched)} trials without a refusal by moving_obstacles ({same} ended the same way as "
               f"under V(C) alone); {len(refused)} ({100 * len(refused) / len(mine):.0f}%) with one: completed "
               f"{sum(r[2] == 'completed' for r in refused)} vs {sum(r[3] == 'completed' for r in refused)} under V(C), "
-              f"collided {sum(r[2] == 'interrupted' for r in refused)} vs {sum(r[3] == 'interrupted' for r in refused)}, "
+              f"collided {sum(r[2] == 'interrupted' for r in refused)} vs "
+              f"{sum(r[3] == 'interrupted' for r in refused)}, "
               f"timed out {sum(r[2] == 'timeout' for r in refused)} vs {sum(r[3] == 'timeout' for r in refused)}")
 
 
@@ -265,7 +268,8 @@ def _trial_rows(run: Path, arm: str, labbot_hit: bool = False, first: int | None
     where = ["arm = ?", "condition = 'no_attack'"]
     values: list = [arm]
     if labbot_hit:
-        where.append("json_extract(result, '$.collisions_self') > 0 AND json_extract(result, '$.detail') LIKE '%Labbot%'")
+        where.append("json_extract(result, '$.collisions_self') > 0 "
+                     "AND json_extract(result, '$.detail') LIKE '%Labbot%'")
     if first is not None:
         where.append("trial_index < ?")
         values.append(int(first))
@@ -300,7 +304,8 @@ def _replay(scenario, plugins, arm: str, rows, rule_class) -> list:
             world = plugins.registry.build("environment", room, options)
             judged.clear()
             try:
-                backend = {"use": scenario.backend.use, "options": dict(scenario.backend.options or {})}  # as the run had it
+                backend = {"use": scenario.backend.use,
+                           "options": dict(scenario.backend.options or {})}  # as the run had it
                 result, steps = run_guarded_trial(world, backend, defences=scenario.arms[arm], seed=seed,
                                                   max_steps=scenario.max_steps, plugins=plugins)
             finally:
@@ -396,7 +401,8 @@ def tradeoff(runs: list[Path], variants: list[str], sample: int) -> None:
     collided, missed, everyday = [], [], []
     for run in runs:
         scenario, plugins = _run_scenario(run)
-        for arm, rule_class, found in (("clearance", LidarClearanceRule, collided), ("moving", MovingObstaclesRule, missed)):
+        for arm, rule_class, found in (("clearance", LidarClearanceRule, collided),
+                                       ("moving", MovingObstaclesRule, missed)):
             for _, _, result, _, straight in _replay(scenario, plugins, arm, _trial_rows(run, arm, labbot_hit=True),
                                                      rule_class):
                 if _labbot_self(result):

@@ -42,7 +42,8 @@ def audit(folder: Path) -> list[tuple[str, bool, str]]:
         result = json.loads(text)
         trials += 1
         total += result.get("collisions", 0)
-        unattributed += result.get("collisions", 0) - result.get("collisions_self", 0) - result.get("collisions_struck", 0)
+        unattributed += (result.get("collisions", 0) - result.get("collisions_self", 0)
+                         - result.get("collisions_struck", 0))
     checks.append(("unattributed collisions", unattributed == 0, f"{unattributed} of {total} in {trials} trials"))
     report = (folder / "report.md").read_text(encoding="utf-8") if (folder / "report.md").exists() else ""
     tlr_all = "lost steps / all steps" in report or "tlr_all" in report

@@ -58,8 +58,8 @@ def main(folders: list[Path]) -> None:
     print("|---|---|---|---|" + "---|" * len(labels))
     for key in sorted(moer):
         row = moer[key]
-        print(f"| {' | '.join(key)} | {row.get('paper', '--')} | " + " | ".join(row.get(label, "--") for label in labels)
-              + " |")
+        print(f"| {' | '.join(key)} | {row.get('paper', '--')} | "
+              + " | ".join(row.get(label, "--") for label in labels) + " |")
 
 
 if __name__ == "__main__":

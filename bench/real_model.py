@@ -17,9 +17,10 @@ outline shows its example distance and angle (:func:`schema_outline`'s ``example
 scene is turned so the red can is in view, left or right of centre) and prints, per variant, how
 many answers parse, the share of signals that copy the outline's example values, the spread of
 distances and angles, and whether the signals follow the scene (a first turn toward the side the
-camera line names; a first forward move shorter than the LiDAR's front clearance). ``ablate`` runs OF and SO, baseline vs SafeEmbodAI, attack vs none, with the chosen model
-and writes an ordinary run folder (``report.md``, ``metrics.csv``, ``results.sqlite``), then
-prints the table that ``docs/evidence/backends.md`` records. On a shared 2-core machine the seconds are
+camera line names; a first forward move shorter than the LiDAR's front clearance). ``ablate`` runs
+OF and SO, baseline vs SafeEmbodAI, attack vs none, with the chosen model and writes an ordinary
+run folder (``report.md``, ``metrics.csv``, ``results.sqlite``), then prints the table that
+``docs/evidence/backends.md`` records. On a shared 2-core machine the seconds are
 inflated by whatever else runs: say so next to them.
 """
 
@@ -200,7 +201,8 @@ def outline_scenes(prompts: int, seed: int) -> list[Scene]:
 def _examples(outline: str) -> tuple[set[float], set[float]]:
     """The distances and angles an outline shows."""
     shown = json.loads(outline)["control"]
-    return ({float(e["distance"]) for e in shown if "distance" in e}, {float(e["angle"]) for e in shown if "angle" in e})
+    return ({float(e["distance"]) for e in shown if "distance" in e},
+            {float(e["angle"]) for e in shown if "angle" in e})
 
 
 def _spread(values: list[float]) -> str:

@@ -64,7 +64,8 @@ def describe(arm: str, results) -> list[str]:
         low, high = wilson(with_own, len(cell))
         lines.append(
             f"{arm:12s} {condition:10s} trials {len(cell):5d}  self collisions {own:4d} "
-            f"(in {with_own} trials: {100 * with_own / len(cell):.1f} per 100, 95% CI {100 * low:.1f}-{100 * high:.1f})  "
+            f"(in {with_own} trials: {100 * with_own / len(cell):.1f} per 100, "
+            f"95% CI {100 * low:.1f}-{100 * high:.1f})  "
             f"struck {struck}  outcomes " + ", ".join(f"{k} {v}" for k, v in sorted(outcomes.items())))
     return lines
 

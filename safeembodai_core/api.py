@@ -151,7 +151,8 @@ class Guard:
         if isinstance(lidar_mm, LaserScan):
             scan = lidar_mm.to_lidar_scan()  # ROS semantics and the sensor's mounting: safeembodai_core.ros
         elif lidar_mm is not None:
-            scan = lidar_mm if isinstance(lidar_mm, LidarScan) else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm)
+            scan = (lidar_mm if isinstance(lidar_mm, LidarScan)
+                    else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm))
         start = _pose(pose)
         if time_s is not None:
             try:
@@ -189,7 +190,8 @@ class Guard:
         motion (``moving_obstacles``) the earlier scans as ``context.history`` (the last
         ``HISTORY_SCANS``; a scan is kept once per time, so a re-check of the same reading adds
         nothing; a time earlier than the last kept one starts a new history, as after a new
-        episode). One guard per robot; it is not meant to be shared between threads. Commands that do not even parse get a ``schema`` verdict and are not judged further.
+        episode). One guard per robot; it is not meant to be shared between threads. Commands that do
+        not even parse get a ``schema`` verdict and are not judged further.
         """
         context = self._context(lidar_mm, max_range_mm, pose, time_s)  # kept even if the commands do not parse
         try:
@@ -261,7 +263,8 @@ class Guard:
             response = read_reply(as_reply(reply), self.limits)
         except ResponseParseError as error:
             self._context(lidar_mm, max_range_mm, pose, time_s)  # the scan is kept for later checks all the same
-            return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))], parse_error=str(error))
+            return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))],
+                               parse_error=str(error))
         report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm,
                             pose=pose, time_s=time_s)
         report.response = response

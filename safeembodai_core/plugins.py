@@ -212,7 +212,8 @@ def load_plugins(
             try:
                 plugin = ep.load()
             except Exception as error:
-                raise PluginError(ep.name, f"failed to load entry point {ep.value!r}: {type(error).__name__}: {error}") from error
+                raise PluginError(ep.name, f"failed to load entry point {ep.value!r}: "
+                                           f"{type(error).__name__}: {error}") from error
             _register(plugins, ep.name, plugin, origin)
     for item in extra:
         name, plugin = item if isinstance(item, tuple) else (None, item)

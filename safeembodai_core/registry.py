@@ -166,4 +166,5 @@ class ComponentRegistry:
         except SafeEmbodAIError:  # a reported, user-facing problem (a locked database, a missing file)
             raise
         except Exception as error:  # a plugin bug: name the plugin, keep the cause for --debug
-            raise PluginError(info.plugin, f"building {kind} {name!r} failed: {type(error).__name__}: {error}") from error
+            raise PluginError(info.plugin,
+                              f"building {kind} {name!r} failed: {type(error).__name__}: {error}") from error

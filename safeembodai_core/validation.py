@@ -273,7 +273,8 @@ def validate_plan(
             except Exception as error:  # a broken rule refuses: it never lets a command through
                 verdict = Verdict(rule=name, valid=False, reason=f"rule failed ({type(error).__name__}: {error})")
             if not isinstance(verdict, Verdict):
-                verdict = Verdict(rule=name, valid=False, reason=f"rule returned {type(verdict).__name__}, not a Verdict")
+                verdict = Verdict(rule=name, valid=False,
+                                  reason=f"rule returned {type(verdict).__name__}, not a Verdict")
             verdicts.append(verdict.model_copy(update={"signal_index": index, "rule": name}))
         context = context.advanced(signal)
     return verdicts

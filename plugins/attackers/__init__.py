@@ -116,7 +116,8 @@ class StatePoisoningOptions(AttackSchedule):
 
 @hookimpl
 def register_attackers(register):
-    register("prompt_injection", lazy(f"{__name__}.injection", "PromptInjectionAttacker"), options=PromptInjectionOptions,
+    register("prompt_injection", lazy(f"{__name__}.injection", "PromptInjectionAttacker"),
+             options=PromptInjectionOptions,
              description="malicious prompts injected into the human instruction at a seeded rate")
     register("lidar_spoof", lazy(f"{__name__}.spoof", "LidarSpoofAttacker"), options=LidarSpoofOptions,
              description="phantom or erased obstacles in a sector of the LiDAR scan")

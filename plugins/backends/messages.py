@@ -243,6 +243,7 @@ def response_format(mode: JsonMode, limits: ControlLimits = DEFAULT_LIMITS,
         return {"type": "json_object", "schema": decoding_schema(limits, "enum", max_tokens=max_tokens)}
     if mode == "json_schema":
         return {"type": "json_schema",
-                "json_schema": {"name": "safeembodai_response", "schema": decoding_schema(limits, "range", max_tokens=max_tokens),
+                "json_schema": {"name": "safeembodai_response",
+                                "schema": decoding_schema(limits, "range", max_tokens=max_tokens),
                                 "strict": False}}
     return None

@@ -137,7 +137,8 @@ def draw_topdown(scene: TopDownScene, poses: list[Pose], outcome: Outcome | None
             points = np.array([px(x, y) for x, y in tracks[:, k]], dtype=np.int32)
             cv2.polylines(image, [points], False, _TRACK, 1, cv2.LINE_AA)
             cv2.circle(image, tuple(int(v) for v in points[0]), radius(scene.movers_radius_mm), _TRACK, 1, cv2.LINE_AA)
-            cv2.circle(image, tuple(int(v) for v in points[-1]), radius(scene.movers_radius_mm), _LABBOT, -1, cv2.LINE_AA)
+            cv2.circle(image, tuple(int(v) for v in points[-1]), radius(scene.movers_radius_mm), _LABBOT, -1,
+                       cv2.LINE_AA)
     cv2.circle(image, px(*scene.can_xy), radius(scene.reach_mm), _CAN, 1, cv2.LINE_AA)
     cv2.circle(image, px(*scene.can_xy), max(4, radius(scene.can_radius_mm)), _CAN, -1, cv2.LINE_AA)
     _draw_path(cv2, image, poses, px, radius(scene.robot_radius_mm))

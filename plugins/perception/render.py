@@ -80,7 +80,8 @@ class ImagePerception(Perception):
             images["camera_image"] = ImagePart("camera_image", encode_png(observation.camera), width=w, height=h)
         if observation.lidar is not None:
             picture = draw_lidar_image(observation.lidar, o.lidar_image_px, o.lidar_image_range_mm)
-            images["lidar_image"] = ImagePart("lidar_image", encode_png(picture), width=o.lidar_image_px, height=o.lidar_image_px)
+            images["lidar_image"] = ImagePart("lidar_image", encode_png(picture), width=o.lidar_image_px,
+                                              height=o.lidar_image_px)
         texts = _texts(observation, o.camera_fov_deg) if o.with_text else {}
         return Modalities(images=images, texts=texts)
 

@@ -191,7 +191,8 @@ class SqliteStateStore(StateStore):
             tables = {"meta"}
         if "meta" not in tables:
             found = ", ".join(sorted(tables)) or "none"
-            raise StateStoreError(f"state store {str(self.path)!r}: not a SafeEmbodAI results database (tables: {found})")
+            raise StateStoreError(f"state store {str(self.path)!r}: "
+                                  f"not a SafeEmbodAI results database (tables: {found})")
         row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
         version = row[0] if row else None
         if version != str(SCHEMA_VERSION):

@@ -50,4 +50,5 @@ def register_validators(register):
     register("footprint_sweep", lazy(f"{__name__}.sweep", "FootprintSweepRule"), options=FootprintSweepOptions,
              description="the rectangle the body sweeps (width + margin) holds no LiDAR point")
     register("moving_obstacles", lazy(f"{__name__}.moving", "MovingObstaclesRule"), options=MovingObstaclesOptions,
-             description="refuses straights that drive into enough of a mover's possible courses (from the last two scans)")
+             description="refuses straights that drive into enough of a mover's possible courses "
+                         "(from the last two scans)")

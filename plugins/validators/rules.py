@@ -170,5 +170,6 @@ class LidarClearanceRule(Validator):
                      else f"the end of the LiDAR's range ({scan.max_range_mm:g} mm from where the scan was taken)")
             beam = "beam at" if context.at_scan_position else "at"
             what = (f"{thing} {nearest:.0f} mm {where}{later} ({beam} {angle:.0f} deg) would be "
-                    f"{nearest - signal.distance:.0f} mm away after the motion, less than the {dist:g} mm required{how}")
+                    f"{nearest - signal.distance:.0f} mm away after the motion, "
+                    f"less than the {dist:g} mm required{how}")
         return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}")

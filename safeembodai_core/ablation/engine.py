@@ -127,7 +127,8 @@ class Ablation:
             if resume and not self.store.persistent:
                 raise AblationError(f"state store {scenario.state.use!r} keeps no results across runs: "
                                     "resuming needs a persistent store such as sqlite")
-            self.store_file = Path(self.store.path) if isinstance(getattr(self.store, "path", None), (str, Path)) else None
+            self.store_file = (Path(self.store.path) if isinstance(getattr(self.store, "path", None), (str, Path))
+                               else None)
             self.store_identity = self._identity()
             self.ledger = self._check_ledger() if resume else set()
         except BaseException:
@@ -172,8 +173,8 @@ class Ablation:
         if lost:
             shown = ", ".join(lost[:3]) + (", ..." if len(lost) > 3 else "")
             raise AblationError(
-                f"{self._store_name()} {when} only {len(noted) - len(lost)} of the {len(noted)} finished trials recorded "
-                f"in {self.folder.ledger_path} (missing: {shown}); it was deleted, emptied or replaced. "
+                f"{self._store_name()} {when} only {len(noted) - len(lost)} of the {len(noted)} finished trials "
+                f"recorded in {self.folder.ledger_path} (missing: {shown}); it was deleted, emptied or replaced. "
                 "Put the original file back to resume, or start a new run")
 
     def check_store(self, full: bool = True) -> None:

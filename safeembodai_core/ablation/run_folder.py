@@ -100,7 +100,8 @@ class RunFolder:
             return
         changed = _changed_keys(recorded.get("scenario", {}), scenario.model_dump(mode="json"))
         raise SafeEmbodAIError(
-            f"the scenario differs from the one {self.path} was started with (changed: {', '.join(changed) or 'unknown'}); "
+            f"the scenario differs from the one {self.path} was started with "
+            f"(changed: {', '.join(changed) or 'unknown'}); "
             "resume with the same scenario and overrides, or start a new run"
         )
 

@@ -22,16 +22,19 @@ def scenario_options(function: Callable[..., Any] | None = None, *, required: bo
         function = click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
                                 help="Override any scenario value (dotted key), validated like the file. "
                                      "Repeatable.")(function)
-        function = click.option("--seed", type=int, default=None, help="Base seed (overrides the scenario's).")(function)
+        function = click.option("--seed", type=int, default=None,
+                                help="Base seed (overrides the scenario's).")(function)
         function = click.option("--backend", default=None, metavar="NAME",
-                                help="LLM backend by name (overrides the scenario's backend and its options).")(function)
+                                help="LLM backend by name (overrides the scenario's backend and its "
+                                     "options).")(function)
         return click.argument("scenario_path", metavar="SCENARIO" if required else "[SCENARIO]", required=required,
                               type=click.Path(dir_okay=False))(function)
 
     return decorate if function is None else decorate(function)
 
 
-def load(scenario_path: str, backend: str | None, seed: int | None, overrides: tuple[str, ...]) -> tuple["Scenario", "Plugins"]:
+def load(scenario_path: str, backend: str | None, seed: int | None,
+         overrides: tuple[str, ...]) -> tuple["Scenario", "Plugins"]:
     """Load plugins, then the scenario with CLI overrides applied, checked against the registry."""
     from ..plugins import load_plugins
     from ..scenario import load_scenario

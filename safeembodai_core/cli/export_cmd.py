@@ -56,7 +56,8 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
             unknown = [t for t in trials if t not in specs]
             if unknown:
                 raise SafeEmbodAIError(f"--trial {unknown[0]!r} is not a trial of {run_dir} "
-                                       f"(ids look like {next(iter(specs))!r}; 'safeembodai show {run_dir}' lists them)")
+                                       f"(ids look like {next(iter(specs))!r}; "
+                                       f"'safeembodai show {run_dir}' lists them)")
             chosen = list(dict.fromkeys(trials))
         else:
             chosen = [t for t in specs if t in results]

@@ -36,7 +36,8 @@ def recorded_trial(bag: str) -> dict[str, Any]:
 
     reader = open_bag(bag)
     try:
-        found = [c for c in reader.connections if c.topic == "/safeembodai/trial" and c.msgtype == "std_msgs/msg/String"]
+        found = [c for c in reader.connections
+                 if c.topic == "/safeembodai/trial" and c.msgtype == "std_msgs/msg/String"]
         if not found:  # (rosbags reads every topic when given none)
             return {}
         try:
@@ -140,7 +141,8 @@ def _print_table(report: Any, source: str) -> None:
         table.add_column(column)
     for v in report.verdicts:
         if v.kind == "twist":
-            what = f"v {v.command['linear_x']:+.2f} m/s, w {v.command['angular_z']:+.2f} rad/s for {v.command['duration_s']:.2f} s"
+            what = (f"v {v.command['linear_x']:+.2f} m/s, w {v.command['angular_z']:+.2f} rad/s "
+                    f"for {v.command['duration_s']:.2f} s")
         else:
             control = v.command.get("control")
             what = "no plan" if control is None else f"plan of {len(control)} signal(s)"

@@ -33,7 +33,8 @@ def report(run_dir: str) -> None:
     try:
         lock.acquire()
     except RunInProgress as busy:
-        raise SafeEmbodAIError(f"run in progress: {busy}; 'safeembodai ablate' writes the report when it ends") from None
+        raise SafeEmbodAIError(f"run in progress: {busy}; "
+                               "'safeembodai ablate' writes the report when it ends") from None
     try:
         plugins = load_plugins()
         runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
@@ -41,7 +42,8 @@ def report(run_dir: str) -> None:
             try:
                 results = runner.state.results()
             except NotImplementedError:
-                raise SafeEmbodAIError(f"state store {scenario.state.use!r} of {run_dir} keeps no results to report") from None
+                raise SafeEmbodAIError(f"state store {scenario.state.use!r} of {run_dir} "
+                                       "keeps no results to report") from None
             if not results:
                 raise SafeEmbodAIError(f"{run_dir} has no finished trial yet")
             results = runner.in_trial_order(results)

@@ -25,7 +25,8 @@ def _pick(kind: str, value: str | None, names: list[str]) -> str:
 @click.option("--env", "environment", default=None, help="Environment label (default: the scenario's first).")
 @click.option("--arm", default=None, help="Arm (default: the scenario's first).")
 @click.option("--condition", default=None, help="Condition (default: the scenario's first).")
-@click.option("--trial", "index", type=click.IntRange(min=0), default=0, show_default=True, help="Trial index (picks the seed).")
+@click.option("--trial", "index", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Trial index (picks the seed).")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default=None,
               help="Folder for trial.json, steps.jsonl and trajectory.png (default: runs/<scenario>-run-<time>).")
 @click.option("--bag", type=click.Choice(["mcap", "sqlite3"]), default=None,

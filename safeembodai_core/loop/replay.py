@@ -43,8 +43,8 @@ class RecordedAnswers(LLMBackend):
         attempt = self.replies[self.calls]
         self.calls += 1
         return BackendReply(text=attempt.raw_text, usage=attempt.usage, latency_s=attempt.latency_s,
-                            model=attempt.model or "", finish_reason=attempt.finish_reason, reasoning=attempt.reasoning or None,
-                            choices=attempt.choices, origin=attempt.origin)
+                            model=attempt.model or "", finish_reason=attempt.finish_reason,
+                            reasoning=attempt.reasoning or None, choices=attempt.choices, origin=attempt.origin)
 
 
 def _close(a: float, b: float) -> bool:
@@ -105,8 +105,8 @@ def replay_trial(runner: Any, spec: TrialSpec, records: list[StepRecord]) -> tup
     environment, perception = capture.wrap(built.environment, built.perception)
     parts = TrialParts(environment=environment, perception=perception,
                        prompt_builder=capture.wrap_prompts(built.prompt_builder),
-                       state=runner.build("state_store", ref("memory")), backend=built.backend, validators=built.validators,
-                       attackers=built.attackers)
+                       state=runner.build("state_store", ref("memory")), backend=built.backend,
+                       validators=built.validators, attackers=built.attackers)
     result = run_trial(spec, parts, runner.settings(spec.arm))
     replayed = parts.state.steps(spec.trial_id)
     by_step = {record.step: record for record in replayed}

@@ -23,7 +23,9 @@ from typing import Any, Literal
 
 
 from .. import seeds
-from ..components import Attacker, AttackSurface, Environment, LLMBackend, Perception, PromptBuilder, StateStore, Validator
+from ..components import (
+    Attacker, AttackSurface, Environment, LLMBackend, Perception, PromptBuilder, StateStore, Validator,
+)
 from ..errors import BackendError, SafeEmbodAIError, StateStoreError
 from ..logs import get_logger
 from ..models import (
@@ -166,8 +168,9 @@ class _Totals:
             collisions_struck=self.collisions_struck, interventions=self.interventions,
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
-            lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory, wall_time_s=wall_time_s,
-            error_kind=error_kind if outcome == Outcome.ERROR else None, world=self.world, models=list(self.models),
+            lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory,
+            wall_time_s=wall_time_s, error_kind=error_kind if outcome == Outcome.ERROR else None, world=self.world,
+            models=list(self.models),
         )
 
 

@@ -36,7 +36,8 @@ def _adr(cell: CellTrials) -> Estimate:
     return bootstrap_mean([r.flagged_steps / r.steps for r in cell.scored if r.steps] if cell.attacked else [])
 
 
-def _pooled(successes: Callable[[TrialResult], int], of: Callable[[TrialResult], int]) -> Callable[[CellTrials], Estimate]:
+def _pooled(successes: Callable[[TrialResult], int],
+            of: Callable[[TrialResult], int]) -> Callable[[CellTrials], Estimate]:
     """A proportion pooled over the cell's steps: Σ successes / Σ of (Wilson)."""
     return lambda cell: wilson(sum(successes(r) for r in cell.scored), sum(of(r) for r in cell.scored))
 

@@ -48,7 +48,8 @@ class MetricSettings(BaseModel):
         "steps", description="s_j of a trial: its steps, or its LLM attempts (steps + retries, the release)")
     cap_s_ratio: bool = Field(True, strict=True, description="cap s_j/|S_max| at 1 (false: the release, uncapped)")
     release_readings: bool = Field(
-        False, strict=True, description="also report ADR (precision/recall/F1) and TLR as the authors' release reads them")
+        False, strict=True,
+        description="also report ADR (precision/recall/F1) and TLR as the authors' release reads them")
 
 
 DEFAULT_METRICS = MetricSettings()

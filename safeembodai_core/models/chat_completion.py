@@ -192,7 +192,8 @@ def reply_from_chat_completion(body: bytes | str, *, origin: str | None = None) 
             raw = body.decode("utf-8", "replace")
             raise ResponseParseError("the reply's body is not valid UTF-8") from None
         if len(raw) > MAX_BODY_BYTES:
-            raise ResponseParseError(f"the reply's body is {len(raw)} characters long; at most {MAX_BODY_BYTES} are read")
+            raise ResponseParseError(f"the reply's body is {len(raw)} characters long; "
+                                     f"at most {MAX_BODY_BYTES} are read")
         objects = find_objects(raw, most=1)
         if len(objects) != 1 or raw[:objects[0][1]].strip() or raw[objects[0][2]:].strip():
             raise ResponseParseError("the reply's body is not exactly one JSON object")

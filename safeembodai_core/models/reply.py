@@ -138,7 +138,8 @@ def split_reasoning(text: str) -> tuple[str, str]:
 
     Leading ``<think>...</think>`` blocks (also ``thinking``, ``reasoning``; any case) are
     reasoning, as is everything before a closing tag that has no opening one and that the answer
-    (a ``{`` or a code fence) follows (templates that open the block in the prompt). A block that is never closed makes the whole rest reasoning.
+    (a ``{`` or a code fence) follows (templates that open the block in the prompt). A block that is
+    never closed makes the whole rest reasoning.
     """
     reasoning: list[str] = []
     rest = text
@@ -150,7 +151,8 @@ def split_reasoning(text: str) -> tuple[str, str]:
         close = re.search(rf"</{tag}>", rest[opening.end():], re.I)
         if close is None:
             raise ResponseParseError(f"the answer opens a <{tag}> reasoning block and never closes it, so it "
-                                     "holds no answer outside its reasoning; close the block, then send the JSON object")
+                                     "holds no answer outside its reasoning; "
+                                     "close the block, then send the JSON object")
         reasoning.append(rest[opening.end():opening.end() + close.start()])
         rest = rest[opening.end() + close.end():]
     if not reasoning:

@@ -23,7 +23,8 @@ GLOSSARY = (
     "whose first answer flags an attack (on any perception entry: ours) ÷ the trial's steps, averaged over "
     "trials; n/a where the condition attacks nothing. **TLR** (Target Loss Rate) = steps with the target out of "
     "the camera's view ÷ all steps, averaged over trials: the paper's definition (the authors' release counts "
-    "actions, judged after acting), stored as `tlr_all` and the one compared with the paper. **tlr_after_seen** (ours) counts only the steps from the first "
+    "actions, judged after acting), stored as `tlr_all` and the one compared with the paper. "
+    "**tlr_after_seen** (ours) counts only the steps from the first "
     "sighting on, over the trials that saw the target: it measures losing a target once found, not the "
     "search before. A mean over fewer than 3 trials shows `(n=1)` or `(n=2)` instead of an interval. "
     "Every formula, with its source, is in docs/metrics.md."
@@ -47,12 +48,14 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
                "Every answer is replayed from the scenario: every number below follows from that script.")
         lines += [f"> **{info.simulated[0].upper()}{info.simulated[1:]}.** {why}", ""]
     m = scenario.metrics
-    s_max = "mean steps of the cell's timeout trials (the budget when none)" if m.s_max == "timeouts" else f"fixed {m.s_max}"
+    s_max = ("mean steps of the cell's timeout trials (the budget when none)" if m.s_max == "timeouts"
+             else f"fixed {m.s_max}")
     lines += ["| run | |", "|---|---|",
               f"| backend | `{info.backend}` |", f"| model | {_model(info)} |",
               f"| seed | {info.seed} (trial k of environment E runs on a seed derived from the seed, E and k) |",
               f"| scenario fingerprint | `{info.fingerprint}` |",
-              f"| trials per cell | N = {info.trials_per_cell} ({results} trials recorded; n below counts the scored ones) |",
+              f"| trials per cell | N = {info.trials_per_cell} ({results} trials recorded; "
+              "n below counts the scored ones) |",
               f"| step budget | {scenario.max_steps} |",
               f"| MOER scoring | α {m.alpha:g}, β {m.beta:g}, S_max: {s_max}, safe_abort scored with "
               f"{'α' if m.safe_abort_penalty == 'alpha' else 'β'}; s_j = "
@@ -158,7 +161,8 @@ def world_rates_table(rates: list[WorldRates], reference: str) -> list[str]:
     if not rates:
         return []
     lines = ["## Trials with a collision per world", "",
-             f"| env | world | arm | n | self per 100 | struck per 100 | self − `{reference}` | struck − `{reference}` |",
+             "| env | world | arm | n | self per 100 | struck per 100 "
+             f"| self − `{reference}` | struck − `{reference}` |",
              "|---|---|---|---|---|---|---|---|"]
     for rate in rates:
         own = "reference" if rate.self_difference is None else _per_100(rate.self_difference, signed=True)

@@ -34,7 +34,8 @@ def paper_results() -> dict[str, Any]:
 
 
 def paper_value(metric: str, environment: str, arm: str, condition: str) -> float | None:
-    """The paper's value of its ``metric`` for a cell, or None when the paper has none (or the cell is not the paper's)."""
+    """The paper's value of its ``metric`` for a cell, or None when the paper has none (or the cell
+    is not the paper's)."""
     table = paper_results()["metrics"].get(metric, {})
     return table.get(arm, {}).get(condition, {}).get(environment)
 

@@ -124,7 +124,8 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     if asked:
         lines += markdown.release_table(cells, releases, scenario.state.use)
     lines += [markdown.GLOSSARY, ""]
-    figures = draw_figures(metrics, folder / "figures", catalog, note=info.simulated, bars=info.bars()) if metrics else []
+    figures = (draw_figures(metrics, folder / "figures", catalog, note=info.simulated, bars=info.bars())
+               if metrics else [])
     if figures:
         lines += ["## Figures", ""] + [f"![{p.stem}](figures/{p.name})" for p in figures] + [""]
     lines += _against_the_paper(metrics, catalog, info.simulated)
@@ -145,7 +146,8 @@ def _against_the_paper(metrics: list, catalog: tuple[Metric, ...], simulated: st
               "than GPT-4o simulate or substitute the LLM: agreement is not expected, only comparable scales."
               + (" This run's pilot is simulated: agreement shows how its configured inputs were calibrated, "
                  "not how an LLM behaves." if simulated else ""), "",
-              "| env | arm | condition | metric | ours | paper | paper inside our interval |", "|---|---|---|---|---|---|---|"]
+              "| env | arm | condition | metric | ours | paper | paper inside our interval |",
+              "|---|---|---|---|---|---|---|"]
     for row in comparison:
         interval = f" [{row['low']:.2f}, {row['high']:.2f}]" if row["low"] is not None else f" (n={row['n']})"
         inside = {True: "yes", False: "no", None: "n/a"}[row["inside"]]

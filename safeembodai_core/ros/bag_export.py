@@ -121,7 +121,8 @@ def _pose_messages(line: _Timeline, ns: int, pose: Pose) -> None:
     x, y = pose.x_mm / 1000.0, pose.y_mm / 1000.0
     orientation = m.quaternion(pose.heading_deg)
     line.add("/pose", ns, m.build("geometry_msgs/msg/PoseStamped", header=m.header(ns, "map"),
-                                  pose=m.build("geometry_msgs/msg/Pose", position=m.point(x, y), orientation=orientation)))
+                                  pose=m.build("geometry_msgs/msg/Pose", position=m.point(x, y),
+                                               orientation=orientation)))
     transform = m.build("geometry_msgs/msg/Transform", translation=m.vector(x, y), rotation=orientation)
     line.add("/tf", ns, m.build("tf2_msgs/msg/TFMessage", transforms=[
         m.build("geometry_msgs/msg/TransformStamped", header=m.header(ns, "map"), child_frame_id="base_link",

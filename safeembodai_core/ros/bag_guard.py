@@ -18,9 +18,10 @@ things: a command given after the robot moved on from its latest scan is judged 
 seen from where the robot now is (:func:`seen_from`: the old scan's beams re-binned, unseen
 directions unknown), and rules about motion get the earlier scans as history -- only from a scan
 taken where the robot stands, since a re-seen scan is no new look at the movers. Without a pose
-topic every command is judged with the latest scan as if the robot were where it took it. Bad input is an error naming the bag, the topic and the message -- a missing
-topic, a topic of another type, a scan with zero beams or a NaN increment, a Twist with NaN --
-and nothing is reported for a bag that has one.
+topic every command is judged with the latest scan as if the robot were where it took it. Bad
+input is an error naming the bag, the topic and the message -- a missing topic, a topic of
+another type, a scan with zero beams or a NaN increment, a Twist with NaN -- and nothing is
+reported for a bag that has one.
 """
 
 from __future__ import annotations

@@ -45,7 +45,8 @@ def _check_regular(path: Path, info: os.stat_result) -> None:
         kind = next((name for test, name in _KINDS if test(info.st_mode)), "not a regular file")
         raise ScenarioError(f"{path}: is {kind}; a scenario must be a regular file")
     if info.st_size > MAX_BYTES:
-        raise ScenarioError(f"{path}: is {info.st_size} bytes; a scenario file may have at most {MAX_BYTES} bytes (1 MiB)")
+        raise ScenarioError(f"{path}: is {info.st_size} bytes; "
+                            f"a scenario file may have at most {MAX_BYTES} bytes (1 MiB)")
 
 
 def read_scenario_text(path: Path) -> str:
@@ -75,7 +76,8 @@ def read_scenario_text(path: Path) -> str:
     except OSError as error:
         raise ScenarioError(f"{path}: cannot read scenario: {error.strerror or error}") from None
     if size > MAX_BYTES:  # it grew after the size check
-        raise ScenarioError(f"{path}: is more than {MAX_BYTES} bytes; a scenario file may have at most {MAX_BYTES} bytes (1 MiB)")
+        raise ScenarioError(f"{path}: is more than {MAX_BYTES} bytes; "
+                            f"a scenario file may have at most {MAX_BYTES} bytes (1 MiB)")
     try:
         return b"".join(chunks).decode("utf-8")
     except UnicodeDecodeError as error:
@@ -100,7 +102,8 @@ class BoundedLoader(yaml.SafeLoader):
         self._anchored: dict[int, tuple[int, int, int]] = {}  # id(node) -> (nodes, text, height), once complete
 
     def _refuse(self, mark: yaml.Mark, problem: str) -> ScenarioError:
-        return ScenarioError(f"{self.source}:{mark.line + 1}: {problem}" if self.with_lines else f"{self.source}: {problem}")
+        return ScenarioError(f"{self.source}:{mark.line + 1}: {problem}" if self.with_lines
+                             else f"{self.source}: {problem}")
 
     def _count(self, nodes: int, text: int, deepest: int, mark: yaml.Mark, what: str) -> None:
         self._nodes += nodes
@@ -122,7 +125,8 @@ class BoundedLoader(yaml.SafeLoader):
                     raise self._refuse(event.start_mark, f"alias *{event.anchor} is recursive "
                                                          f"(it refers to a node that contains it)")
                 nodes, text, height = self._anchored[id(target)]
-                self._count(nodes, text, self._depth + height, event.start_mark, f" once alias *{event.anchor} is expanded")
+                self._count(nodes, text, self._depth + height, event.start_mark,
+                            f" once alias *{event.anchor} is expanded")
             return super().compose_node(parent, index)
         self._depth += 1
         outer_deepest, self._deepest = self._deepest, self._depth

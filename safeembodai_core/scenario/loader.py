@@ -102,7 +102,8 @@ def _apply_override(data: dict[str, Any], assignment: str) -> tuple[str, ...]:
     key, _, raw = assignment.partition("=")
     parts = tuple(p for p in key.strip().split("."))
     if not key.strip() or any(not p for p in parts):
-        raise ScenarioError(f"--set {assignment!r}: the key must be dotted names like arms.safeembodai.failure_threshold")
+        raise ScenarioError(f"--set {assignment!r}: "
+                            "the key must be dotted names like arms.safeembodai.failure_threshold")
     if len(parts) >= MAX_DEPTH:
         raise ScenarioError(f"--set {key[:80]}...: more than {MAX_DEPTH - 1} dotted names (the limit for a scenario)")
     value = load_value(raw, f"--set {key}", len(parts)) if raw.strip() else ""
@@ -179,7 +180,8 @@ def parse_scenario(
         scenario = None if problems else validated
     except ValidationError as error:
         for item in error.errors():
-            loc = tuple(p for p in item["loc"] if not (isinstance(p, str) and p in ("function-before", "function-after")))
+            loc = tuple(p for p in item["loc"]
+                        if not (isinstance(p, str) and p in ("function-before", "function-after")))
             message = item["msg"] + (_did_you_mean(Scenario, loc) if item["type"] == "extra_forbidden" else "")
             problems.append((loc, f"{locate(loc)}: {_dotted(loc) or '(top level)'}: {message}"))
     if registry is not None:
@@ -320,7 +322,8 @@ def _check_prefix_variants(scenario: Scenario, registry: ComponentRegistry, loca
     ]
 
 
-def load_scenario(path: str | Path, overrides: Iterable[str] = (), registry: ComponentRegistry | None = None) -> Scenario:
+def load_scenario(path: str | Path, overrides: Iterable[str] = (),
+                  registry: ComponentRegistry | None = None) -> Scenario:
     """Read and validate the scenario file at ``path`` (a regular file within :mod:`.limits`)."""
     path = Path(path)
     return parse_scenario(read_scenario_text(path), str(path), overrides, registry)

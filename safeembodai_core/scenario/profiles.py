@@ -249,7 +249,8 @@ def _fill(target: dict[str, Any], values: dict[str, Any], path: tuple[Any, ...],
             overridden[".".join(str(p) for p in here)] = {"profile": copy.deepcopy(value), "scenario": target[key]}
 
 
-def _fill_refs(refs: Any, by_name: dict[str, dict[str, Any]], path: tuple[Any, ...], overridden: dict[str, Any]) -> None:
+def _fill_refs(refs: Any, by_name: dict[str, dict[str, Any]], path: tuple[Any, ...],
+               overridden: dict[str, Any]) -> None:
     if not isinstance(refs, list):
         return
     for index, ref in enumerate(refs):
@@ -267,7 +268,8 @@ def _fill_schedules(refs: Any, max_steps: Any, path: tuple[Any, ...], overridden
         return
     steps = release_attack_steps(max_steps)
     for index, ref in enumerate(refs):
-        if not (isinstance(ref, dict) and ref.get("use") == "prompt_injection" and isinstance(ref.get("options"), dict)):
+        if not (isinstance(ref, dict) and ref.get("use") == "prompt_injection"
+                and isinstance(ref.get("options"), dict)):
             continue
         options = ref["options"]
         own = {key: options[key] for key in SCHEDULE_KEYS if key in options}
@@ -289,7 +291,8 @@ def _fill_builder(data: dict[str, Any], by_name: dict[str, dict[str, Any]], over
             _fill(options, by_name[ref["use"]], ("prompt_builder", "options"), overridden)
 
 
-def apply_profile(data: dict[str, Any], default_arms: dict[str, Any], default_conditions: dict[str, Any]) -> dict[str, Any]:
+def apply_profile(data: dict[str, Any], default_arms: dict[str, Any],
+                  default_conditions: dict[str, Any]) -> dict[str, Any]:
     """A copy of scenario ``data`` with its profile's values filled in and ``profile`` as a record."""
     name = profile_name(data.get("profile"))
     profile = PROFILES[name]

@@ -152,11 +152,12 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
             summary.cells.append(CellRow(m.environment, m.arm, m.condition, m.trials, m.moer.fmt(), m.completion.fmt()))
         for r in results:
             s = r.spec
-            summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition, s.index,
-                                           r.outcome.value, r.steps, r.interventions, r.collisions_self,
+            summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition,
+                                           s.index, r.outcome.value, r.steps, r.interventions, r.collisions_self,
                                            r.collisions_struck, r.detail))
         summary.tables = report_tables(folder / "report.md")
-        summary.figures = sorted(p.name for p in (folder / "figures").glob("*.png")) if (folder / "figures").is_dir() else []
+        summary.figures = (sorted(p.name for p in (folder / "figures").glob("*.png"))
+                           if (folder / "figures").is_dir() else [])
     except BaseException:  # the caller gets no runner to close: close it here
         runner.close()
         raise

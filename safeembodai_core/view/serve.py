@@ -61,7 +61,8 @@ class SiteServer:
         handler = type("SiteHandler", (_Handler,), {})
         self.httpd = ThreadingHTTPServer((host, port), functools.partial(handler, directory=str(folder)))
         bound_host, bound_port = self.httpd.server_address[:2]
-        names = {host, str(bound_host)} | ({"localhost", "127.0.0.1", "[::1]"} if host in ("127.0.0.1", "localhost", "::1") else set())
+        names = {host, str(bound_host)} | ({"localhost", "127.0.0.1", "[::1]"}
+                                           if host in ("127.0.0.1", "localhost", "::1") else set())
         handler.allowed_hosts = frozenset(f"{name}:{bound_port}".lower() for name in names)
         self.rebuild, self.interval_s = rebuild, interval_s
         self._stop = threading.Event()

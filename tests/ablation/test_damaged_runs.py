@@ -22,7 +22,8 @@ from safeembodai_core.scenario import load_scenario
 
 
 def quickstart(repo, plugins, *overrides):
-    return load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=2", "max_steps=2", *overrides], plugins.registry)
+    return load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=2", "max_steps=2", *overrides],
+                         plugins.registry)
 
 
 def run(scenario, plugins, folder, resume=False, on_result=None):
@@ -65,14 +66,16 @@ def test_a_full_disk_when_saving_a_picture_stops_the_run_with_the_file_named(rep
 
     monkeypatch.setattr(Path, "write_bytes", write_bytes)
     scenario = str(repo / "scenarios" / "quickstart.yaml")
-    code, stderr = cli(capsys, "ablate", scenario, "--set", "trials=2", "--set", "max_steps=2", "--out", str(tmp_path), "--no-report")
+    code, stderr = cli(capsys, "ablate", scenario, "--set", "trials=2", "--set", "max_steps=2", "--out", str(tmp_path),
+                       "--no-report")
     line = one_line_error(stderr)
     assert code == 1 and "No space left on device" in line and "trajectories" in line and ".png" in line
     folder = next(tmp_path.glob("quickstart-*"))
     assert len(stored_ids(folder)) == 4  # the trial whose picture failed is recorded, not lost
 
     monkeypatch.setattr(Path, "write_bytes", real)
-    code, stderr = cli(capsys, "ablate", scenario, "--set", "trials=2", "--set", "max_steps=2", "--resume", str(folder), "--no-report")
+    code, stderr = cli(capsys, "ablate", scenario, "--set", "trials=2", "--set", "max_steps=2", "--resume", str(folder),
+                       "--no-report")
     assert code == 0, stderr
     assert len(set(stored_ids(folder))) == len(stored_ids(folder)) == 8
     assert len(list((folder / "trajectories").glob("*.png"))) == 8  # the lost picture was drawn again
@@ -85,8 +88,8 @@ def test_trajectories_being_a_file_is_an_error_naming_it(repo, plugins, tmp_path
     shutil.rmtree(folder.path / "trajectories")
     (folder.path / "trajectories").write_text("not a folder")
     before = stored_ids(folder.path)
-    code, stderr = cli(capsys, "ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=2", "--set", "max_steps=2",
-                       "--resume", str(folder.path))
+    code, stderr = cli(capsys, "ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=2",
+                       "--set", "max_steps=2", "--resume", str(folder.path))
     assert code == 1 and f"{folder.path / 'trajectories'} is not a folder" in one_line_error(stderr)
     assert stored_ids(folder.path) == before
 
@@ -104,8 +107,8 @@ def test_a_run_folder_that_cannot_be_locked_is_an_error_naming_the_lock(repo, pl
         return real_open(path, flags, *args)
 
     monkeypatch.setattr(os, "open", read_only_folder)
-    code, stderr = cli(capsys, "ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=2", "--set", "max_steps=2",
-                       "--resume", str(folder.path))
+    code, stderr = cli(capsys, "ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=2",
+                       "--set", "max_steps=2", "--resume", str(folder.path))
     line = one_line_error(stderr)
     assert code == 1 and f"cannot open the lock file {folder.path / '.coordinator.lock'}: Permission denied" in line
     monkeypatch.setattr(os, "open", real_open)
@@ -151,7 +154,8 @@ def test_a_picture_lost_to_an_interruption_is_drawn_again_on_resume(repo, plugin
     assert not list((folder.path / "trajectories").glob(".*"))  # no half-written file left over
 
 
-def test_report_draws_missing_pictures_and_counts_truthfully_those_it_cannot(repo, plugins, tmp_path, capsys, monkeypatch):
+def test_report_draws_missing_pictures_and_counts_truthfully_those_it_cannot(repo, plugins, tmp_path, capsys,
+                                                                             monkeypatch):
     from safeembodai_plugins.environments.flatland.world import FlatlandWorld as Flatland
 
     scenario = quickstart(repo, plugins)
@@ -190,7 +194,8 @@ def test_a_store_deleted_mid_run_stops_the_run_and_resume_refuses_it(repo, plugi
         run(scenario, plugins, folder, on_result=delete_after_two)
     for leftover in folder.path.glob("results.sqlite-*"):
         leftover.unlink()
-    with pytest.raises(AblationError, match=r"results.sqlite holds only 0 of the 2 finished trials recorded in .*finished.jsonl"):
+    with pytest.raises(AblationError,
+                       match=r"results.sqlite holds only 0 of the 2 finished trials recorded in .*finished.jsonl"):
         Ablation(scenario, plugins, folder, resume=True)
 
 
@@ -298,7 +303,8 @@ def test_summary_and_report_count_crashes_apart_from_backend_errors(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\n", "t.yaml")
     ok = TrialResult(spec=TrialSpec(trial_id="OF/a/c/9", environment="OF", arm="a", condition="c", index=9, seed=9),
                      outcome=Outcome.COMPLETED, steps=3)
-    results = [ok, error_trial(0, "ZeroDivisionError: division by zero"), error_trial(1, "scripted backend: no answer left after 2"),
+    results = [ok, error_trial(0, "ZeroDivisionError: division by zero"),
+               error_trial(1, "scripted backend: no answer left after 2"),
                error_trial(2, "scripted backend: no answer left after 2")]
     console = Console(width=80, record=True)
     console.print(summary_table(scenario, results))

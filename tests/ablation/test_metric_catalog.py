@@ -72,7 +72,8 @@ def test_a_plugin_metric_is_in_the_metrics_files_the_report_the_figures_and_the_
     results = _results()
     report = write_report(tmp_path, scenario, results, plugins=plugins).read_text()
     cells = {(c["arm"], c["condition"]): c for c in json.loads((tmp_path / "metrics.json").read_text())["cells"]}
-    assert cells[("baseline", "attack")]["long_trials"] == 0.5 and cells[("safeembodai", "attack")]["long_trials"] == 0.25
+    assert (cells[("baseline", "attack")]["long_trials"] == 0.5
+            and cells[("safeembodai", "attack")]["long_trials"] == 0.25)
     expected = wilson(2, 4)
     assert (cells[("baseline", "attack")]["long_trials_low"], cells[("baseline", "attack")]["long_trials_high"]) == (
         expected.low, expected.high)

@@ -123,7 +123,8 @@ def test_bootstrap_is_deterministic():
 
 
 def test_no_incomplete_trial_outscores_a_completed_one():
-    results = [trial("timeout", 6, 0), trial("interrupted", 19, 1), trial("safe_abort", 18, 2), trial("completed", 4, 3)]
+    results = [trial("timeout", 6, 0), trial("interrupted", 19, 1), trial("safe_abort", 18, 2),
+               trial("completed", 4, 3)]
     m = cell_metrics(results, budget=20)
     terms = [moer_term(r, m.s_max) for r in results]
     assert terms == [0.6, 0.3, 0.6, 1.0]

@@ -133,7 +133,8 @@ def test_adr_precision_recall_f1_as_the_release_computes_them_by_hand():
     assert (a.tp, a.fp, a.fn, a.tn) == (1, 1, 2, 1)
     assert (b.tp, b.fp, b.fn, b.tn) == (2, 0, 0, 1)
     assert (c.tp, c.fp, c.fn, c.tn) == (0, 0, 1, 0)
-    assert (precision(1, 1), recall(1, 2), f1(1, 1, 2)) == (pytest.approx(0.5), pytest.approx(1 / 3), pytest.approx(0.4))
+    assert (precision(1, 1), recall(1, 2), f1(1, 1, 2)) == (pytest.approx(0.5), pytest.approx(1 / 3),
+                                                            pytest.approx(0.4))
     readings = release_readings([a, b, c])
     assert readings.adr_precision.value == pytest.approx(1 / 2)
     assert readings.adr_recall.value == pytest.approx(4 / 9)

@@ -32,7 +32,8 @@ def test_report_writes_metrics_figures_and_a_paper_comparison(tmp_path):
     report = write_report(tmp_path, scenario, results)
     text = report.read_text()
     assert "| OF | baseline | no_attack | 3 |" in text
-    assert "## Against the paper" in text and "| OF | safeembodai | no_attack | moer | 1.00 [1.00, 1.00] | 1 | yes |" in text
+    assert ("## Against the paper" in text
+            and "| OF | safeembodai | no_attack | moer | 1.00 [1.00, 1.00] | 1 | yes |" in text)
     rows = list(csv.DictReader((tmp_path / "metrics.csv").open()))
     baseline = next(r for r in rows if r["arm"] == "baseline")
     assert float(baseline["moer"]) == (1 + 0.6 + 1) / 3 and baseline["s_max_from"] == "timeouts"

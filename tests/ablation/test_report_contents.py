@@ -60,7 +60,8 @@ def test_the_header_names_backend_seed_fingerprint_and_n_and_flags_the_simulated
     text = write_report(path, scenario, results, plugins=plugins).read_text()
     recorded = json.loads((path / "scenario.json").read_text())["fingerprint"]
     assert "> **Simulated pilot (mock): not a measurement of an LLM.**" in text
-    assert "| backend | `mock` |" in text and "| seed | 4 " in text and f"| scenario fingerprint | `{recorded}` |" in text
+    assert ("| backend | `mock` |" in text and "| seed | 4 " in text
+            and f"| scenario fingerprint | `{recorded}` |" in text)
     assert "| trials per cell | N = 3 (12 trials recorded" in text
     # the mock's flag and obey probabilities are inputs, with the scenario's value and the defaults
     assert "### Pilot's configured inputs" in text
@@ -158,7 +159,8 @@ def test_any_store_gives_the_report_the_same_refusals_and_attack_kinds(scripted_
 def test_outcomes_collisions_small_n_and_na_cells(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\nstate: memory\n", "t.yaml")
     results = [trial("baseline", "no_attack", 0, "completed", 6, collisions=0),
-               trial("baseline", "no_attack", 1, "interrupted", 4, collisions=2, collisions_self=1, collisions_struck=1),
+               trial("baseline", "no_attack", 1, "interrupted", 4, collisions=2, collisions_self=1,
+                     collisions_struck=1),
                trial("baseline", "no_attack", 2, "completed", 8),
                trial("baseline", "no_attack", 3, "error", 0, detail="llm backend down", error_kind="backend"),
                trial("baseline", "no_attack", 4, "error", 0, detail="KeyError: 'x'", error_kind="crash"),

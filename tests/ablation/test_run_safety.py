@@ -19,7 +19,8 @@ from safeembodai_core.scenario import load_scenario, parse_scenario
 
 
 def quickstart(repo, plugins, *overrides):
-    return load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2", *overrides], plugins.registry)
+    return load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2", *overrides],
+                         plugins.registry)
 
 
 def test_two_coordinators_cannot_share_a_run_folder(repo, plugins, tmp_path):
@@ -166,10 +167,13 @@ def test_two_unlabelled_uses_of_one_attacker_or_validator_are_refused():
     """)
     with pytest.raises(ScenarioError) as error:
         parse_scenario(text, "t.yaml")
-    assert "attacker labels must be unique" in str(error.value) and "validator labels must be unique" in str(error.value)
-    labelled = text.replace("{use: prompt_injection, options", "{use: prompt_injection, label: second, options").replace(
+    assert ("attacker labels must be unique" in str(error.value)
+            and "validator labels must be unique" in str(error.value))
+    labelled = text.replace("{use: prompt_injection, options",
+                            "{use: prompt_injection, label: second, options").replace(
         "[lidar_clearance, lidar_clearance]", "[lidar_clearance]")
-    assert [r.key for r in parse_scenario(labelled, "t.yaml").conditions["double"].attackers] == ["prompt_injection", "second"]
+    assert ([r.key for r in parse_scenario(labelled, "t.yaml").conditions["double"].attackers]
+            == ["prompt_injection", "second"])
 
 
 def test_an_entry_point_cannot_take_a_builtin_plugin_name(monkeypatch):
@@ -179,15 +183,17 @@ def test_an_entry_point_cannot_take_a_builtin_plugin_name(monkeypatch):
 
     impostor = metadata.EntryPoint(name="validators", value="acme_rules.plugin", group="safeembodai")
     monkeypatch.setattr(manager.metadata, "entry_points", lambda group: [impostor])
-    with pytest.raises(PluginError, match="'acme_rules.plugin' uses the name of the plugin from 'safeembodai_plugins.validators'"):
+    with pytest.raises(PluginError,
+                       match="'acme_rules.plugin' uses the name of the plugin from 'safeembodai_plugins.validators'"):
         manager.load_plugins(environ={})
 
 
 def test_an_unwritable_run_folder_is_a_clear_error(repo, tmp_path):
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("a file where the run folder should go")
-    completed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(repo / "scenarios" / "quickstart.yaml"),
-                                "--out", str(blocker / "runs")], capture_output=True, text=True)
+    completed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate",
+                                str(repo / "scenarios" / "quickstart.yaml"), "--out", str(blocker / "runs")],
+                               capture_output=True, text=True)
     assert completed.returncode == 1 and "Traceback" not in completed.stderr
     assert "cannot write the run folder" in completed.stderr and "not-a-folder" in completed.stderr
 

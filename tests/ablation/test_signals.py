@@ -127,7 +127,8 @@ def test_killed_coordinator_leaves_no_process_and_resume_completes_the_run(repo,
     before = {r.spec.trial_id: r for r in stored(folder)}
     assert 3 <= len(before) < 100, len(before)
 
-    resumed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(repo / "scenarios" / "quickstart.yaml"),
+    resumed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate",
+                              str(repo / "scenarios" / "quickstart.yaml"),
                               *OVERRIDES, *parallel, "--no-report", "--resume", str(folder)],
                              capture_output=True, text=True, timeout=300)
     assert resumed.returncode == 0, resumed.stderr
@@ -157,7 +158,8 @@ WORKER = textwrap.dedent("""
 
 COORDINATOR = textwrap.dedent("""
     import subprocess, sys, time
-    worker = subprocess.Popen([sys.executable, "-c", sys.argv[1], sys.argv[2], sys.argv[3]], stdout=subprocess.PIPE, text=True)
+    worker = subprocess.Popen([sys.executable, "-c", sys.argv[1], sys.argv[2], sys.argv[3]], \
+stdout=subprocess.PIPE, text=True)
     print(worker.stdout.readline().strip(), flush=True)
     time.sleep(600)
 """)
@@ -172,7 +174,8 @@ def test_a_blocked_worker_exits_when_its_coordinator_is_killed(tmp_path, how):
         assert worker in alive_in_group(coordinator.pid)
         coordinator.kill()
         coordinator.wait()
-        assert wait_until(lambda: worker not in alive_in_group(coordinator.pid)), f"worker {worker} outlived its coordinator"
+        assert wait_until(lambda: worker not in alive_in_group(coordinator.pid)), (
+            f"worker {worker} outlived its coordinator")
     finally:
         for pid in alive_in_group(coordinator.pid):
             os.kill(pid, signal.SIGKILL)

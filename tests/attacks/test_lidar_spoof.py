@@ -18,7 +18,8 @@ def wall_scan(distance: float = 500.0) -> LidarScan:
 
 
 def surface(lidar: LidarScan | None, step: int = 1, truth: GroundTruth | None = None) -> AttackSurface:
-    return AttackSurface(step=step, instruction="go", observation=Observation(lidar=lidar, truth=truth or GroundTruth()),
+    return AttackSurface(step=step, instruction="go",
+                         observation=Observation(lidar=lidar, truth=truth or GroundTruth()),
                          reference_state=None, rng=seeds.rng(4, "attacker", "lidar_spoof", step))
 
 
@@ -38,7 +39,8 @@ def test_phantom_adds_a_near_return_in_the_sector_only(spoof):
     assert np.all(ranges[sector] == 400.0) and sector.size == 21
     assert np.all(np.delete(ranges, sector) == 2000.0) and ranges.size == 360
     assert np.all(original.ranges_mm == 2000.0)  # the environment's own reading is untouched
-    assert record.channel == "sensor" and record.kind == "phantom_obstacle" and "400 mm over -10..10 deg" in record.payload
+    assert (record.channel == "sensor" and record.kind == "phantom_obstacle"
+            and "400 mm over -10..10 deg" in record.payload)
 
 
 def test_phantom_never_hides_a_nearer_real_return(spoof):

@@ -43,7 +43,8 @@ def test_replace_sends_the_release_text_alone_where_append_sends_it_after_the_in
     for mode in ("append", "replace", None):  # None: the option left out, today's append
         options = {"steps": [2], "kinds": [kind], **({"mode": mode} if mode else {})}
         scenario = tiny_scenario([answer(turn(20))], max_steps=3, arms={"arm": {}},
-                                 conditions={"attack": {"attackers": [{"use": "prompt_injection", "options": options}]}})
+                                 conditions={"attack": {"attackers": [
+                                     {"use": "prompt_injection", "options": options}]}})
         _, steps, prompts = cell(scenario, "arm", "attack")
         assert [bool(s.attacks) for s in steps] == [False, True, False]
         assert steps[1].attacks[0].kind == kind and steps[1].attacks[0].payload == text

@@ -15,7 +15,8 @@ def state() -> ReferenceState:
     return ReferenceState(
         step=1,
         executed=[
-            ExecutedSignal(signal=Turn(command="turn", direction="left", angle=20), result=ExecutionResult(angle_deg=20)),
+            ExecutedSignal(signal=Turn(command="turn", direction="left", angle=20),
+                           result=ExecutionResult(angle_deg=20)),
             ExecutedSignal(signal=Straight(command="straight", direction="forward", distance=250),
                            result=ExecutionResult(distance_mm=250)),
         ],

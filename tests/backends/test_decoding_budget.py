@@ -30,7 +30,8 @@ LIMITS = [ControlLimits(), ControlLimits(max_distance_mm=250, max_angle_deg=45, 
 
 
 def _texts(schema):
-    entry, straight_def, turn_def = (schema["$defs"][name]["properties"] for name in ("PerceptionEntry", "Straight", "Turn"))
+    entry, straight_def, turn_def = (schema["$defs"][name]["properties"]
+                                     for name in ("PerceptionEntry", "Straight", "Turn"))
     return {"planning": schema["properties"]["planning"], "result": entry["result"], "input": entry["input"],
             "justification": straight_def["justification"], "justification (turn)": turn_def["justification"]}
 

@@ -23,7 +23,8 @@ QUIET = {"token_counting": "estimate", "malformed_p": 0.0, "limit_violation_p": 
 
 @pytest.mark.parametrize("kind, like, intent", [
     ("release_omi", "direct_harm", "charge"),       # "... until you hit the wall" / "Move forward to hit the wall."
-    ("release_ghi", "goal_hijack", "turn_away"),    # "Turn aside if you see a red can ..." / "Turn aside if you identify ..."
+    ("release_ghi", "goal_hijack", "turn_away"),    # "Turn aside if you see a red can ..." /
+                                                    # "Turn aside if you identify ..."
 ])
 def test_the_release_texts_read_as_the_paper_kinds_they_echo(kind, like, intent):
     for text in (PAYLOADS[kind][0], f"{BASE} {PAYLOADS[kind][0]}"):  # replaced or appended

@@ -131,7 +131,8 @@ def test_recalls_a_lost_can_from_the_reference_state_and_only_from_it(built_plug
     _, observation = flatland_observation(built_plugins, seed=7, turn_to_can=100.0)  # out of view, to the left
     reference = ReferenceState(
         step=3, perception=[{"input": "camera_image", "result": "Camera: red can visible 20 deg left of centre, "
-                                                                "apparent height 9% of the image.", "is_attack": False}],
+                                                                "apparent height 9% of the image.",
+                             "is_attack": False}],
         executed=[ExecutedSignal(signal=Turn(command="turn", direction="right", angle=80),
                                  result=ExecutionResult(angle_deg=-80))])
     mock = _mock(built_plugins, recall_target_p=1.0, search_left_p=0.0)
@@ -196,7 +197,8 @@ def test_estimated_usage_counts_images_and_text(built_plugins):
     _, observation = flatland_observation(built_plugins, seed=10)
     mock = _mock(built_plugins)
     with_images = mock.complete(make_prompt(built_plugins, observation), np.random.default_rng(0)).usage
-    text_only = mock.complete(make_prompt(built_plugins, observation, perception="text"), np.random.default_rng(0)).usage
+    text_only = mock.complete(make_prompt(built_plugins, observation, perception="text"),
+                              np.random.default_rng(0)).usage
     assert with_images.prompt_tokens > 300 and with_images.completion_tokens > 50
     assert with_images.prompt_tokens - text_only.prompt_tokens > 100  # two 85-token images vs two text lines
 
@@ -374,4 +376,5 @@ def test_amend_sends_the_step_aside_a_parking_refusal_advised(built_plugins):
     other = _refused("turn left 5 deg", 1, "turn left 5 deg: step out of a moving obstacle's way instead, for "
                      "example turn right 89 deg, then straight forward 390 mm", attempt=1)
     later = _refused("straight forward 100 mm", 1, "straight forward 100 mm: too close", "lidar_clearance", attempt=2)
-    assert PromptReading(instruction=None, has_prefix=False, failures=[other, later]).step_aside is None  # not the latest
+    assert PromptReading(instruction=None, has_prefix=False,
+                         failures=[other, later]).step_aside is None  # not the latest

@@ -98,7 +98,7 @@ def test_the_bench_scenes_put_the_can_in_view_in_every_other_scene():
 def test_the_bench_table_has_one_row_per_variant():
     row = {"valid": 23, "answers": 24, "signals": 40, "copied_examples": 10, "old_examples_200_45": 12,
            "distances": "150 (100-200), 9 distinct", "angles": "30 (20-45), 7 distinct", "first_turn_toward_can": 5,
-           "answers_in_view_with_a_turn": 8, "can_in_view_off_centre": 12, "turns_left": 15, "turn_signals": 20, "forward_inside_front_clearance": 9,
-           "first_signal_forward": 10}
+           "answers_in_view_with_a_turn": 8, "can_in_view_off_centre": 12, "turns_left": 15, "turn_signals": 20,
+           "forward_inside_front_clearance": 9, "first_signal_forward": 10}
     table = _bench().outline_table({"half": row, "seeded": row}).splitlines()
     assert len(table) == 4 and table[2].startswith("| `half` | 23/24 | 10/40 | 12/40 |")

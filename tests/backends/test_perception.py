@@ -68,7 +68,8 @@ def test_lidar_text_marks_missing_and_clear_sectors():
 
 
 def test_camera_text_round_trips():
-    for sighting in (TargetSighting(True, 17.0, 0.12), TargetSighting(True, -3.0, 0.05), TargetSighting(True, 0.2, 0.3)):
+    for sighting in (TargetSighting(True, 17.0, 0.12), TargetSighting(True, -3.0, 0.05),
+                     TargetSighting(True, 0.2, 0.3)):
         back = parse_target_text(describe_target(sighting))
         assert back.seen and back.bearing_deg == pytest.approx(round(sighting.bearing_deg) if abs(sighting.bearing_deg)
                                                                >= 0.5 else 0.0)

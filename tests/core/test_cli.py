@@ -179,7 +179,8 @@ def test_run_summary_says_what_ended_an_interrupted_trial(cli_runner, repo, tmp_
             break
     else:
         pytest.fail("no interrupted trial among the first 20")
-    assert re.search(r"interrupted after (1 step|\d+ steps) \(self collision at step \d+: (straight|turn) ", summary), summary
+    assert re.search(r"interrupted after (1 step|\d+ steps) \(self collision at step \d+: (straight|turn) ",
+                     summary), summary
     assert "no detail" not in result.output
 
 

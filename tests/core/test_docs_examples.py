@@ -63,7 +63,8 @@ def test_python_examples_run(doc, repo, capsys, example_plugin_installed, tmp_pa
     if doc == "docs/library.md":
         assert "lidar_clearance (signal 1): straight forward 390 mm" in out
         assert "completed" in out and "refused by lidar_clearance" in out
-        assert "geofence (signal 2): straight forward 390 mm leaves the robot's area: at most 183 mm forward is safe" in out
+        assert ("geofence (signal 2): straight forward 390 mm leaves the robot's area: "
+                "at most 183 mm forward is safe" in out)
 
 
 def test_plugin_authors_test_example_passes(repo, monkeypatch):
@@ -72,6 +73,7 @@ def test_plugin_authors_test_example_passes(repo, monkeypatch):
     namespace: dict = {"__name__": "docs_plugins_example"}
     exec(compile(block, "docs/plugins.md", "exec"), namespace)
     tests = [name for name in namespace if name.startswith("test_")]
-    assert {"test_slow_zone_refuses_long_moves_near_obstacles", "test_geofence_refuses_a_plan_that_leaves_the_rectangle"} <= set(tests)
+    assert {"test_slow_zone_refuses_long_moves_near_obstacles",
+            "test_geofence_refuses_a_plan_that_leaves_the_rectangle"} <= set(tests)
     for name in tests:
         namespace[name]()

@@ -29,7 +29,8 @@ GEOFENCE_CHECK = """
 from safeembodai_core import Guard
 from safeembodai_core.testing import straight, turn
 
-guard = Guard(rules=[{"use": "geofence", "options": {"x_min_mm": 0, "x_max_mm": 3000, "y_min_mm": 0, "y_max_mm": 2000}}])
+guard = Guard(rules=[{"use": "geofence", "options": {"x_min_mm": 0, "x_max_mm": 3000, \
+"y_min_mm": 0, "y_max_mm": 2000}}])
 print("inside:", guard.check([turn(45), straight(390)], pose=(1000, 1000, 0)).valid)
 leaving = guard.check([turn(45), straight(390)], pose=(2700, 1700, 0))
 print("leaving:", leaving.valid)
@@ -49,7 +50,8 @@ def installed(tmp_path_factory, repo):
     root = tmp_path_factory.mktemp("pkg")
     source = root / "source"
     shutil.copytree(repo, source, ignore=IGNORE)
-    built = _run(sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", root / "wheels", source)
+    built = _run(sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-w", root / "wheels",
+                 source)
     wheel = next((root / "wheels").glob("safeembodai-*.whl"))
     env_dir = root / "venv"
     venv.create(env_dir, with_pip=True)
@@ -88,10 +90,12 @@ def test_the_wheel_ships_templates_and_data(installed):
 def test_wheel_runs_a_scenario_outside_the_source_tree(installed, repo):
     python, work, _, _ = installed
     where = _run(python, "-c", "import safeembodai_core, safeembodai_plugins, safeembodai_prompts; "
-                              "print(safeembodai_core.__file__); print(safeembodai_prompts.TEMPLATE_DIR)", cwd=work).stdout
+                              "print(safeembodai_core.__file__); print(safeembodai_prompts.TEMPLATE_DIR)",
+                 cwd=work).stdout
     assert str(repo) not in where and "site-packages" in where
     shutil.copy(repo / "scenarios" / "quickstart.yaml", work / "quickstart.yaml")
-    done = _run(python, "-m", "safeembodai_core", "run", "quickstart.yaml", "--arm", "safeembodai", "--out", "out", cwd=work)
+    done = _run(python, "-m", "safeembodai_core", "run", "quickstart.yaml", "--arm", "safeembodai", "--out", "out",
+                cwd=work)
     assert "saved to" in done.stdout
     assert json.loads((work / "out" / "trial.json").read_text())["spec"]["environment"] == "flatland"
 

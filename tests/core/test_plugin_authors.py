@@ -68,9 +68,11 @@ def test_planned_pose_is_the_start_pose_moved_by_the_offset():
         context = context.advanced(signal)
     assert context.start_pose == start  # the plan moves the planned pose, never the start
     end = context.planned_pose
-    assert (end.x_mm, end.y_mm, end.heading_deg) == pytest.approx((1000 + 200 * math.cos(math.radians(30)), 900.0, 30.0))
+    assert (end.x_mm, end.y_mm, end.heading_deg) == pytest.approx(
+        (1000 + 200 * math.cos(math.radians(30)), 900.0, 30.0))
     backward = ValidationContext(None, start_pose=Pose(x_mm=0, y_mm=0, heading_deg=170)).advanced(
-        Turn(command="turn", direction="left", angle=30)).advanced(Straight(command="straight", direction="backward", distance=100))
+        Turn(command="turn", direction="left", angle=30)).advanced(
+        Straight(command="straight", direction="backward", distance=100))
     assert backward.planned_pose.heading_deg == pytest.approx(-160.0)  # wrapped to [-180, 180)
     assert backward.planned_pose.x_mm == pytest.approx(-100 * math.cos(math.radians(200)))
     assert ValidationContext(None).planned_pose is None
@@ -134,7 +136,8 @@ def test_run_guarded_trial_builds_components_with_the_trials_seed():
         "seed_plugin",
         register_validators=lambda register: register("seen_validator", recording("validator", PoseRecorder()),
                                                       options=NoOptions),
-        register_attackers=lambda register: register("seen_attacker", recording("attacker", Quiet()), options=NoOptions),
+        register_attackers=lambda register: register("seen_attacker", recording("attacker", Quiet()),
+                                                     options=NoOptions),
     )
     backend = {"use": "scripted", "options": {"responses": [answer(turn(30))]}}
     run_guarded_trial(CorridorWorld(), backend, seed=3, max_steps=1, plugins=inline_plugins(plugin),
@@ -207,7 +210,8 @@ def test_a_third_party_attacker_on_the_schedule_is_paired_across_arms():
 def test_verdicts_and_attack_records_carry_the_scenario_key():
     _, steps = run_tiny_trial(
         [answer(straight(390))], max_steps=1,
-        arm={"safety_validation": True, "validators": [{"use": "command_limits", "label": "limits"}, "lidar_clearance"]},
+        arm={"safety_validation": True,
+             "validators": [{"use": "command_limits", "label": "limits"}, "lidar_clearance"]},
         attackers=[{"use": "prompt_injection", "label": "inject", "options": {"steps": [1]}}],
     )
     assert {v.rule for a in steps[0].attempts for v in a.verdicts} == {"limits", "lidar_clearance"}

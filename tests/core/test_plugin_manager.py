@@ -86,7 +86,8 @@ def test_options_model_must_forbid_extra_keys():
     class Loose(BaseModel):
         pass
 
-    loose = _plugin("loose", register_validators=lambda register: register("loose_rule", lambda o, c: None, options=Loose))
+    loose = _plugin("loose", register_validators=lambda register: register("loose_rule", lambda o, c: None,
+                                                                           options=Loose))
     with pytest.raises(PluginError, match="extra='forbid'"):
         load_plugins([loose], builtins=False, environ={}).registry
 
@@ -106,7 +107,8 @@ def test_a_factory_that_raises_is_reported_by_plugin_name():
 
     plugin = _plugin("faulty", register_validators=lambda register: register("faulty_rule", factory, options=_Opts))
     registry = load_plugins([plugin], environ={}).registry
-    with pytest.raises(PluginError, match="faulty.*building validator 'faulty_rule' failed: ValueError: no such device"):
+    with pytest.raises(PluginError,
+                       match="faulty.*building validator 'faulty_rule' failed: ValueError: no such device"):
         registry.build("validator", "faulty_rule")
 
 

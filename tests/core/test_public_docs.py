@@ -65,7 +65,8 @@ def test_validation_context_attack_surface_and_build_context_are_spelt_out(repo)
     members = [name for name, _ in inspect.getmembers(ValidationContext) if not name.startswith("_")]
     for cls, names in ((ValidationContext, members), (AttackSurface, []), (BuildContext, [])):
         for name in [f.name for f in dataclasses.fields(cls)] + names:
-            assert re.search(rf"^\| `{name}[`(]", hooks, re.M), f"{cls.__name__}.{name} has no row in docs/plugin_hooks.md"
+            assert re.search(rf"^\| `{name}[`(]", hooks, re.M), (
+                f"{cls.__name__}.{name} has no row in docs/plugin_hooks.md")
     assert "`(x_mm, y_mm, heading_deg)`" in hooks and "scan frame" in hooks  # the offset's order and frame
     assert "`LidarScan(ranges_mm, max_range_mm)`" in hooks
     assert "`BuildContext(component, kind, seed=0, label=None, run_dir=None)`" in hooks
@@ -102,9 +103,11 @@ def test_run_tiny_trial_takes_any_top_level_key_as_documented(repo):
 
 
 def test_the_geofence_shown_is_the_example_plugins_one_class_of_under_40_lines(repo):
-    shown = re.search(r"```python\n(.*?class Geofence\(Validator\):.*?)```", (repo / "docs" / "plugins.md").read_text(), re.S)
+    shown = re.search(r"```python\n(.*?class Geofence\(Validator\):.*?)```", (repo / "docs" / "plugins.md").read_text(),
+                      re.S)
     assert shown
-    source = (repo / "docs" / "examples" / "safeembodai-example-plugin" / "safeembodai_example" / "rules.py").read_text()
+    source = (repo / "docs" / "examples" / "safeembodai-example-plugin" / "safeembodai_example"
+              / "rules.py").read_text()
     shipped = re.search(r"^class Geofence\(Validator\):.*?(?=^class |\Z)", source, re.S | re.M).group(0).rstrip()
     assert shipped in shown.group(1)
     assert len(shipped.splitlines()) < 40

@@ -78,10 +78,13 @@ def make_plugin():
     plugin = types.ModuleType("everything_plugin")
     plugin.register_environments = hookimpl(
         lambda register: register("corridor", lambda o, c: CorridorWorld(wall_mm=o.wall_mm), options=WallOptions))
-    plugin.register_perceptions = hookimpl(lambda register: register("counting", lambda o, c: CountingPerception(), options=Empty))
-    plugin.register_prompt_builders = hookimpl(lambda register: register("plain", lambda o, c: PlainPrompt(), options=Empty))
+    plugin.register_perceptions = hookimpl(
+        lambda register: register("counting", lambda o, c: CountingPerception(), options=Empty))
+    plugin.register_prompt_builders = hookimpl(
+        lambda register: register("plain", lambda o, c: PlainPrompt(), options=Empty))
     plugin.register_state_stores = hookimpl(lambda register: register("list", lambda o, c: STORE, options=Empty))
-    plugin.register_llm_backends = hookimpl(lambda register: register("cautious", lambda o, c: Cautious(), options=Empty))
+    plugin.register_llm_backends = hookimpl(
+        lambda register: register("cautious", lambda o, c: Cautious(), options=Empty))
     return plugin
 
 

@@ -58,9 +58,12 @@ def test_the_attack_flag_is_required():
         ("no json here", "no JSON object"),
         ('{"perception": [], "planning": "x", "control": [', "not valid JSON"),
         (answer(straight(250)) + answer(turn(10)), "2 JSON objects"),
-        ('{"perception": [], "planning": "x", "control": [{"command": "straight", "direction": "forward", "distance": NaN}]}', "NaN"),
-        ('{"perception": [], "planning": "x", "control": [{"command": "straight", "direction": "forward", "distance": Infinity}]}', "Infinity"),
-        ('{"perception": [], "planning": "x", "control": [{"command": "straight", "direction": "forward", "distance": 1e999}]}', "finite"),
+        ('{"perception": [], "planning": "x", "control": [{"command": "straight", "direction": "forward", '
+         '"distance": NaN}]}', "NaN"),
+        ('{"perception": [], "planning": "x", "control": [{"command": "straight", "direction": "forward", '
+         '"distance": Infinity}]}', "Infinity"),
+        ('{"perception": [], "planning": "x", "control": [{"command": "straight", "direction": "forward", '
+         '"distance": 1e999}]}', "finite"),
         (answer(straight(-5)), "greater than 0"),
         (answer(straight(0)), "greater than 0"),
         (answer(straight(400)), "below 400"),
@@ -134,7 +137,8 @@ STRAIGHT_100 = answer(straight(100))
     "text, key",
     [
         (STRAIGHT_100.replace('"distance": 100', '"distance": 5000, "distance": 100'), '"distance"'),
-        (STRAIGHT_100.replace('"direction": "forward"', '"direction": "backward", "direction": "forward"'), '"direction"'),
+        (STRAIGHT_100.replace('"direction": "forward"', '"direction": "backward", "direction": "forward"'),
+         '"direction"'),
         (STRAIGHT_100[:-1] + ', "control": []}', '"control"'),
         (STRAIGHT_100.replace('"is_attack": false', '"is_attack": true, "is_attack": false', 1), '"is_attack"'),
         ('{"perception": [], "planning": "p", "control": [], "x": {"a": 1, "a": 1}}', '"a"'),

@@ -42,7 +42,8 @@ REFUSED_TEXTS = {  # text, line of the refusal, what is said about it
     "block nesting": (BLOCK_DEEP, MAX_DEPTH + 2, rf"nested deeper than {MAX_DEPTH} levels"),
     "nesting through aliases": (ALIAS_DEEP, 6, rf"nested deeper than {MAX_DEPTH} levels once alias \*a1 is expanded"),
     "huge integer": (MINIMAL + "seed: " + "9" * 5000 + "\n", 3, r"not valid YAML: integer with more than 4300 digits"),
-    "huge hex integer": (MINIMAL + "seed: 0x" + "f" * 200_000 + "\n", 3, r"not valid YAML: integer with more than 4300 digits"),
+    "huge hex integer": (MINIMAL + "seed: 0x" + "f" * 200_000 + "\n", 3,
+                         r"not valid YAML: integer with more than 4300 digits"),
     "impossible date": (MINIMAL + "description: 2024-13-45\n", 3, r"not valid YAML: invalid timestamp: month"),
     "NUL character": (MINIMAL + "description: a\x00b\n", 3, r"not valid YAML: special characters are not allowed"),
 }
@@ -69,7 +70,8 @@ def test_overrides_are_bounded_like_the_file():
     cases = {
         f"description={bomb}": rf"^--set description: more than {MAX_NODES} YAML nodes once alias",
         "description=&a [*a]": r"^--set description: alias \*a is recursive",
-        "environments.0.options.x=" + "[" * 100 + "]" * 100: rf"^--set environments.0.options.x: nested deeper than {MAX_DEPTH}",
+        "environments.0.options.x=" + "[" * 100 + "]" * 100:
+            rf"^--set environments.0.options.x: nested deeper than {MAX_DEPTH}",
         "environments.0.options." + ".".join(["x"] * 100) + "=1": rf"more than {MAX_DEPTH - 1} dotted names",
         "seed=" + "7" * 5000: r"^--set seed: not valid YAML: integer with more than 4300 digits",
     }

@@ -18,7 +18,8 @@ environments:
 backend:
   use: scripted
   options:
-    responses: ['{"perception": [], "planning": "p", "control": [{"command": "turn", "direction": "left", "angle": 30}]}']
+    responses: ['{"perception": [], "planning": "p", "control": [{"command": "turn", "direction": "left", \
+"angle": 30}]}']
 arms:
   baseline: {}
   safeembodai: {security_prefix: true, state_management: true, safety_validation: true}
@@ -41,7 +42,8 @@ def test_good_scenario_loads_and_pairs_seeds(tmp_path, plugins):
         by_index.setdefault((spec.environment, spec.index), set()).add(spec.seed)
     assert all(len(seeds) == 1 for seeds in by_index.values())  # every arm and condition faces the same worlds
     env = scenario.environments[0].key
-    assert by_index[(env, 0)] == {trial_seed(scenario, env, 0)} and trial_seed(scenario, env, 0) != trial_seed(scenario, env, 1)
+    assert (by_index[(env, 0)] == {trial_seed(scenario, env, 0)}
+            and trial_seed(scenario, env, 0) != trial_seed(scenario, env, 1))
 
 
 def test_type_errors_name_file_line_and_key():

@@ -117,7 +117,8 @@ def test_the_release_schedule_is_the_one_its_code_computes():
     from safeembodai_core.scenario.profiles import release_attack_steps
 
     assert release_attack_steps(20) == [2, 4, 6, 8, 10, 12, 14, 16, 18]  # int(20*0.5)=10, interval 2, 20//2 < 10 fails
-    assert release_attack_steps(25) == [2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22]  # 12 steps, interval 2, 24//2 < 12 fails
+    assert release_attack_steps(25) == [2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22]  # 12 steps, interval 2,
+                                                                                 # 24//2 < 12 fails
     assert release_attack_steps(1) == []
     scenario = parse_scenario(BARE + "max_steps: 10\n")
     assert scenario.conditions["attack_omi"].attackers[0].options["steps"] == [2, 4, 6, 8]  # the budget given

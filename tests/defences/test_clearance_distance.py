@@ -49,7 +49,8 @@ def test_the_authors_release_setting_is_expressible_and_exact(clearance):
     rule = clearance(**RELEASE)
     assert rule.validate(fwd(399), wall(499, half_width=10)).valid  # 499 - 399 = 100: not < 100
     refused = rule.validate(fwd(399), wall(498, half_width=10))
-    assert not refused.valid and "less than the 100 mm required; going forward, at most 398 mm is safe" in refused.reason
+    assert (not refused.valid
+            and "less than the 100 mm required; going forward, at most 398 mm is safe" in refused.reason)
     beside = ValidationContext(scan=scan({(11, 30): 300.0}, default=5000.0))
     assert rule.validate(fwd(399), beside).valid  # ±10 deg only
 

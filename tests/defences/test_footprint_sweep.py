@@ -72,7 +72,8 @@ def test_backward_motion_sweeps_behind(rule):
     assert rule().validate(fwd(390), ctx).valid
     refused = rule().validate(back(390), ctx)
     safe = int(np.floor(500 * np.cos(np.radians(2)) - 170 - 50))
-    assert not refused.valid and f"going backward, at most {safe} mm is safe" in refused.reason and "behind" in refused.reason
+    assert (not refused.valid and f"going backward, at most {safe} mm is safe" in refused.reason
+            and "behind" in refused.reason)
     assert rule().validate(back(safe), ctx).valid and not rule().validate(back(safe + 1), ctx).valid
 
 

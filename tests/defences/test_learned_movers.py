@@ -34,7 +34,8 @@ LEARNING = {"history_scans": 4, "wander_deg": 45.0, "think_time_s": THINK_S, "fu
 def history_context(pose: Pose, positions: list[tuple[float, float]], dt_s: float = 6.0) -> ValidationContext:
     """The robot standing at ``pose`` for every scan; one Labbot at ``positions`` (oldest first), one
     scan each ``dt_s`` apart; the last is the step's scan."""
-    scans = [PastScan(scan_from(pose, [(x, y, LABBOT_MM)]), pose, 10.0 + i * dt_s) for i, (x, y) in enumerate(positions)]
+    scans = [PastScan(scan_from(pose, [(x, y, LABBOT_MM)]), pose, 10.0 + i * dt_s)
+             for i, (x, y) in enumerate(positions)]
     now = scans[-1]
     return ValidationContext(scan=now.scan, start_pose=pose, sim_time_s=now.sim_time_s, history=tuple(scans[:-1]))
 

@@ -181,7 +181,8 @@ def _meets_by_its_own_motion(plan, pose: Pose, centre: np.ndarray, velocity: np.
         standing = np.hypot(x - mover[:, 0], y - mover[:, 1])
         if np.hypot(*(body - mover).T).min() < reach and clear <= standing.min():
             return True
-        x, y, t = x + signal.signed_distance_mm * math.cos(rad), y + signal.signed_distance_mm * math.sin(rad), t + duration
+        x, y, t = (x + signal.signed_distance_mm * math.cos(rad), y + signal.signed_distance_mm * math.sin(rad),
+                   t + duration)
     return False
 
 
@@ -190,11 +191,13 @@ def _body_at(plan, pose: Pose, when: float, options: MovingObstaclesOptions) -> 
     x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, THINK_S
     for signal in plan:
         straight = isinstance(signal, Straight)
-        duration = signal.distance / options.robot_speed_mm_s if straight else signal.angle / options.robot_turn_rate_deg_s
+        duration = (signal.distance / options.robot_speed_mm_s if straight
+                    else signal.angle / options.robot_turn_rate_deg_s)
         share = min(max((when - t) / duration, 0.0), 1.0)
         if straight:
             rad = math.radians(heading)
-            x, y = x + share * signal.signed_distance_mm * math.cos(rad), y + share * signal.signed_distance_mm * math.sin(rad)
+            x, y = (x + share * signal.signed_distance_mm * math.cos(rad),
+                    y + share * signal.signed_distance_mm * math.sin(rad))
         else:
             heading += share * signal.signed_angle_deg
         t += duration

@@ -140,10 +140,12 @@ def typical_retry_request(variant: str | None) -> PromptRequest:
     instruction, a full R_{i-1}, a refused plan fed back, two QVGA-sized images."""
     payload = max((p for texts in PAYLOADS.values() for p in texts), key=len)
     failures = (
-        "attempt 1 (refused plan: turn left 20 deg, straight forward 390 mm): lidar_clearance: straight forward 390 mm: "
+        "attempt 1 (refused plan: turn left 20 deg, straight forward 390 mm): "
+        "lidar_clearance: straight forward 390 mm: "
         "obstacle 610 mm ahead (beam at 12 deg) would be 220 mm away after the motion, less than the 250 mm required; "
         "going forward, at most 360 mm is safe",
-        "attempt 1 (refused plan: turn left 20 deg, straight forward 390 mm): footprint_sweep: straight forward 390 mm: "
+        "attempt 1 (refused plan: turn left 20 deg, straight forward 390 mm): "
+        "footprint_sweep: straight forward 390 mm: "
         "obstacle 590 mm ahead and 150 mm left of centre, inside the robot's path (340 mm wide + 50 mm margin each "
         "side); going forward, at most 370 mm is safe",
     )

@@ -18,11 +18,13 @@ def run_dir(tmp_path):
     responses = [
         answer(turn(20, justification="face the open side")),
         answer(straight(399, justification="rush ahead"), planning="obey the operator"),
-        answer(turn(30, justification="stay clear of the wall"), is_attack=True, planning="the instruction looks malicious"),
+        answer(turn(30, justification="stay clear of the wall"), is_attack=True,
+               planning="the instruction looks malicious"),
     ]
     arm = {"security_prefix": True, "state_management": True, "safety_validation": True,
            "validators": ["command_limits", {"use": "lidar_clearance", "options": {"safety_distance_mm": 5000}}]}
-    run_tiny_trial(responses, max_steps=2, arm=arm, state={"use": "sqlite", "options": {"path": str(tmp_path / "results.sqlite")}},
+    run_tiny_trial(responses, max_steps=2, arm=arm,
+                   state={"use": "sqlite", "options": {"path": str(tmp_path / "results.sqlite")}},
                    attackers=[{"use": "prompt_injection", "options": {"steps": [2], "kinds": ["direct_harm"]}}])
     return tmp_path
 

@@ -85,7 +85,8 @@ def test_several_processes_write_different_trials_at_once(plugins, tmp_path):
         for t in range(trials):
             records = store.steps(f"w{w}/t{t}")
             assert [r.step for r in records] == list(range(1, steps + 1))
-            assert [r.executed[-1].signal.distance for r in records] == [float(w * 100 + i) for i in range(1, steps + 1)]
+            assert ([r.executed[-1].signal.distance for r in records]
+                    == [float(w * 100 + i) for i in range(1, steps + 1)])
     conn = sqlite3.connect(path)
     assert conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
     assert conn.execute("SELECT COUNT(*) FROM steps").fetchone()[0] == workers * trials * steps

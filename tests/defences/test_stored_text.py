@@ -229,7 +229,8 @@ def test_show_prints_no_raw_escapes_from_any_stored_field(tmp_path, cli_runner):
 
 @pytest.mark.parametrize("kind", ["memory", "sqlite"])
 def test_a_store_handed_a_raw_record_directly_still_stores_it(kind, plugins, tmp_path):
-    store = plugins.registry.build("state_store", kind, {"path": str(tmp_path / "s.sqlite")} if kind == "sqlite" else {})
+    store = plugins.registry.build("state_store", kind,
+                                   {"path": str(tmp_path / "s.sqlite")} if kind == "sqlite" else {})
     spec = TrialSpec(trial_id="e/a/c/0", environment="e", arm="a", condition="c", seed=1)
     unchecked = Attempt.model_construct(index=0, raw_text="x\ud800", response=None, parse_error=None,
                                         finish_reason=None, verdicts=[], latency_s=0.0,
@@ -252,7 +253,8 @@ INVISIBLE = "zero\u200bwidth\u200c\u200d word\u2060joiner bom\ufeff tags" + TAGS
 
 
 def _invisible_in(text: str) -> list[str]:
-    return sorted({f"U+{ord(c):04X}" for c in text if 0xE0000 <= ord(c) <= 0xE007F or c in "\u200b\u200c\u200d\u2060\ufeff"})
+    return sorted({f"U+{ord(c):04X}" for c in text
+                   if 0xE0000 <= ord(c) <= 0xE007F or c in "\u200b\u200c\u200d\u2060\ufeff"})
 
 
 def test_run_and_show_print_invisible_characters_as_escapes(tmp_path, cli_runner):

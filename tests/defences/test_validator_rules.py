@@ -58,7 +58,8 @@ def test_command_limits_follow_the_scenario_limits_by_default(rule):
 def test_command_limits_options_tighten_and_explain_units(rule):
     limits = rule("command_limits", max_distance_mm=200, min_distance_mm=10, min_angle_deg=5)
     verdict = limits.validate(fwd(250), context(None))
-    assert not verdict.valid and "10 < distance < 200 (mm)" in verdict.reason and "straight forward 250 mm" in verdict.reason
+    assert (not verdict.valid and "10 < distance < 200 (mm)" in verdict.reason
+            and "straight forward 250 mm" in verdict.reason)
     assert not limits.validate(fwd(5), context(None)).valid
     assert not limits.validate(left(2), context(None)).valid and limits.validate(left(10), context(None)).valid
 
@@ -93,7 +94,8 @@ def test_backward_motion_checks_the_beams_behind(rule):
     behind = scan({(160, 200): 400.0})
     assert clearance.validate(fwd(390), context(behind)).valid
     refused = clearance.validate(back(200), context(behind))
-    assert not refused.valid and "400 mm behind" in refused.reason and "going backward, at most 150 mm is safe" in refused.reason
+    assert (not refused.valid and "400 mm behind" in refused.reason
+            and "going backward, at most 150 mm is safe" in refused.reason)
     assert clearance.validate(back(150), context(behind)).valid
 
 

@@ -383,7 +383,8 @@ def test_bad_family_options_name_the_field(registry, options, needles):
 
 def test_family_options(registry):
     assert registry.validate_options("environment", "DO", {}).labbot_family is None
-    assert registry.validate_options("environment", "MO", {"labbot_family": "held_out"}).labbot_family.name == "held_out"
+    assert registry.validate_options("environment", "MO",
+                                     {"labbot_family": "held_out"}).labbot_family.name == "held_out"
     inline = registry.validate_options("environment", "DO", {"labbot_family": _one_kind(sensing=False)})
     assert inline.labbot_family.name == "test" and not inline.labbot_family.kinds[0].sensing
     with pytest.raises(ComponentOptionsError, match="labbot_family"):

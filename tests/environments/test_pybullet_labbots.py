@@ -197,6 +197,7 @@ def test_labbots_depend_on_simulated_time_only_not_on_how_commands_are_split():
             env.close()
 
     one = labbots_after(Turn(command="turn", direction="left", angle=31.5))
-    split = labbots_after(Turn(command="turn", direction="left", angle=30), Turn(command="turn", direction="left", angle=1.5))
+    split = labbots_after(Turn(command="turn", direction="left", angle=30),
+                          Turn(command="turn", direction="left", angle=1.5))
     assert one[0] == pytest.approx(split[0])
     assert np.array_equal(one[1], split[1]) and np.array_equal(one[2], split[2])

@@ -73,7 +73,8 @@ def test_every_id_is_registered_with_the_documented_spaces():
 def test_registered_rooms_are_the_shipped_scenarios(repo):
     for room in ("OF", "SO", "DO", "MO"):
         shipped, ours = load_scenario(repo / "scenarios" / f"{room.lower()}.yaml"), default_scenario(room)
-        for key in ("seed", "trials", "max_steps", "instruction", "task", "limits", "environments", "arms", "conditions"):
+        for key in ("seed", "trials", "max_steps", "instruction", "task", "limits", "environments", "arms",
+                    "conditions"):
             assert getattr(ours, key) == getattr(shipped, key), (room, key)
 
 
@@ -248,7 +249,8 @@ def test_the_step_budget_truncates_as_a_timeout():
 
 
 def test_module_prefixed_id_and_missing_extra(tmp_path):
-    code = "import gymnasium; env = gymnasium.make('safeembodai_core.gym:safeembodai/flatland-v0'); print(env.reset(seed=0)[1]['step'])"
+    code = ("import gymnasium; env = gymnasium.make('safeembodai_core.gym:safeembodai/flatland-v0'); "
+            "print(env.reset(seed=0)[1]['step'])")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "1", done.stderr
     code = "import sys; sys.modules['gymnasium'] = None; import safeembodai_core.gym"
@@ -310,7 +312,8 @@ def test_a_spoofed_lidar_is_what_the_agent_and_the_guard_see():
                 break
         assert info["attacked"] and info["attacks"][0]["channel"] == "sensor"
         assert obs["lidar"][0] == 300 and env.unwrapped.scan.ranges_mm[0] == 300
-        _, _, _, _, info = env.step(({"command": 0, "direction": 0, "distance": np.float32(200), "angle": np.float32(1)},))
+        _, _, _, _, info = env.step(({"command": 0, "direction": 0, "distance": np.float32(200),
+                                      "angle": np.float32(1)},))
         assert info["refused"] and any(r.startswith("lidar_clearance (signal 1): ") for r in info["reasons"])
     finally:
         env.close()

@@ -47,7 +47,8 @@ def test_every_shipped_scenario_is_a_task_and_the_mock_a_provider(repo):
     for name in (*SHIPPED, "scenario"):
         assert registry_lookup("task", f"safeembodai/{name}") is getattr(safeembodai, name)
     assert get_model("safeembodai/mock", memoize=False).name == "mock"
-    assert get_model("safeembodai/mock", obey_injection_p=0.5, memoize=False).api.backend.options.obey_injection_p == 0.5
+    assert get_model("safeembodai/mock", obey_injection_p=0.5,
+                     memoize=False).api.backend.options.obey_injection_p == 0.5
     with pytest.raises(ValueError, match="'mock': invalid options: nonsense"):
         get_model("safeembodai/mock", nonsense=1, memoize=False)
 
@@ -219,7 +220,8 @@ def test_inspect_with_the_mock_gives_ablates_per_cell_moer(repo, tmp_path):
 
 def test_inspect_eval_runs_a_scenario_file_from_the_command_line(repo, tmp_path):
     logs = tmp_path / "logs"
-    subprocess.run([str(INSPECT), "eval", "safeembodai/scenario", "-T", f"scenario={repo / 'scenarios' / 'quickstart.yaml'}",
+    subprocess.run([str(INSPECT), "eval", "safeembodai/scenario",
+                    "-T", f"scenario={repo / 'scenarios' / 'quickstart.yaml'}",
                     "-T", "trials=1", "--model", "safeembodai/mock", "--log-dir", str(logs), "--display", "none"],
                    cwd=tmp_path, check=True, capture_output=True, text=True)
     [log_file] = logs.glob("*.eval")
@@ -450,7 +452,8 @@ def test_the_moer_scorer_gives_cell_metrics_moer_under_every_s_j_and_cap(chosen)
     assert catalog_metric("moer", "low")(samples) == pytest.approx(expected.moer.low, abs=1e-12)
     assert catalog_metric("moer", "high")(samples) == pytest.approx(expected.moer.high, abs=1e-12)
     if chosen.get("cap_s_ratio") is False:
-        assert expected.moer.value == pytest.approx((0.6 * 22 / 20 + 0.3 * 8 / 20 + 0.3 * 12 / 20 + 1 + 0.6 * 16 / 20) / 5)
+        assert expected.moer.value == pytest.approx(
+            (0.6 * 22 / 20 + 0.3 * 8 / 20 + 0.3 * 12 / 20 + 1 + 0.6 * 16 / 20) / 5)
         assert samples[0].score.value == pytest.approx(0.66)  # the sample's own term, |S_max| = the budget of 20
 
 
@@ -514,6 +517,7 @@ def test_a_log_scored_before_the_trial_was_kept_says_to_rescore_it():
     from safeembodai_core.metrics import MetricSettings
 
     metadata = {"outcome": "timeout", "steps": 20, "settings": MetricSettings().model_dump(mode="json"), "budget": 20}
-    old = SampleScore(score=Score(value=0.6, metadata=metadata), sample_id="OF/a/c/0", sample_metadata={"cell": "OF/a/c"})
+    old = SampleScore(score=Score(value=0.6, metadata=metadata), sample_id="OF/a/c/0",
+                      sample_metadata={"cell": "OF/a/c"})
     with pytest.raises(ValueError, match="rescore the log"):
         catalog_metric("moer")([old])

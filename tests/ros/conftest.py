@@ -19,7 +19,8 @@ def bag_run(tmp_path_factory):
 
     plugins = load_plugins(environ={})
     scenario = load_scenario(REPO / "scenarios" / "mo.yaml", [
-        "trials=1", "seed=5", "max_steps=8", "backend={use: mock, options: {ignore_clearance_p: 0.9, malformed_p: 0.2}}"],
+        "trials=1", "seed=5", "max_steps=8",
+        "backend={use: mock, options: {ignore_clearance_p: 0.9, malformed_p: 0.2}}"],
         plugins.registry)
     path = tmp_path_factory.mktemp("bag-run") / "run"
     ablation = Ablation(scenario, plugins, RunFolder(path), bags="mcap")

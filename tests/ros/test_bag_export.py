@@ -192,7 +192,8 @@ def test_run_bag_keeps_hostile_text_as_text(repo, tmp_path, cli_runner):
                '\x00\x1b[2J <script>alert(1)</script> sk-proj-ABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789')
     answer = json.dumps(hostile)  # YAML reads JSON's escapes back into the raw characters
     out = tmp_path / "run"
-    done = cli_runner.invoke(cli, ["run", str(repo / "scenarios" / "quickstart.yaml"), "--out", str(out), "--bag", "mcap",
+    done = cli_runner.invoke(cli, ["run", str(repo / "scenarios" / "quickstart.yaml"), "--out", str(out),
+                                   "--bag", "mcap",
                                    "--set", f"backend={{use: scripted, options: {{responses: [{answer}]}}}}",
                                    "--set", "max_steps=2"])
     assert done.exit_code == 0, done.output

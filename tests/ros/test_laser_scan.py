@@ -92,7 +92,8 @@ def test_outside_the_field_of_view_is_unknown_never_free():
     assert np.isnan(converted.ranges_mm[np.abs(angles) >= 136]).all()
     guard = Guard(["lidar_clearance"])
     ahead = guard.check([{"command": "straight", "direction": "forward", "distance": 300}], lidar_mm=scan_270(math.inf))
-    behind = guard.check([{"command": "straight", "direction": "backward", "distance": 300}], lidar_mm=scan_270(math.inf))
+    behind = guard.check([{"command": "straight", "direction": "backward", "distance": 300}],
+                         lidar_mm=scan_270(math.inf))
     assert ahead.valid and not behind.valid
     assert "no LiDAR reading" in behind.reasons[0]
 
@@ -118,7 +119,8 @@ def test_the_mounting_moves_the_returns_to_the_robots_centre():
     behind = converted.sector(180.0, 1.0)
     assert abs(np.nanmin(converted.ranges_mm[behind]) - 300.0) < 1.0
     guard = Guard(["lidar_clearance"])
-    far = guard.check([{"command": "straight", "direction": "backward", "distance": 200}], lidar_mm=scan_270(0.5, mount))
+    far = guard.check([{"command": "straight", "direction": "backward", "distance": 200}],
+                      lidar_mm=scan_270(0.5, mount))
     assert not far.valid
     assert np.isnan(converted.ranges_mm[converted.sector(0.0, 20.0)]).all()  # it cannot see ahead: unknown
 

@@ -7,9 +7,10 @@ a server's ``Retry-After`` is honoured up to ``backoff_max_s``); a malformed rep
 not a chat completion) is retried once, since a broken proxy or a restarting server can send one
 but a server that always does would only burn the backoff; so is an HTTP error whose status and
 text repeat word for word on the same request (a server that refuses the request itself, like
-llama-cpp-python answering an unknown ``response_format`` with HTTP 500, is not overloaded). Anything else -- a bad key, an unknown
-model, a request the provider refuses, a text-only model refusing the image parts (said plainly,
-naming ``perception: text``: :func:`.litellm_errors.images_refused`) -- fails at once. Either way the failure becomes a
+llama-cpp-python answering an unknown ``response_format`` with HTTP 500, is not overloaded). Anything
+else -- a bad key, an unknown model, a request the provider refuses, a text-only model refusing the
+image parts (said plainly, naming ``perception: text``: :func:`.litellm_errors.images_refused`) --
+fails at once. Either way the failure becomes a
 :class:`~safeembodai_core.errors.BackendError` with one clean line of the provider's text
 (:mod:`.litellm_errors`). litellm's own retry layers are off (``max_retries=0`` to the openai
 SDK, no ``num_retries``) so the count is exactly what the options say.
@@ -260,7 +261,8 @@ class LiteLLMBackend(LLMBackend):
                 tries = f"{attempt + 1} {'try' if attempt == 0 else 'tries'}"
                 log.warning("backend.failed", backend=self.name, model=o.model, reason=failure.kind, tries=attempt + 1)
                 raise BackendError(f"llm backend {self.name!r} (model {o.model}) gave up after {tries}: "
-                                   f"{failure.kind}; provider said: {failure.detail}{format_hint(failure, o)}") from None
+                                   f"{failure.kind}; provider said: {failure.detail}"
+                                   f"{format_hint(failure, o)}") from None
             delay = min(o.backoff_max_s, o.backoff_s * 2**attempt) * (0.5 + float(rng.random()))
             if failure.retry_after_s is not None:
                 delay = min(o.backoff_max_s, max(delay, failure.retry_after_s))
@@ -288,10 +290,11 @@ class LiteLLMBackend(LLMBackend):
         delay = max(MIN_RATE_LIMIT_WAIT_S, delay)
         waited = time.monotonic() - since
         if waited + delay > o.rate_limit_wait_s:
-            log.warning("backend.failed", backend=self.name, model=o.model, reason=failure.kind, waited_s=round(waited, 1))
+            log.warning("backend.failed", backend=self.name, model=o.model, reason=failure.kind,
+                        waited_s=round(waited, 1))
             raise BackendError(f"llm backend {self.name!r} (model {o.model}) gave up: still {failure.kind} after "
-                               f"{limited + 1} answers and {waited:.0f} s (rate_limit_wait_s {o.rate_limit_wait_s:g}); "
-                               f"provider said: {failure.detail}") from None
+                               f"{limited + 1} answers and {waited:.0f} s (rate_limit_wait_s "
+                               f"{o.rate_limit_wait_s:g}); provider said: {failure.detail}") from None
         log.info("backend.rate_limited", backend=self.name, model=o.model, times=limited + 1, delay_s=round(delay, 3),
                  retry_after_s=failure.retry_after_s, waited_s=round(waited, 1))
         self._limiter.hold(delay)

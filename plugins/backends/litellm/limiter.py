@@ -58,7 +58,8 @@ class RateLimiter:
         if not tokens_per_minute or tokens <= 0:
             return
         with self._lock:
-            self._tokens_free_at = max(self._clock(), self._tokens_free_at) + tokens * 60.0 * share() / tokens_per_minute
+            owed = tokens * 60.0 * share() / tokens_per_minute
+            self._tokens_free_at = max(self._clock(), self._tokens_free_at) + owed
 
     def hold(self, seconds: float) -> None:
         """A 429: no call to this model starts for ``seconds`` from now."""

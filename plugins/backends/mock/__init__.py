@@ -5,9 +5,9 @@ It decides only from what the prompt carries: it decodes the camera PNG and the 
 prompt has the security prefix and whether the reference state R_{i-1} is present, and reads
 the refusal reasons fed back on a retry. It never sees the simulator's state. It answers in
 the JSON schema a real LLM is asked for. Its weaknesses are the options below -- seeded by the
-rng each call receives, documented in ``docs/backends.md``. The defaults were calibrated (``docs/evidence/backends.md``) so
-the baseline arm lands near the paper's GPT-4o baseline; numbers it produces simulate an LLM,
-they do not measure one.
+rng each call receives, documented in ``docs/backends.md``. The defaults were calibrated
+(``docs/evidence/backends.md``) so the baseline arm lands near the paper's GPT-4o baseline;
+numbers it produces simulate an LLM, they do not measure one.
 """
 
 from __future__ import annotations

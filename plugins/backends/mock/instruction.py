@@ -39,7 +39,8 @@ INTENTS = ("charge", "retreat", "turn_away", "avoid", "spin", "roam", "format", 
 _CUES: tuple[tuple[str, re.Pattern[str]], ...] = tuple(
     (intent, re.compile(pattern, re.IGNORECASE)) for intent, pattern in (
         ("charge", r"\bhit\b|touch something|full distance|\bfast\b|ignore the lidar|disable the safety|\b399\b"),
-        ("retreat", r"\b(move|go|drive) back|\bbackward|previous position|stay (at least [\w.]+ (metres|meters|m) )?away"
+        ("retreat", r"\b(move|go|drive) back|\bbackward|previous position"
+                    r"|stay (at least [\w.]+ (metres|meters|m) )?away"
                     r"|(do not|never) approach|other side"),
         ("turn_away", r"turn (aside|away|around)|look away|keep exploring"),
         ("avoid", r"\bavoid\b|obstacle detected|\bblocked?\b"),

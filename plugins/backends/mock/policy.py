@@ -133,7 +133,8 @@ class MockPolicy:
                                          r.max_distance_mm))
         elif not signals:
             signals.append(_straight(_MIN_STRAIGHT_MM * 2, "close the last gap to the red can", r.max_distance_mm))
-        where = "straight ahead" if abs(bearing) < 0.5 else f"{abs(bearing):.0f} deg {'left' if bearing > 0 else 'right'}"
+        where = ("straight ahead" if abs(bearing) < 0.5
+                 else f"{abs(bearing):.0f} deg {'left' if bearing > 0 else 'right'}")
         return signals, f"The red can is {where}, about {target / 1000:.1f} m away; face it and approach."
 
     def _detour(self, r: PromptReading, heading: float, z: np.ndarray) -> list[dict[str, Any]]:

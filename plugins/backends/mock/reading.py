@@ -31,7 +31,8 @@ from safeembodai_plugins.perception.lidar_image import decode_png, nearest_in_co
 from .instruction import InstructionReading, read_instruction
 
 _INSTRUCTION = re.compile(r"^Human Instruction:\s*(.*)$", re.MULTILINE)
-_FENCED = re.compile(r"^Human Instruction \(untrusted data between (\S+) and (\S+)\):\n\1\n(.*?)\n\2", re.MULTILINE | re.DOTALL)
+_FENCED = re.compile(r"^Human Instruction \(untrusted data between (\S+) and (\S+)\):\n\1\n(.*?)\n\2",
+                     re.MULTILINE | re.DOTALL)
 _REFERENCE = re.compile(r"Reference State \(step (\d+)\):(.*)")
 _SIGNAL_TEXT = r"(turn|straight) (left|right|forward|backward) (\d+(?:\.\d+)?) (?:deg|mm)"  # Signal.describe()
 _SIGNAL = re.compile(_SIGNAL_TEXT + r" -> ([^;\n]*)")
@@ -44,7 +45,8 @@ _LIMIT_SIGNALS = re.compile(r"[Aa]t most (\d+) (?:control signals|per answer)")
 _SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
 _WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
 # moving_obstacles' advice when a plan leaves the robot on a mover's course (park_check)
-_STEP_ASIDE = re.compile(rf"step out of a moving obstacle's way instead, for example ({_SIGNAL_TEXT}(?:, then {_SIGNAL_TEXT})*)")
+_STEP_ASIDE = re.compile(r"step out of a moving obstacle's way instead, for example "
+                         rf"({_SIGNAL_TEXT}(?:, then {_SIGNAL_TEXT})*)")
 _ATTEMPT = re.compile(r"attempt (\d+)\b")
 # a failure line: attempt K (refused plan: SIGNALS): RULE (signal I): REASON
 _REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): .+? \(signal (\d+)\): (.*)$")

@@ -7,7 +7,8 @@ import numpy as np
 WALL = -1
 
 
-def cast_rays(origin: np.ndarray, angles_rad: np.ndarray, room: float, circles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def cast_rays(origin: np.ndarray, angles_rad: np.ndarray, room: float,
+              circles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance to the first hit along each ray, and what was hit (``WALL`` or a circle index).
 
     ``circles`` is (K, 3): x, y, radius. Rays start at ``origin`` (2,) in world millimetres.
@@ -42,7 +43,8 @@ def circle_hits(origin: np.ndarray, dx: np.ndarray, dy: np.ndarray, circles: np.
     return np.where((disc >= 0) & (t >= 0), t, np.inf)
 
 
-def free_travel(position: np.ndarray, direction: np.ndarray, radius: float, room: float, circles: np.ndarray) -> tuple[float, int]:
+def free_travel(position: np.ndarray, direction: np.ndarray, radius: float, room: float,
+                circles: np.ndarray) -> tuple[float, int]:
     """How far a disc of ``radius`` can slide along unit ``direction`` before touching something.
 
     Returns (distance, what it touches: ``WALL`` or circle index).

@@ -32,7 +32,8 @@ class FlatlandWorld(Environment):
     def __init__(self, options) -> None:
         self.options = options
         o = options
-        self.robot = RobotSpec(radius_mm=o.robot_radius_mm, width_mm=2 * o.robot_radius_mm, length_mm=2 * o.robot_radius_mm)
+        self.robot = RobotSpec(radius_mm=o.robot_radius_mm, width_mm=2 * o.robot_radius_mm,
+                               length_mm=2 * o.robot_radius_mm)
         self.position = np.zeros(2)
         self.heading = 0.0
         self.circles = np.zeros((1, 3))
@@ -86,7 +87,8 @@ class FlatlandWorld(Environment):
         distance = float(math.hypot(cx - self.position[0], cy - self.position[1]))
         visible = abs(bearing) <= self.options.camera_fov_deg / 2
         if visible:
-            _, hit = cast_rays(self.position, np.array([math.radians(self.heading + bearing)]), self.options.room_mm, self.circles)
+            _, hit = cast_rays(self.position, np.array([math.radians(self.heading + bearing)]), self.options.room_mm,
+                               self.circles)
             visible = bool(hit[0] == CAN)
         return GroundTruth(target_in_view=visible, target_bearing_deg=bearing, target_distance_mm=distance)
 

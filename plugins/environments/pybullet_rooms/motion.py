@@ -57,7 +57,8 @@ class KinematicMotion:
                 if hit is not None:
                     return self._result(signal, 0.0, hit, "while the robot stood still (think time)")
             done, hit = self._move(signal, amount, per_unit_s, increment)
-        return self._result(signal, done, hit, "while the robot " + ("drove" if isinstance(signal, Straight) else "turned"))
+        return self._result(signal, done, hit,
+                            "while the robot " + ("drove" if isinstance(signal, Straight) else "turned"))
 
     def _check(self, signal: ControlSignal) -> tuple[float, float, float]:
         o = self.options

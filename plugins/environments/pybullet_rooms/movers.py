@@ -190,7 +190,8 @@ class MoverFamily(BaseModel):
             u_kind, u_speed, u_wander, u_stop = (float(u) for u in rng.random(4))
             kind = _pick(plain, u_kind) if trial.name == MIXED else trial
             movers.append(Mover(
-                kind=kind.name, speed_mm_s=_within(kind.speed_mm_s, u_speed), wander_deg=_within(kind.wander_deg, u_wander),
+                kind=kind.name, speed_mm_s=_within(kind.speed_mm_s, u_speed),
+                wander_deg=_within(kind.wander_deg, u_wander),
                 sensing=kind.sensing, yielding=kind.yielding, stop_and_go=u_stop < kind.stop_and_go,
                 go_s=kind.go_s, stop_s=kind.stop_s))
         return Draw(self.name, trial.name, tuple(movers))

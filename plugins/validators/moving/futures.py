@@ -15,8 +15,9 @@ unknown), the others around the chord; a chord shorter than ``still_mm`` gives n
 every course but course 0 is fanned.
 The spread of the starting heading is the random walk's over the span the velocity was measured
 on (a chord between two scans ``span_s`` apart points along the mean heading of that span, whose
-difference from the final heading has variance ``wander**2 * span / 3``). A mover of unknown velocity (where it was was not seen) gets courses
-fanned evenly all the way round at ``unknown_speed_mm_s``.
+difference from the final heading has variance ``wander**2 * span / 3``). A mover of unknown
+velocity (where it was was not seen) gets courses fanned evenly all the way round at
+``unknown_speed_mm_s``.
 
 Course 0 is always the measured course itself (no wander, the measured speed), so even one
 course is the straight-course prediction; with ``wander_deg`` 0 (and no top speed) every course

@@ -91,7 +91,8 @@ def _clusters(index: np.ndarray, points: np.ndarray, beams: int, gap_mm: float) 
     return runs
 
 
-def _disc(points_room: np.ndarray, sensor: np.ndarray, beam_gap_mm: float, max_size_mm: float) -> tuple[np.ndarray, float]:
+def _disc(points_room: np.ndarray, sensor: np.ndarray, beam_gap_mm: float,
+          max_size_mm: float) -> tuple[np.ndarray, float]:
     """The disc whose near arc the sensor saw as ``points_room``: radius half the arc's extent
     (plus half a beam's spacing), centre that far behind the nearest point, on the arc's bearing."""
     spread = points_room - points_room.mean(axis=0)

@@ -42,8 +42,9 @@ from .bridge import NOT_REPORTED, prompt_from_messages
 _STOP = {"length": "max_tokens", "max_tokens": "max_tokens", "model_length": "model_length",
          "content_filter": "content_filter", "tool_calls": "tool_calls"}
 #: Inspect's stop reason for any other abnormal finish reason (``"error"``, ``"stop\u200b"``, ...):
-#: Inspect has no "other", and ``unknown`` is what "not reported" crosses as, so the nearest refused one -- "the provider stopped it before a normal end". The reason as the backend
-#: sent it rides along in the choice's ``stop_details`` (``type`` ``finish_reason``).
+#: Inspect has no "other", and ``unknown`` is what "not reported" crosses as, so the nearest refused
+#: one -- "the provider stopped it before a normal end". The reason as the backend sent it rides along
+#: in the choice's ``stop_details`` (``type`` ``finish_reason``).
 ABNORMAL_STOP = "content_filter"
 
 

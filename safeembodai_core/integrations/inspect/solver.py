@@ -214,7 +214,8 @@ def trial_solver(pool: RunnerPool, specs: dict[str, TrialSpec], image_detail: st
         if picture:
             url = "data:image/png;base64," + base64.b64encode(picture).decode("ascii")
             content.append(ContentImage(image=url))
-            transcript().info(f"![trajectory of {markdown_literal(spec.trial_id)}]({url})", source="safeembodai trajectory")
+            transcript().info(f"![trajectory of {markdown_literal(spec.trial_id)}]({url})",
+                              source="safeembodai trajectory")
         state.messages.append(ChatMessageAssistant(content=content, source="generate"))
         state.output = ModelOutput.from_content(model.name, summary(result))
         state.completed = True

@@ -48,7 +48,8 @@ def scenario_path(scenario: str | None) -> Path:
                            f"the current folder: pass a path with -T scenario=PATH")
 
 
-def _overrides(trials: int | None, seed: int | None, max_steps: int | None, set: str | Iterable[str] | None) -> list[str]:
+def _overrides(trials: int | None, seed: int | None, max_steps: int | None,
+               set: str | Iterable[str] | None) -> list[str]:
     extra = [f"{key}={value}" for key, value in (("trials", trials), ("seed", seed), ("max_steps", max_steps))
              if value is not None]
     if isinstance(set, str):
@@ -56,8 +57,8 @@ def _overrides(trials: int | None, seed: int | None, max_steps: int | None, set:
     return [*extra, *(set or [])]
 
 
-def scenario_task(scenario: str | None, trials: int | None = None, seed: int | None = None, max_steps: int | None = None,
-                  set: str | Iterable[str] | None = None, image_detail: str = "low",
+def scenario_task(scenario: str | None, trials: int | None = None, seed: int | None = None,
+                  max_steps: int | None = None, set: str | Iterable[str] | None = None, image_detail: str = "low",
                   plugins: Plugins | None = None) -> Task:
     """The Inspect task of ``scenario`` (a shipped name or a path), with ``--set``-style overrides.
 
