@@ -246,6 +246,15 @@ class LLMBackend(ABC):
         prepares nothing and returns None."""
         return None
 
+    def cache_request(self, prompt: Prompt) -> dict[str, Any] | None:
+        """Optional: what :meth:`complete` would send for ``prompt`` after the last
+        :meth:`prepare_attempt` (model, messages, images, sampling, seed; never a key), as JSON
+        values, without sending it or consuming the prepared attempt. A backend that returns it
+        has its replies kept in the run's response cache (``docs/ablations.md``) and replayed for
+        the same request at the same point of the same trial, so a resumed or repeated run pays
+        no call twice. The default, None, keeps nothing: a simulated pilot costs nothing."""
+        return None
+
     def preflight(self) -> None:
         """Optional: raise :class:`~safeembodai_core.errors.BackendError` (one line) when this backend
         cannot work at all -- a server that does not answer, say. ``safeembodai run`` and ``ablate``

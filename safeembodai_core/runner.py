@@ -110,6 +110,7 @@ class ScenarioRunner:
         self.bag_storage = recorded_bag_storage(run_dir)  # a ROS 2 bag per trial, as it ends
         self._environments: dict[str, Any] = {}
         self._state = state
+        self._cache: Any = None  # the response cache, opened with the first trial of a cacheable backend
 
     def build(self, kind: str, ref: ComponentRef, seed: int = 0) -> Any:
         context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir, label=ref.key)
@@ -136,10 +137,25 @@ class ScenarioRunner:
             perception=self.build("perception", self.scenario.perception, spec.seed),
             prompt_builder=self.build("prompt_builder", self.scenario.prompt_builder, spec.seed),
             state=self.state,
-            backend=backend if backend is not None else self.build("llm_backend", self.scenario.backend, spec.seed),
+            backend=backend if backend is not None else self._cached(
+                self.build("llm_backend", self.scenario.backend, spec.seed), spec),
             validators=[(r.key, self.build("validator", r, spec.seed)) for r in arm.validators],
             attackers=[(r.key, self.build("attacker", r, spec.seed)) for r in condition.attackers],
         )
+
+    def _cached(self, backend: LLMBackend, spec: TrialSpec) -> LLMBackend:
+        """``backend`` with its replies kept in the run's response cache (``loop/response_cache.py``),
+        when it can say what it sends and the run folder keeps a cache; else ``backend`` itself."""
+        if self.run_dir is None or type(backend).cache_request is LLMBackend.cache_request:
+            return backend
+        from .loop.response_cache import CachedBackend, CacheSettings, ResponseCache
+
+        if self._cache is None:
+            settings = CacheSettings.recorded(self.run_dir)
+            if not settings.enabled:
+                return backend
+            self._cache = ResponseCache(settings.path(self.run_dir), read=settings.read)
+        return CachedBackend(backend, self._cache, spec.trial_id)
 
     def settings(self, arm: str) -> LoopSettings:
         s = self.scenario
@@ -270,5 +286,8 @@ class ScenarioRunner:
         for env in self._environments.values():
             env.close()
         self._environments.clear()
+        if self._cache is not None:
+            self._cache.close()
+            self._cache = None
         if self._state is not None:
             self._state.close()

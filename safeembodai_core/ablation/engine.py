@@ -18,7 +18,7 @@ import os
 import tempfile
 import time
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 
 from ..errors import SafeEmbodAIError, StateStoreError
@@ -105,7 +105,7 @@ class Ablation:
 
     def __init__(self, scenario: Scenario, plugins: Plugins, folder: RunFolder, *, resume: bool = False,
                  workers: int = 1, executor: str | None = None, address: str | None = None,
-                 bags: str | None = None, concurrency: int = 1) -> None:
+                 bags: str | None = None, concurrency: int = 1, cache: Any = None) -> None:
         self.scenario, self.plugins, self.folder = scenario, plugins, folder
         self.workers, self.address, self.concurrency = workers, address, concurrency
         self.executor_name = check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
@@ -118,6 +118,8 @@ class Ablation:
         self.lock.acquire()
         if bags is not None:
             folder.record_bags(bags)  # before any runner: every worker's reads it from the folder
+        if cache is not None:  # a CacheSettings; None on resume keeps what the run recorded
+            cache.write(folder.path)
         self.runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
         try:
             pictures = folder.path / "trajectories"

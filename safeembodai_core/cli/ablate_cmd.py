@@ -42,10 +42,14 @@ def _check_ray() -> None:
               help="Finish the missing trials of this run folder, with the scenario it recorded "
                    "(SCENARIO, if given, must be the same, overrides included).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and figures at the end.")
+@click.option("--cache", "cache_dir", type=click.Path(file_okay=False), default=None,
+              help="Keep a paid model's replies in DIR/responses.sqlite, shared by runs (default: the run folder).")
+@click.option("--no-cache", is_flag=True, help="Keep no replies: every call is made and paid.")
+@click.option("--refresh", is_flag=True, help="Call again for every request, replacing kept replies.")
 @click.option("--bags", type=click.Choice(["mcap", "sqlite3"]), default=None,
               help="Also write each trial's ROS 2 bag into RUN/bags/ as it ends (docs/robots.md).")
 def ablate(scenario_path, backend, seed, overrides, workers, concurrency, executor, address, out_root, resume_dir,
-           no_report, bags) -> None:
+           no_report, cache_dir, no_cache, refresh, bags) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials.
 
     With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
@@ -60,6 +64,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     from .summary import summary_table
 
     executor_name(workers, executor, address, concurrency)  # options the executor would ignore: refused at once
+    cache = _cache_settings(cache_dir, no_cache, refresh, resume_dir is not None)
     if scenario_path is not None:
         scenario, plugins = load(scenario_path, backend, seed, overrides)
     elif resume_dir is None:
@@ -81,7 +86,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     with StopSignals() as stop:
         try:
             results, report = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor,
-                                   address, bags, report=not no_report, concurrency=concurrency)
+                                   address, bags, report=not no_report, concurrency=concurrency, cache=cache)
             console.print(summary_table(scenario, results, plugins=plugins))
             if report is not None:
                 console.print(f"report: {report}")
@@ -101,8 +106,19 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
         raise SafeEmbodAIError(f"{failed} -- once fixed, resume with --resume {folder.path}")
 
 
+def _cache_settings(cache_dir, no_cache, refresh, resume):
+    """The response cache the options ask for; None on a resume without cache options (the run's own stays)."""
+    from ..loop.response_cache import CacheSettings
+
+    if no_cache and (cache_dir or refresh):
+        raise click.UsageError("--no-cache keeps no replies: drop --cache and --refresh, or --no-cache")
+    if resume and not (cache_dir or no_cache or refresh):
+        return None
+    return CacheSettings(enabled=not no_cache, folder=str(cache_dir) if cache_dir else None, read=not refresh)
+
+
 def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False,
-         concurrency=1):
+         concurrency=1, cache=None):
     """Run the pending trials; return every result of the run and, with ``report``, the report
     written from the run's own store (its steps give refusals and attack kinds) before it closes."""
     from rich.markup import escape
@@ -113,7 +129,7 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address,
     from .progress import AblationProgress
 
     ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address,
-                        bags=bags, concurrency=concurrency)
+                        bags=bags, concurrency=concurrency, cache=cache)
     try:
         pending = ablation.pending()
         cells = {(s.environment, s.arm, s.condition) for s in pending}

@@ -202,8 +202,16 @@ class LiteLLMBackend(LLMBackend):
         """The one way a provider's or litellm's text reaches an error or a log."""
         return scrub_message(text, self._secrets)
 
-    def request(self, prompt: Prompt, rng: np.random.Generator | None = None) -> dict[str, Any]:
-        """The keyword arguments of ``litellm.completion`` for ``prompt``, without the key."""
+    def cache_request(self, prompt: Prompt) -> dict[str, Any]:
+        """:meth:`request` as the response cache keys it: what is sent, the prepared attempt kept,
+        without the timeout (it does not change the answer)."""
+        kwargs = self.request(prompt, consume=False)
+        kwargs.pop("timeout", None)
+        return kwargs
+
+    def request(self, prompt: Prompt, rng: np.random.Generator | None = None, consume: bool = True) -> dict[str, Any]:
+        """The keyword arguments of ``litellm.completion`` for ``prompt``, without the key;
+        ``consume`` uses up the attempt :meth:`prepare_attempt` prepared."""
         o = self.options
         kwargs: dict[str, Any] = {
             "model": o.model,
@@ -216,7 +224,9 @@ class LiteLLMBackend(LLMBackend):
         }
         if o.api_base:
             kwargs["api_base"] = o.api_base
-        sampling, self._sampling = self._sampling, None  # prepared for one call only
+        sampling = self._sampling
+        if consume:
+            self._sampling = None  # prepared for one call only
         kwargs.update(sampling if sampling is not None else self._draw_sampling(0, rng))
         fmt = response_format(o.json_mode, self._limits, o.max_tokens)
         if fmt is not None:

@@ -1,0 +1,199 @@
+"""No call paid twice: a paid model's replies kept on disk and replayed for the same request.
+
+A backend that says what it would send (:meth:`LLMBackend.cache_request
+<safeembodai_core.components.LLMBackend.cache_request>`: the litellm backends) is wrapped, per
+trial, in a :class:`CachedBackend`. Its key is the SHA-256 of the trial's id, the exact request
+(model, messages with their images, sampling, seed, response format) and how many times the
+trial has asked that same request before -- so the same request at the same point of the same
+trial gets the same reply back, and nothing else does: another trial, arm or scenario never
+shares an answer, and a trial that asks twice the same thing (a robot stuck in place) gets two
+calls. A resumed trial, cut off mid-way, replays its first steps from the cache instead of paying
+for them again; a run repeated with the same scenario and seed replays all of it (so it measures
+nothing new: ``--refresh`` calls again, ``--no-cache`` keeps nothing).
+
+The cache is a SQLite file, by default the run folder's ``responses.sqlite``; ``ablate --cache DIR``
+shares ``DIR/responses.sqlite`` between runs. A stored reply is read back as hostile input: its
+fields are type- and size-checked, and the loop reads its text as strictly as a live one. Keys are
+hashes and replies are stored as the backend returned them (the backend masks its key out of the
+text first), so no credential is written.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+import threading
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..components import LLMBackend
+from ..errors import SafeEmbodAIError
+from ..logs import get_logger
+from ..models import ControlLimits, Prompt, TokenUsage
+from ..models.reply import BackendReply
+
+log = get_logger(__name__)
+
+CACHE_FILE = "responses.sqlite"
+#: The run folder's word on its cache (written by ``ablate``, read by every worker).
+SETTINGS_FILE = "response_cache.json"
+#: The largest stored reply read back (a reply's text is bounded far below by the loop).
+MAX_STORED_BYTES = 4_000_000
+_TEXT_FIELDS = ("text", "model", "finish_reason", "reasoning", "envelope_error", "origin")
+
+
+@dataclass(frozen=True)
+class CacheSettings:
+    """Where a run keeps replies (``folder``: None for the run folder) and whether it reads them back
+    (``read``: False with ``--refresh``); ``enabled`` False keeps nothing (``--no-cache``)."""
+
+    enabled: bool = True
+    folder: str | None = None
+    read: bool = True
+
+    def write(self, run_dir: str | Path) -> None:
+        target = Path(run_dir) / SETTINGS_FILE
+        try:
+            target.write_text(json.dumps(asdict(self)) + "\n", encoding="utf-8")
+        except OSError as error:
+            raise SafeEmbodAIError(f"cannot write {target}: {error.strerror or error}") from None
+
+    @classmethod
+    def recorded(cls, run_dir: str | Path) -> "CacheSettings":
+        """What the run folder says; the default (the run folder's own cache, read and written) when
+        it says nothing."""
+        marker = Path(run_dir) / SETTINGS_FILE
+        try:
+            data = json.loads(marker.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            return cls()
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
+            raise SafeEmbodAIError(f"{marker} is unreadable: {error}") from None
+        if (not isinstance(data, dict) or set(data) != {"enabled", "folder", "read"}
+                or not isinstance(data["enabled"], bool) or not isinstance(data["read"], bool)
+                or not (data["folder"] is None or isinstance(data["folder"], str) and 0 < len(data["folder"]) < 4096)):
+            raise SafeEmbodAIError(f"{marker} must hold enabled, folder and read (as written by ablate)")
+        return cls(data["enabled"], data["folder"], data["read"])
+
+    def path(self, run_dir: str | Path) -> Path:
+        return Path(self.folder).expanduser() / CACHE_FILE if self.folder else Path(run_dir) / CACHE_FILE
+
+
+class ResponseCache:
+    """One SQLite file of replies by key; one connection per instance (one per trial runner)."""
+
+    def __init__(self, path: str | Path, read: bool = True) -> None:
+        self.path, self.read = Path(path), read
+        self.hits = self.misses = 0
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._db = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False, isolation_level=None)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("CREATE TABLE IF NOT EXISTS replies (key TEXT PRIMARY KEY, reply TEXT NOT NULL, "
+                             "stored REAL NOT NULL)")
+        except (OSError, sqlite3.Error) as error:
+            raise SafeEmbodAIError(f"response cache {self.path}: {error}") from None
+        self._lock = threading.Lock()
+
+    def get(self, key: str) -> BackendReply | None:
+        if not self.read:
+            return None
+        with self._lock:
+            try:
+                row = self._db.execute("SELECT reply FROM replies WHERE key = ?", (key,)).fetchone()
+            except sqlite3.Error as error:
+                raise SafeEmbodAIError(f"response cache {self.path}: {error}") from None
+        if row is None:
+            self.misses += 1
+            return None
+        reply = stored_reply(row[0])
+        if reply is None:
+            log.warning("cache.unreadable_reply", cache=str(self.path), key=key[:16])
+            self.misses += 1
+            return None
+        self.hits += 1
+        return reply
+
+    def put(self, key: str, reply: BackendReply) -> None:
+        data = asdict(reply)
+        data["usage"] = reply.usage.model_dump()
+        with self._lock:
+            try:
+                self._db.execute("INSERT OR REPLACE INTO replies VALUES (?, ?, ?)",
+                                 (key, json.dumps(data, allow_nan=False), time.time()))
+            except (sqlite3.Error, ValueError) as error:
+                raise SafeEmbodAIError(f"response cache {self.path}: {error}") from None
+
+    def close(self) -> None:
+        self._db.close()
+
+
+def stored_reply(text: Any) -> BackendReply | None:
+    """A stored reply read back, or None when it is not one (wrong types, too large, not JSON)."""
+    if not isinstance(text, str) or len(text) > MAX_STORED_BYTES:
+        return None
+    try:
+        data = json.loads(text)
+        if not isinstance(data, dict):
+            return None
+        fields = {name: data.get(name) for name in _TEXT_FIELDS}
+        if not isinstance(fields["text"], str):
+            return None
+        if any(v is not None and not isinstance(v, str) for v in fields.values()):
+            return None
+        choices, latency = data.get("choices"), data.get("latency_s", 0.0)
+        if choices is not None and (type(choices) is not int or choices < 0):
+            return None
+        if type(latency) not in (int, float) or not 0 <= latency < 86_400:
+            return None
+        usage = TokenUsage.model_validate(data.get("usage") or {})
+        return BackendReply(text=fields["text"], usage=usage, latency_s=float(latency), model=fields["model"] or "",
+                            finish_reason=fields["finish_reason"], reasoning=fields["reasoning"], choices=choices,
+                            envelope_error=fields["envelope_error"], origin=fields["origin"])
+    except (ValueError, TypeError, RecursionError):
+        return None
+
+
+def request_key(trial_id: str, request: dict[str, Any]) -> str:
+    """The SHA-256 of a trial's request, canonical (sorted keys, no spaces)."""
+    text = json.dumps({"trial": trial_id, "request": request}, sort_keys=True, separators=(",", ":"),
+                      ensure_ascii=False, default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+class CachedBackend(LLMBackend):
+    """One trial's backend with its replies kept in, and served from, ``cache``."""
+
+    def __init__(self, inner: LLMBackend, cache: ResponseCache, trial_id: str) -> None:
+        self.inner, self.cache, self.trial_id = inner, cache, trial_id
+        self._asked: dict[str, int] = {}
+
+    def prepare_attempt(self, index: int, limits: ControlLimits, rng: np.random.Generator) -> dict[str, Any] | None:
+        return self.inner.prepare_attempt(index=index, limits=limits, rng=rng)
+
+    def complete(self, prompt: Prompt, rng: np.random.Generator) -> BackendReply:
+        request = self.inner.cache_request(prompt)
+        if request is None:
+            return self.inner.complete(prompt, rng)
+        digest = request_key(self.trial_id, request)
+        asked = self._asked.get(digest, 0)
+        self._asked[digest] = asked + 1
+        key = f"{digest}:{asked}"
+        kept = self.cache.get(key)
+        if kept is not None:
+            log.debug("cache.hit", trial=self.trial_id, key=digest[:16])
+            return kept
+        reply = self.inner.complete(prompt, rng)
+        self.cache.put(key, reply)
+        return reply
+
+    def preflight(self) -> None:
+        self.inner.preflight()
+
+    def close(self) -> None:
+        self.inner.close()

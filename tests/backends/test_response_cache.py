@@ -1,0 +1,151 @@
+"""No call paid twice: a paid model's replies are kept and replayed for the same request at the same
+point of the same trial -- across runs that share ``--cache DIR`` and on the resume of a killed run --
+and a kept reply is read back as hostile input."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from fake_openai import Hang, Reply
+from safeembodai_core.loop.response_cache import CachedBackend, ResponseCache, stored_reply
+from safeembodai_core.models.reply import BackendReply
+from safeembodai_core.testing import answer, straight, turn
+
+
+def _scenario(tmp_path, server, trials=2, max_steps=3):
+    data = {
+        "name": "cached", "trials": trials, "max_steps": max_steps, "seed": 9, "environments": ["flatland"],
+        "backend": {"use": "gpt-4o", "options": {"api_base": server.url, "api_key_env": "SAFEEMBODAI_TEST_KEY",
+                                                  "backoff_s": 0.0, "timeout_s": 10.0}},
+        "arms": {"safeembodai": {"security_prefix": True, "state_management": True, "safety_validation": True}},
+        "conditions": {"no_attack": {}},
+    }
+    path = tmp_path / "cached.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def _command(path, out, *args):
+    return [sys.executable, "-m", "safeembodai_core", "ablate", str(path), "--out", str(out), "--no-report", *args]
+
+
+def _ablate(path, out, key, *args):
+    done = subprocess.run(_command(path, out, *args), capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "SAFEEMBODAI_TEST_KEY": key})
+    assert done.returncode == 0, done.stderr[-3000:]
+    return next(out.iterdir())
+
+
+def _answers(request):
+    """A varied, valid answer: the step's plan depends on how many messages the request has."""
+    return answer(turn(20) if len(str(request.body.get("messages"))) % 2 else straight(120))
+
+
+@pytest.mark.slow
+def test_a_run_sharing_the_cache_replays_every_reply_and_refresh_calls_again(fake_server, fake_key, tmp_path):
+    fake_server.default = Reply(_answers)
+    scenario, shared = _scenario(tmp_path, fake_server), tmp_path / "cache"
+    first = _ablate(scenario, tmp_path / "a", fake_key, "--cache", str(shared))
+    paid = len(fake_server.requests)
+    assert paid >= 2 and (shared / "responses.sqlite").is_file() and not (first / "responses.sqlite").exists()
+    second = _ablate(scenario, tmp_path / "b", fake_key, "--cache", str(shared))
+    assert len(fake_server.requests) == paid  # not one call: every reply came from the cache
+    steps = [(r.steps, r.outcome, r.tokens) for r in _results(first)]
+    assert [(r.steps, r.outcome, r.tokens) for r in _results(second)] == steps
+    _ablate(scenario, tmp_path / "c", fake_key, "--cache", str(shared), "--refresh")
+    assert len(fake_server.requests) == 2 * paid
+    plain = _ablate(scenario, tmp_path / "d", fake_key, "--no-cache")
+    assert len(fake_server.requests) == 3 * paid and not (plain / "responses.sqlite").exists()
+
+
+def _results(run):
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    store = SqliteStateStore(run / "results.sqlite")
+    try:
+        return sorted(store.results(), key=lambda r: r.spec.trial_id)
+    finally:
+        store.close()
+
+
+@pytest.mark.slow
+def test_a_killed_run_resumes_without_paying_again_for_the_steps_it_had(fake_server, fake_key, tmp_path):
+    """kill -9 mid-trial, then --resume: the cut-off trial starts again from step 1, but its answered
+    steps come from the run folder's cache; only the call in flight at the kill is paid twice."""
+    fake_server.default = Hang(0.4, then=Reply(_answers))
+    scenario = _scenario(tmp_path, fake_server, trials=1, max_steps=5)
+    clean = _ablate(scenario, tmp_path / "clean", fake_key)
+    calls = len(fake_server.requests)
+    assert calls >= 3  # one trial: the kill below cuts it with two or more steps answered
+    fake_server.requests.clear()
+    out = tmp_path / "killed"
+    process = subprocess.Popen(_command(scenario, out), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env={**os.environ, "SAFEEMBODAI_TEST_KEY": fake_key}, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while len(fake_server.requests) < calls - 1 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.communicate()
+    before = len(fake_server.requests)
+    assert before == calls - 1
+    run = next(out.iterdir())
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", "--resume", str(run), "--no-report"],
+                          capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "SAFEEMBODAI_TEST_KEY": fake_key})
+    assert done.returncode == 0, done.stderr[-3000:]
+    # the answered steps replayed: only the call in flight at the kill is paid twice (without the cache
+    # the trial's calls-2 answered steps would be paid again: 2 * calls - 1 in all)
+    assert len(fake_server.requests) == calls + 1
+    assert [(r.steps, r.outcome) for r in _results(run)] == [(r.steps, r.outcome) for r in _results(clean)]
+
+
+class _Counting:
+    """A backend that says what it sends and counts its calls."""
+
+    def __init__(self):
+        self.calls = 0
+
+    def cache_request(self, prompt):
+        return {"prompt": prompt}
+
+    def complete(self, prompt, rng):
+        self.calls += 1
+        return BackendReply(text=f"answer {self.calls}")
+
+    def close(self):
+        pass
+
+
+def test_the_same_request_twice_in_a_trial_is_two_calls_and_replays_as_two(tmp_path):
+    cache, inner = ResponseCache(tmp_path / "r.sqlite"), _Counting()
+    backend = CachedBackend(inner, cache, "OF/a/c/0")
+    rng = np.random.default_rng(0)
+    assert [backend.complete("same", rng).text for _ in range(2)] == ["answer 1", "answer 2"]
+    again = CachedBackend(inner, cache, "OF/a/c/0")
+    assert [again.complete("same", rng).text for _ in range(2)] == ["answer 1", "answer 2"] and inner.calls == 2
+    other = CachedBackend(inner, cache, "OF/a/c/1")  # another trial never shares an answer
+    assert other.complete("same", rng).text == "answer 3"
+    cache.close()
+
+
+@pytest.mark.parametrize("row", [
+    "not json", "[]", '{"text": 3}', '{"text": "x", "model": 5}', '{"text": "x", "choices": -1}',
+    '{"text": "x", "latency_s": NaN}', '{"text": "x", "usage": {"prompt_tokens": -5}}', '{"text": "x", "choices": true}',
+    "x" * 5_000_000,
+])
+def test_a_kept_reply_that_is_not_one_is_a_miss_and_the_call_is_made(tmp_path, row):
+    assert stored_reply(row) is None
+    cache, inner = ResponseCache(tmp_path / "r.sqlite"), _Counting()
+    backend = CachedBackend(inner, cache, "t")
+    backend.complete("p", np.random.default_rng(0))
+    cache._db.execute("UPDATE replies SET reply = ?", (row,))
+    assert CachedBackend(inner, cache, "t").complete("p", np.random.default_rng(0)).text == "answer 2"
+    cache.close()
