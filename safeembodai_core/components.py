@@ -255,6 +255,11 @@ class LLMBackend(ABC):
         no call twice. The default, None, keeps nothing: a simulated pilot costs nothing."""
         return None
 
+    def cost(self, prompt_tokens: int, completion_tokens: int) -> float | None:
+        """Optional: what that many tokens cost in US dollars at the provider's list price, for
+        ``ablate --max-cost``; None (the default) when no price is known."""
+        return None
+
     def preflight(self) -> None:
         """Optional: raise :class:`~safeembodai_core.errors.BackendError` (one line) when this backend
         cannot work at all -- a server that does not answer, say. ``safeembodai run`` and ``ablate``

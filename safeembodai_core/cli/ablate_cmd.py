@@ -46,10 +46,14 @@ def _check_ray() -> None:
               help="Keep a paid model's replies in DIR/responses.sqlite, shared by runs (default: the run folder).")
 @click.option("--no-cache", is_flag=True, help="Keep no replies: every call is made and paid.")
 @click.option("--refresh", is_flag=True, help="Call again for every request, replacing kept replies.")
+@click.option("--max-tokens", type=click.IntRange(min=1), default=None,
+              help="Stop cleanly once the trials finished use this many tokens (resume to go on).")
+@click.option("--max-cost", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Stop cleanly once the trials finished cost this many US dollars at the model's list price.")
 @click.option("--bags", type=click.Choice(["mcap", "sqlite3"]), default=None,
               help="Also write each trial's ROS 2 bag into RUN/bags/ as it ends (docs/robots.md).")
 def ablate(scenario_path, backend, seed, overrides, workers, concurrency, executor, address, out_root, resume_dir,
-           no_report, cache_dir, no_cache, refresh, bags) -> None:
+           no_report, cache_dir, no_cache, refresh, max_tokens, max_cost, bags) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials.
 
     With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
@@ -60,6 +64,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     from ..ablation import RunFolder
     from ..ablation.engine import check_executor, executor_name
     from ..ablation.lifeline import StopSignals
+    from ..ablation.spending import SpendingCapReached
     from ..errors import SafeEmbodAIError
     from .summary import summary_table
 
@@ -81,17 +86,21 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
     check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
                    concurrency=concurrency)  # e.g. store: memory
+    cap = _spending_cap(scenario, plugins, max_tokens, max_cost)  # before the folder: a refused cap leaves nothing
     folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
     console = Console(emoji=False)
     with StopSignals() as stop:
         try:
             results, report = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor,
-                                   address, bags, report=not no_report, concurrency=concurrency, cache=cache)
+                                   address, bags, report=not no_report, concurrency=concurrency, cache=cache, cap=cap)
             console.print(summary_table(scenario, results, plugins=plugins))
             if report is not None:
                 console.print(f"report: {report}")
         except (KeyboardInterrupt, SafeEmbodAIError) as error:
             # a signal sent to the whole process group also kills workers: the broken pool is the signal's doing
+            if isinstance(error, SpendingCapReached):
+                raise SafeEmbodAIError(f"{error}; finished trials are recorded, the answers of those cut off are "
+                                       f"kept: resume with --resume {folder.path} and a higher cap") from None
             if isinstance(error, SafeEmbodAIError) and stop.signum is None:
                 raise
             console.print(f"[yellow]interrupted[/yellow] ({signal.Signals(stop.exit_code - 128).name}): "
@@ -117,8 +126,27 @@ def _cache_settings(cache_dir, no_cache, refresh, resume):
     return CacheSettings(enabled=not no_cache, folder=str(cache_dir) if cache_dir else None, read=not refresh)
 
 
+def _spending_cap(scenario, plugins, max_tokens, max_cost):
+    """The run's :class:`~..ablation.spending.SpendingCap` (None without --max-tokens or --max-cost),
+    priced by the scenario's backend."""
+    if max_tokens is None and max_cost is None:
+        return None
+    from ..ablation.spending import SpendingCap
+    from ..runner import ScenarioRunner
+
+    price = None
+    if max_cost is not None:
+        backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
+        try:
+            price = backend.cost
+            price(1000, 1000)  # looked up once, before the run
+        finally:
+            backend.close()
+    return SpendingCap(max_tokens, max_cost, price)
+
+
 def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False,
-         concurrency=1, cache=None):
+         concurrency=1, cache=None, cap=None):
     """Run the pending trials; return every result of the run and, with ``report``, the report
     written from the run's own store (its steps give refusals and attack kinds) before it closes."""
     from rich.markup import escape
@@ -149,6 +177,8 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address,
                 progress.advance(trials)
                 if left[cell] == 0:
                     progress.advance(finished_cells)
+                if cap is not None:
+                    cap.add(result)  # the trial is recorded: the cap stops the ones after it
 
             results = ablation.run(advance)
         if not report:

@@ -214,3 +214,14 @@ def test_seed_and_temperature_are_sent_only_when_asked(built_plugins, fake_serve
     first, second = (r.body for r in fake_server.requests)
     assert "seed" not in first and "temperature" not in first
     assert isinstance(second["seed"], int) and second["temperature"] == 0.0
+
+
+def test_the_backend_prices_tokens_from_litellms_offline_table(built_plugins, fake_server, fake_key):
+    """``ablate --max-cost`` prices a run with the backend's ``cost``: litellm's bundled list price for
+    gpt-4o; None for a model litellm has no price for (a local model)."""
+    import litellm
+
+    prompt, completion = litellm.cost_per_token(model="gpt-4o", prompt_tokens=1000, completion_tokens=100)
+    assert prompt + completion > 0
+    assert _backend(built_plugins, fake_server).cost(1000, 100) == pytest.approx(prompt + completion)
+    assert _backend(built_plugins, fake_server, name="local", model="openai/no-such-model").cost(1000, 100) is None

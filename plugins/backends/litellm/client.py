@@ -323,6 +323,16 @@ class LiteLLMBackend(LLMBackend):
         kind, retryable = classify(error)
         return images_refused(Failure(kind, retryable, self._scrub(str(error)), retry_after(error)), status, images)
 
+    def cost(self, prompt_tokens: int, completion_tokens: int) -> float | None:
+        """litellm's list price of the model (its bundled price table, read offline); None when it has none."""
+        try:
+            prompt, completion = self._litellm.cost_per_token(model=self.options.model, prompt_tokens=prompt_tokens,
+                                                              completion_tokens=completion_tokens)
+            total = float(prompt) + float(completion)
+        except Exception:  # a model litellm has no price for (a local model, a new name)
+            return None
+        return total if total >= 0 and total == total else None
+
     def preflight(self) -> None:
         """Before the first trial: the server accepts a connection (:mod:`.litellm_preflight`)."""
         from .preflight import check_reachable

@@ -1,0 +1,140 @@
+"""An ablation against a slow paid API, played by a stand-in: how many trials are in flight, how close
+the calls come to the ideal rate, how long before the first call, and the memory it takes.
+
+Run: ``python bench/paid_api.py [--latency 3.0] [--trials 16] [--max-steps 6] [--setting "--concurrency 16"]...``
+
+A fake OpenAI-compatible server on 127.0.0.1 (``tests/backends/fake_openai.py``) answers every call
+after ``--latency`` seconds with a valid plan; ``safeembodai ablate scenarios/mo.yaml --backend
+gpt-4o`` runs against it once per ``--setting`` (default: ``--workers 1``, ``--concurrency 16``,
+``--concurrency 64``, ``--workers 2 --concurrency 32``, ``--concurrency 128``), each in a fresh run
+folder with ``--no-cache``. Per setting it prints: trials, wall seconds, seconds to the first call,
+the most calls in flight at once and their mean (sampled every 0.2 s from the first call to the
+end, the tail included), the call rate between the first and the last call against the ideal (the
+in-flight count the setting asks for / latency), and the peak resident memory of the run's
+processes (summed, read from /proc every 0.2 s). Numbers, never asserts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tests" / "backends"))
+
+from fake_openai import FakeOpenAI, Hang, Reply  # noqa: E402
+
+from safeembodai_core.testing import answer, straight, turn  # noqa: E402
+
+SETTINGS = ["--workers 1", "--concurrency 16", "--concurrency 64", "--workers 2 --concurrency 32",
+            "--concurrency 128"]
+
+
+def _answer(request) -> str:
+    """A valid plan that varies with the prompt, so trials do not all do the same."""
+    return answer(turn(25) if len(str(request.body.get("messages"))) % 3 == 0 else straight(150))
+
+
+def _group_rss_mb(pgid: int) -> float:
+    total = 0
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            if int(stat[2]) != pgid:
+                continue
+            for line in (entry / "status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    total += int(line.split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+    return total / 1024
+
+
+def _in_flight(setting: list[str]) -> int:
+    values = {"--workers": 1, "--concurrency": 1}
+    for flag, value in zip(setting, setting[1:]):
+        if flag in values:
+            values[flag] = int(value)
+    return values["--workers"] * values["--concurrency"]
+
+
+def run_setting(server: FakeOpenAI, scenario: Path, setting: list[str], latency: float) -> dict[str, float]:
+    server.requests.clear()
+    server.peak_in_flight = 0
+    stamps: list[float] = []
+    recorded = server.requests
+
+    with tempfile.TemporaryDirectory(prefix="paid-api-") as out:
+        started = time.monotonic()
+        process = subprocess.Popen([sys.executable, "-m", "safeembodai_core", "ablate", str(scenario), "--out", out,
+                                    "--no-report", "--no-cache", *setting], stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.PIPE, text=True, start_new_session=True,
+                                   env={**os.environ, "SAFEEMBODAI_BENCH_KEY": "sk-bench-0000"})
+        peak = 0.0
+        seen = 0
+        busy: list[int] = []  # calls in flight, sampled between the first and the last call
+        while process.poll() is None:
+            peak = max(peak, _group_rss_mb(process.pid))
+            if recorded:
+                busy.append(server.in_flight)
+            while seen < len(recorded):
+                stamps.append(time.monotonic())
+                seen += 1
+            time.sleep(0.2)
+        wall = time.monotonic() - started
+        stderr = process.stderr.read() if process.stderr else ""
+        if process.returncode != 0:
+            raise SystemExit(f"{' '.join(setting)} failed ({process.returncode}): {stderr[-2000:]}")
+    while seen < len(recorded):
+        stamps.append(time.monotonic())
+        seen += 1
+    calls = len(recorded)
+    span = stamps[-1] - stamps[0] if len(stamps) > 1 else float("nan")
+    asked = _in_flight(setting)
+    rate = (calls - 1) / span if span and span == span else float("nan")
+    return {"calls": calls, "wall_s": wall, "first_call_s": stamps[0] - started if stamps else float("nan"),
+            "peak_in_flight": server.peak_in_flight, "asked": asked, "rate": rate,
+            "mean_in_flight": sum(busy) / len(busy) if busy else float("nan"),
+            "ideal": asked / latency, "peak_mb": peak}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--latency", type=float, default=3.0, help="seconds before the stand-in answers")
+    parser.add_argument("--trials", type=int, default=16, help="trials per cell of mo.yaml (4 cells)")
+    parser.add_argument("--max-steps", type=int, default=6)
+    parser.add_argument("--setting", action="append", help="ablate options to measure (repeatable)")
+    args = parser.parse_args()
+    with FakeOpenAI(Hang(args.latency, then=Reply(_answer))) as server, \
+            tempfile.TemporaryDirectory(prefix="paid-api-scenario-") as folder:
+        data = yaml.safe_load((REPO / "scenarios" / "mo.yaml").read_text())
+        options = {"api_base": server.url, "api_key_env": "SAFEEMBODAI_BENCH_KEY", "timeout_s": args.latency + 30}
+        data.update(trials=args.trials, max_steps=args.max_steps, backend={"use": "gpt-4o", "options": options})
+        scenario = Path(folder) / "mo.yaml"
+        scenario.write_text(yaml.safe_dump(data))
+        print(f"mo.yaml, {4 * args.trials} trials of at most {args.max_steps} steps, every call answered after "
+              f"{args.latency:g} s; {os.cpu_count()} cores")
+        print(f"{'setting':32} {'calls':>6} {'wall s':>7} {'first call s':>12} {'peak/asked':>10} "
+              f"{'mean':>6} {'calls/s':>8} {'ideal':>6} {'of ideal':>8} {'peak MB':>8}")
+        for setting in args.setting or SETTINGS:
+            row = run_setting(server, scenario, shlex.split(setting), args.latency)
+            threading.Event().wait(1.0)  # let the stand-in's sockets settle between runs
+            print(f"{setting:32} {row['calls']:>6} {row['wall_s']:>7.1f} {row['first_call_s']:>12.1f} "
+                  f"{row['peak_in_flight']:>4}/{row['asked']:<5} {row['mean_in_flight']:>6.1f} "
+                  f"{row['rate']:>8.2f} {row['ideal']:>6.2f} "
+                  f"{row['rate'] / row['ideal']:>8.0%} {row['peak_mb']:>8.0f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

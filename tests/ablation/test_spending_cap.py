@@ -1,0 +1,56 @@
+"""A spending cap: ``ablate --max-tokens`` / ``--max-cost`` stop a run cleanly once its finished trials
+used that much, say how to go on, lose nothing recorded; a cap that cannot be priced is refused before
+anything runs."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from safeembodai_core.ablation.spending import SpendingCap, SpendingCapReached
+from safeembodai_core.errors import SafeEmbodAIError
+from safeembodai_core.models import Outcome, TrialResult, TrialSpec
+
+
+def _result(prompt, completion):
+    spec = TrialSpec(trial_id="OF/a/c/0", environment="OF", arm="a", condition="c", index=0, seed=0)
+    return TrialResult(spec=spec, outcome=Outcome.COMPLETED, steps=1, prompt_tokens=prompt, completion_tokens=completion)
+
+
+def test_the_cap_counts_tokens_and_cost_and_stops_once_reached():
+    cap = SpendingCap(max_tokens=1000)
+    cap.add(_result(600, 100))
+    with pytest.raises(SpendingCapReached, match="--max-tokens 1000 reached: the finished trials used 1400 tokens"):
+        cap.add(_result(600, 100))
+    priced = SpendingCap(max_cost=0.01, price=lambda p, c: p * 2.5e-6 + c * 1e-5)
+    priced.add(_result(2000, 400))  # $0.009
+    with pytest.raises(SpendingCapReached, match=r"--max-cost 0.01 reached: the finished trials cost \$0.0180"):
+        priced.add(_result(2000, 400))
+    with pytest.raises(SafeEmbodAIError, match="--max-cost needs the model's price"):
+        SpendingCap(max_cost=1.0, price=lambda p, c: None)
+
+
+@pytest.mark.slow
+def test_ablate_stops_at_the_token_cap_and_a_resume_finishes_the_run(repo, tmp_path):
+    command = [sys.executable, "-m", "safeembodai_core", "ablate", str(repo / "scenarios" / "quickstart.yaml"),
+               "--backend", "mock", "--set", "trials=3", "--no-report", "--out", str(tmp_path)]
+    capped = subprocess.run([*command, "--max-tokens", "1"], capture_output=True, text=True, timeout=300)
+    assert capped.returncode == 1
+    [run] = tmp_path.iterdir()
+    assert "--max-tokens 1 reached" in capped.stderr and f"resume with --resume {run}" in capped.stderr.replace("\n", "")
+    finished = (run / "finished.jsonl").read_text().splitlines()
+    assert 1 <= len(finished) < 12
+    resumed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", "--resume", str(run), "--no-report"],
+                             capture_output=True, text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert len((run / "finished.jsonl").read_text().splitlines()) == 12
+
+
+def test_a_cost_cap_for_a_pilot_without_a_price_is_refused_before_any_folder(repo, tmp_path):
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(repo / "scenarios" / "quickstart.yaml"),
+                           "--max-cost", "1", "--out", str(tmp_path / "runs")], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode != 0 and "--max-cost needs the model's price" in done.stderr
+    assert not (tmp_path / "runs").exists()
