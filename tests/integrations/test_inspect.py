@@ -521,3 +521,27 @@ def test_a_log_scored_before_the_trial_was_kept_says_to_rescore_it():
                       sample_metadata={"cell": "OF/a/c"})
     with pytest.raises(ValueError, match="rescore the log"):
         catalog_metric("moer")([old])
+
+
+def test_trials_run_in_their_own_threads_not_capped_at_anyios_default_of_40():
+    """Inspect's ``--max-samples`` decides how many trials are in flight: the solver's threads come
+    from a limiter of 1024, one per event loop, not anyio's default of 40 shared with everything."""
+    import asyncio
+
+    import anyio.to_thread
+
+    from safeembodai_core.integrations.inspect.solver import MAX_TRIAL_THREADS, _trial_threads
+
+    async def limits():
+        return (_trial_threads().total_tokens, anyio.to_thread.current_default_thread_limiter().total_tokens,
+                _trial_threads() is _trial_threads())
+
+    assert asyncio.run(limits()) == (MAX_TRIAL_THREADS, 40, True) and MAX_TRIAL_THREADS >= 256
+    first, second = asyncio.run(_limiter_of_loop()), asyncio.run(_limiter_of_loop())
+    assert first is not second  # a limiter belongs to its loop
+
+
+async def _limiter_of_loop():
+    from safeembodai_core.integrations.inspect.solver import _trial_threads
+
+    return _trial_threads()

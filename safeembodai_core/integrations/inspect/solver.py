@@ -184,6 +184,23 @@ def _run(pool: RunnerPool, spec: TrialSpec, backend: InspectBackend) -> tuple[Tr
         pool.release(lent)
 
 
+#: Trials in flight at most: Inspect's --max-samples decides how many run, not anyio's default
+#: thread pool (40 threads, shared with everything else that runs in a thread).
+MAX_TRIAL_THREADS = 1024
+_limiters: "weakref.WeakKeyDictionary[Any, anyio.CapacityLimiter]" = weakref.WeakKeyDictionary()
+
+
+def _trial_threads() -> anyio.CapacityLimiter:
+    """The trials' own thread limiter, one per event loop (Inspect may run several evals in turn)."""
+    try:
+        key: Any = asyncio.get_running_loop()
+    except RuntimeError:  # Inspect on trio: one limiter for the process
+        key = _trial_threads
+    if key not in _limiters:
+        _limiters[key] = anyio.CapacityLimiter(MAX_TRIAL_THREADS)
+    return _limiters[key]
+
+
 def stopped_result(spec: TrialSpec) -> TrialResult:
     """The result of a trial whose sample Inspect stopped (a time limit, a cancellation)."""
     return TrialResult(spec=spec, outcome=Outcome.ERROR, steps=0, error_kind="backend",
@@ -204,7 +221,8 @@ def trial_solver(pool: RunnerPool, specs: dict[str, TrialSpec], image_detail: st
         backend = InspectBackend(model, image_detail, loop)
         try:
             # abandon_on_cancel: a stopped sample leaves at once; the trial ends at its next model call
-            result, picture = await anyio.to_thread.run_sync(_run, pool, spec, backend, abandon_on_cancel=True)
+            result, picture = await anyio.to_thread.run_sync(_run, pool, spec, backend, abandon_on_cancel=True,
+                                                             limiter=_trial_threads())
         except BaseException:
             backend.stop.set()
             state.store.set(RESULT_KEY, stopped_result(spec).model_dump(mode="json", exclude={"trajectory"}))
