@@ -23,10 +23,12 @@ def local_ray():
 def test_ray_executor_matches_serial(repo, plugins, tmp_path, local_ray):
     scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=2", "max_steps=4"], plugins.registry)
     results = {}
-    for name, kwargs in (("serial", {}), ("ray", {"executor": "ray", "workers": 2})):
+    for name, kwargs in (("serial", {}), ("ray", {"executor": "ray", "workers": 2}),
+                         ("ray_threads", {"executor": "ray", "workers": 2, "concurrency": 3})):
         ablation = Ablation(scenario, plugins, RunFolder(tmp_path / name), **kwargs)
         try:
             results[name] = {r.spec.trial_id: r.model_dump(exclude={"wall_time_s"}) for r in ablation.run()}
         finally:
             ablation.close()
     assert results["ray"] == results["serial"] and len(results["ray"]) == 8
+    assert results["ray_threads"] == results["serial"]  # three trials in flight in each actor's threads

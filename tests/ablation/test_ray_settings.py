@@ -14,8 +14,12 @@ def fake_ray(seen: dict) -> SimpleNamespace:
         seen["usage_stats"] = os.environ.get("RAY_USAGE_STATS_ENABLED")
         seen["kwargs"] = kwargs
 
+    def options(**kwargs):
+        seen["actor_options"] = kwargs
+        return SimpleNamespace(remote=lambda *args: object())
+
     return SimpleNamespace(is_initialized=lambda: False, init=init,
-                           remote=lambda cls: SimpleNamespace(remote=lambda *args: object()))
+                           remote=lambda cls: SimpleNamespace(options=options))
 
 
 def test_a_run_never_phones_home_unless_the_user_says_so(monkeypatch):
@@ -25,6 +29,9 @@ def test_a_run_never_phones_home_unless_the_user_says_so(monkeypatch):
     RayExecutor({}, "/nonexistent", workers=1, address=None)
     assert seen["usage_stats"] == "0"
     assert seen["kwargs"]["include_dashboard"] is False and seen["kwargs"]["_node_ip_address"] == "127.0.0.1"
+    assert seen["actor_options"] == {"max_concurrency": 1}
+    RayExecutor({}, "/nonexistent", workers=1, address=None, concurrency=16)
+    assert seen["actor_options"] == {"max_concurrency": 16}  # a threaded actor: 16 trials in flight each
     monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "1")  # turned on by the user: left on
     RayExecutor({}, "/nonexistent", workers=1, address=None)
     assert seen["usage_stats"] == "1"
