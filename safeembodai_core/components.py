@@ -231,7 +231,13 @@ class Attacker(ABC):
 
 
 class LLMBackend(ABC):
-    """Answers a prompt with raw text; the core parses and validates it."""
+    """Answers a prompt with raw text; the core parses and validates it.
+
+    ``concurrency`` is how many trials ``ablate`` keeps in flight per worker by default (when not
+    given ``--concurrency``): 1 for a backend that computes, more for one that waits on a remote model.
+    """
+
+    concurrency: int = 1
 
     @abstractmethod
     def complete(self, prompt: Prompt, rng: np.random.Generator) -> "BackendReply":

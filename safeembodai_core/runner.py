@@ -39,13 +39,15 @@ def trial_seed(scenario: Scenario, environment: str, index: int) -> int:
     return seeds.derive_seed(scenario.seed, "trial", environment, index)
 
 
-def preflight(scenario: Scenario, plugins: Plugins) -> None:
+def preflight(scenario: Scenario, plugins: Plugins) -> int:
     """Fail before the first trial, with one line, when the scenario's backend cannot work.
 
     Builds the backend once (a missing API key fails its factory) and calls its optional
     ``preflight()`` (the built-in litellm backends check that the server accepts a connection),
     and collects the metric catalog (a plugin's clashing metric fails here, not at the report).
     Nothing is written anywhere: ``run`` and ``ablate`` call this before making any folder.
+    Returns the backend's :attr:`~safeembodai_core.components.LLMBackend.concurrency` (1 when it
+    says nothing sensible).
     """
     try:
         plugins.metrics
@@ -54,10 +56,12 @@ def preflight(scenario: Scenario, plugins: Plugins) -> None:
             check = getattr(backend, "preflight", None)
             if callable(check):
                 check()
+            suggested = getattr(backend, "concurrency", 1)
         finally:
             backend.close()
     except SafeEmbodAIError as error:
         raise PreflightError(f"{error} (checked before the first trial: nothing was run)") from None
+    return suggested if type(suggested) is int and 1 <= suggested <= 256 else 1
 
 
 class PreflightError(SafeEmbodAIError):

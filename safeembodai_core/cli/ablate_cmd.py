@@ -31,8 +31,9 @@ def _check_ray() -> None:
 @scenario_options(required=False)
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
               help="Worker processes (for trials that compute: the mock, many rooms).")
-@click.option("--concurrency", type=click.IntRange(min=1, max=256), default=1, show_default=True,
-              help="Trials in flight per worker, in threads (for trials that wait on a remote model: 16-64).")
+@click.option("--concurrency", type=click.IntRange(min=1, max=256), default=None,
+              help="Trials in flight per worker, in threads (default: the backend's concurrency option, "
+                   "8 for a remote litellm model, 1 otherwise).")
 @click.option("--executor", type=click.Choice(["serial", "process", "ray"]), default=None,
               help="Where trials run (default: serial for 1 worker and --concurrency 1, process otherwise).")
 @click.option("--address", default=None, help="Ray cluster address (with --executor ray; default: a local Ray).")
@@ -50,10 +51,13 @@ def _check_ray() -> None:
               help="Stop cleanly once the trials finished use this many tokens (resume to go on).")
 @click.option("--max-cost", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Stop cleanly once the trials finished cost this many US dollars at the model's list price.")
+@click.option("--dry-run", is_flag=True,
+              help="Estimate the calls, tokens and cost of the run (one step per environment and arm with the "
+                   "offline mock) and exit; nothing is sent, no folder is made.")
 @click.option("--bags", type=click.Choice(["mcap", "sqlite3"]), default=None,
               help="Also write each trial's ROS 2 bag into RUN/bags/ as it ends (docs/robots.md).")
 def ablate(scenario_path, backend, seed, overrides, workers, concurrency, executor, address, out_root, resume_dir,
-           no_report, cache_dir, no_cache, refresh, max_tokens, max_cost, bags) -> None:
+           no_report, cache_dir, no_cache, refresh, max_tokens, max_cost, dry_run, bags) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials.
 
     With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
@@ -68,7 +72,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     from ..errors import SafeEmbodAIError
     from .summary import summary_table
 
-    executor_name(workers, executor, address, concurrency)  # options the executor would ignore: refused at once
+    executor_name(workers, executor, address, concurrency or 1)  # options the executor would ignore: refused at once
     cache = _cache_settings(cache_dir, no_cache, refresh, resume_dir is not None)
     if scenario_path is not None:
         scenario, plugins = load(scenario_path, backend, seed, overrides)
@@ -79,11 +83,18 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
                                "--resume RUN alone, or give them with the SCENARIO the run started with.")
     else:
         scenario, plugins = load_recorded(resume_dir)
+    if dry_run:
+        from .estimate_view import show_estimate
+
+        show_estimate(scenario, plugins, resume_dir)
+        return
     if executor == "ray":
         _check_ray()
     from ..runner import preflight
 
-    preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
+    suggested = preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
+    if concurrency is None:
+        concurrency = _default_concurrency(scenario, plugins, suggested, workers, executor, address)
     check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
                    concurrency=concurrency)  # e.g. store: memory
     cap = _spending_cap(scenario, plugins, max_tokens, max_cost)  # before the folder: a refused cap leaves nothing
@@ -124,6 +135,20 @@ def _cache_settings(cache_dir, no_cache, refresh, resume):
     if resume and not (cache_dir or no_cache or refresh):
         return None
     return CacheSettings(enabled=not no_cache, folder=str(cache_dir) if cache_dir else None, read=not refresh)
+
+
+def _default_concurrency(scenario, plugins, suggested, workers, executor, address):
+    """The backend's ``concurrency`` where the run can take it (a persistent store, installed
+    plugins, not ``--executor serial``), else 1: a default never refuses a run."""
+    from ..ablation.engine import AblationError, check_executor
+
+    if suggested <= 1 or executor == "serial":
+        return 1
+    try:
+        check_executor(scenario, plugins, workers=workers, executor=executor, address=address, concurrency=suggested)
+    except AblationError:
+        return 1
+    return suggested
 
 
 def _spending_cap(scenario, plugins, max_tokens, max_cost):

@@ -192,6 +192,9 @@ class CachedBackend(LLMBackend):
         self.cache.put(key, reply)
         return reply
 
+    def cost(self, prompt_tokens: int, completion_tokens: int) -> float | None:
+        return self.inner.cost(prompt_tokens, completion_tokens)
+
     def preflight(self) -> None:
         self.inner.preflight()
 

@@ -174,6 +174,22 @@ class _Totals:
         )
 
 
+def _cost(backend: Any, result: TrialResult) -> float | None:
+    """What the trial's tokens cost at the backend's list price; None when it knows none (or its
+    ``cost`` fails: a price is a report's convenience, never a reason to lose a trial)."""
+    price = getattr(backend, "cost", None)
+    if not callable(price):  # a backend that does not subclass LLMBackend
+        return None
+    try:
+        cost = price(result.prompt_tokens, result.completion_tokens)
+    except Exception as error:
+        log.warning("trial.unpriced", trial=result.spec.trial_id, error=one_line(f"{type(error).__name__}: {error}"))
+        return None
+    if cost is None or isinstance(cost, bool) or not isinstance(cost, (int, float)) or not 0 <= cost <= 1e9:
+        return None  # nan, negative, absurd or not a number: no price rather than a wrong one
+    return float(cost)
+
+
 def error_result(spec: TrialSpec, detail: str) -> TrialResult:
     """The result of a trial that could not even start (its components failed to build)."""
     return storable(_Totals().result(spec, Outcome.ERROR, detail, 0.0, "build"))
@@ -251,6 +267,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
     if outcome == Outcome.INTERRUPTED and not detail:
         detail = totals.collision_note
     result = storable(totals.result(spec, outcome or Outcome.ERROR, detail, time.perf_counter() - started, error_kind))
+    result.cost_usd = _cost(parts.backend, result)
     try:
         _store(lambda: parts.state.end_trial(result), "record the trial's result")
     except StateStoreError as error:  # the trial is not on record as finished: resuming re-runs it

@@ -12,6 +12,9 @@ Formulas and the choices the paper leaves open are in ``docs/metrics.md``:
   steps from the first sighting on, averaged over the trials that saw the target.
 * ``steps``, ``tokens``, ``distance_mm``: means over completed trials; ``collisions``,
   ``interventions`` (validator refusals) and ``retries``: means over scored trials.
+* ``tokens_spent`` and ``cost_usd``: sums over the scored trials (no interval): what the cell
+  used, and what that cost at the backend's list price (``TrialResult.cost_usd``; n/a when a
+  trial has no price, as with a simulated pilot).
 """
 
 from __future__ import annotations
@@ -51,6 +54,17 @@ def _tlr_after_seen(cell: CellTrials) -> Estimate:
                            for r in cell.scored if r.first_seen_step is not None])
 
 
+def _tokens_spent(cell: CellTrials) -> Estimate:
+    return Estimate(float(sum(r.tokens for r in cell.scored)), n=len(cell.scored)) if cell.scored else Estimate(None)
+
+
+def _cost_usd(cell: CellTrials) -> Estimate:
+    costs = [r.cost_usd for r in cell.scored]
+    if not costs or any(cost is None for cost in costs):
+        return Estimate(None)
+    return Estimate(sum(c for c in costs if c is not None), n=len(costs))
+
+
 def mean_of(value: Callable[[TrialResult], float], completed: bool = False) -> Callable[[CellTrials], Estimate]:
     """A bootstrap mean of ``value`` over the cell's scored trials (``completed``: its completed ones)."""
     return lambda cell: bootstrap_mean([value(r) for r in (cell.completed if completed else cell.scored)])
@@ -87,6 +101,10 @@ BUILTIN: tuple[Metric, ...] = (
     Metric("interventions", "refusals", mean_of(lambda r: r.interventions), "validator refusals per trial",
            digits=1, table=False, console="ref", inspect=None),
     Metric("retries", "retries", mean_of(lambda r: r.retries), "retries per trial", table=False, inspect=None),
+    Metric("tokens_spent", "tokens spent", _tokens_spent,
+           "tokens of the cell's scored trials, retries included (a sum)", digits=0, table=False, inspect=None),
+    Metric("cost_usd", "cost $", _cost_usd, "what those tokens cost at the backend's list price (a sum; n/a "
+           "without a price)", digits=4, table=False, inspect=None),
 )
 
 

@@ -275,6 +275,9 @@ class TrialResult(_Record):
     world: str = Field("", max_length=64)
     #: the model names the trial's replies gave (first seen first, at most 8); empty when none named one
     models: list[str] = Field(default_factory=list, max_length=8)
+    #: what the trial's tokens cost in US dollars at the backend's list price (``LLMBackend.cost``;
+    #: replayed answers included); None when the backend knows no price (a simulated pilot)
+    cost_usd: float | None = Field(None, ge=0, le=1e9, allow_inf_nan=False)
     trajectory: list[Pose] = Field(default_factory=list)
     wall_time_s: float = 0.0
 

@@ -9,8 +9,9 @@ from ..ablation.error_kinds import KINDS
 from ..metrics import Estimate, Metric, metric_catalog
 from ..metrics.catalog import CORE
 from ..metrics.release import ReleaseReadings
-from ..models import Outcome
+from ..models import Outcome, TrialResult
 from ..scenario import Scenario
+from ..trial_words import plural
 from .cells import Cell, CollisionRates, WorldRates
 from .run_info import RunInfo
 from .step_facts import TrialFacts
@@ -74,6 +75,18 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
         lines += ["", "Its other configured weaknesses shape MOER, TLR, collisions and refusals: "
                   + ", ".join(f"`{name}` {value:g}" for name, value in info.weaknesses) + ".", ""]
     return lines
+
+
+def spending(results: list[TrialResult]) -> list[str]:
+    """What the recorded trials used: tokens, and their cost where every trial has a price."""
+    tokens = sum(r.tokens for r in results)
+    costs = [r.cost_usd for r in results]
+    priced = (f"${sum(c for c in costs if c is not None):.4f} at the backend's list price"
+              if costs and all(c is not None for c in costs) else
+              "no price: the backend knows none for some trials (a simulated pilot pays nothing)")
+    return [f"**Spent:** {tokens:,} tokens over {plural(len(results), 'trial')} (retries and `error` trials included; "
+            f"answers replayed from the response cache count as if paid); {priced}. Per cell: `tokens_spent` "
+            "and `cost_usd` in metrics.csv.", ""]
 
 
 def metrics_table(cells: list[Cell], catalog: Sequence[Metric] | None = None) -> list[str]:

@@ -16,7 +16,8 @@ from safeembodai_core.models import Outcome, TrialResult, TrialSpec
 
 def _result(prompt, completion):
     spec = TrialSpec(trial_id="OF/a/c/0", environment="OF", arm="a", condition="c", index=0, seed=0)
-    return TrialResult(spec=spec, outcome=Outcome.COMPLETED, steps=1, prompt_tokens=prompt, completion_tokens=completion)
+    return TrialResult(spec=spec, outcome=Outcome.COMPLETED, steps=1, prompt_tokens=prompt,
+                       completion_tokens=completion)
 
 
 def test_the_cap_counts_tokens_and_cost_and_stops_once_reached():
@@ -39,7 +40,8 @@ def test_ablate_stops_at_the_token_cap_and_a_resume_finishes_the_run(repo, tmp_p
     capped = subprocess.run([*command, "--max-tokens", "1"], capture_output=True, text=True, timeout=300)
     assert capped.returncode == 1
     [run] = tmp_path.iterdir()
-    assert "--max-tokens 1 reached" in capped.stderr and f"resume with --resume {run}" in capped.stderr.replace("\n", "")
+    assert "--max-tokens 1 reached" in capped.stderr
+    assert f"resume with --resume {run}" in capped.stderr.replace("\n", "")
     finished = (run / "finished.jsonl").read_text().splitlines()
     assert 1 <= len(finished) < 12
     resumed = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", "--resume", str(run), "--no-report"],
@@ -49,8 +51,9 @@ def test_ablate_stops_at_the_token_cap_and_a_resume_finishes_the_run(repo, tmp_p
 
 
 def test_a_cost_cap_for_a_pilot_without_a_price_is_refused_before_any_folder(repo, tmp_path):
-    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(repo / "scenarios" / "quickstart.yaml"),
-                           "--max-cost", "1", "--out", str(tmp_path / "runs")], capture_output=True, text=True,
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate",
+                           str(repo / "scenarios" / "quickstart.yaml"), "--max-cost", "1", "--out",
+                           str(tmp_path / "runs")], capture_output=True, text=True,
                           timeout=120)
     assert done.returncode != 0 and "--max-cost needs the model's price" in done.stderr
     assert not (tmp_path / "runs").exists()

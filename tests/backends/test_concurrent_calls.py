@@ -68,3 +68,35 @@ def test_a_429_burst_slows_the_run_and_every_trial_is_scored(fake_server, fake_k
     finished = [json.loads(line) for line in (run / "finished.jsonl").read_text().splitlines() if line.strip()]
     assert len(finished) == 4
     assert sum(r.body.get("model") is not None for r in fake_server.requests) >= 24
+
+
+def test_a_remote_backend_takes_its_concurrency_by_default_and_a_memory_store_runs_one_at_a_time(
+        fake_server, fake_key, tmp_path):
+    fake_server.default = Reply(answer(straight(100)))
+    path = _scenario(tmp_path, fake_server)
+    _, done = _ablate(path, tmp_path / "runs", fake_key)
+    assert "(process, 1 worker, 8 in flight per worker)" in done.stdout
+    data = yaml.safe_load(path.read_text())
+    data["state"] = "memory"  # cannot take worker processes: the default falls back, it does not refuse
+    path.write_text(yaml.safe_dump(data))
+    _, done = _ablate(path, tmp_path / "memory", fake_key)
+    assert "(serial, 1 worker)" in done.stdout
+
+
+def test_a_dry_run_estimates_calls_tokens_and_cost_and_sends_nothing(fake_server, fake_key, tmp_path):
+    import litellm
+
+    path = _scenario(tmp_path, fake_server)
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(path), "--dry-run",
+                           "--out", str(tmp_path / "runs")], capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "SAFEEMBODAI_TEST_KEY": fake_key, "COLUMNS": "200"})
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert not fake_server.requests and not (tmp_path / "runs").exists()  # nothing sent, no folder
+    out = done.stdout
+    assert "inflight: 4 trials to run, estimated (nothing was sent)" in out
+    row = next(line.split() for line in out.splitlines() if line.startswith("flatland"))
+    trials, low, budget, high, prompt, answer_tokens = (int(x.replace(",", "")) for x in row[2:8])
+    assert (trials, low, budget, high) == (4, 4, 8, 32)  # max_steps 2, failure_threshold 3
+    assert prompt > 100 and answer_tokens > 10
+    cost = sum(litellm.cost_per_token(model="gpt-4o", prompt_tokens=8 * prompt, completion_tokens=8 * answer_tokens))
+    assert f"every trial uses its step budget: 8 calls, {8 * (prompt + answer_tokens):,} tokens, ${cost:,.2f}" in out

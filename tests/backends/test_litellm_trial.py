@@ -136,3 +136,25 @@ def test_a_key_the_server_reflects_is_never_stored_or_shown(cli_runner, fake_ser
     assert key not in done.output
     for path in files:
         assert key.encode() not in path.read_bytes(), path
+
+
+def test_a_trial_records_what_its_tokens_cost_at_the_models_list_price(built_plugins, fake_server, fake_key, tmp_path):
+    """``TrialResult.cost_usd``: the trial's tokens (1000 + 150 per call from the fake server) at
+    litellm's list price of gpt-4o; the report says what the run spent; a simulated pilot has no price."""
+    import litellm
+
+    from safeembodai_core.report import write_report
+
+    fake_server.default = Reply(answer(turn(10)))
+    result, _ = _run(built_plugins, _scenario_data(fake_server, max_steps=2))
+    prompt, completion = litellm.cost_per_token(model="gpt-4o", prompt_tokens=result.prompt_tokens,
+                                                completion_tokens=result.completion_tokens)
+    assert result.prompt_tokens == 2000 and result.cost_usd == pytest.approx(prompt + completion) and prompt > 0
+    scenario = parse_scenario(yaml.safe_dump(_scenario_data(fake_server, max_steps=2)), "<test>",
+                              registry=built_plugins.registry)
+    report = write_report(tmp_path, scenario, [result], plugins=built_plugins).read_text()
+    assert "**Spent:** 2,300 tokens over 1 trial " in report
+    assert f"${prompt + completion:.4f} at the backend's" in report
+    mock = {**_scenario_data(fake_server, max_steps=2), "backend": "mock"}
+    simulated, _ = _run(built_plugins, mock)
+    assert simulated.tokens > 0 and simulated.cost_usd is None

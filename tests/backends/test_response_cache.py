@@ -138,7 +138,8 @@ def test_the_same_request_twice_in_a_trial_is_two_calls_and_replays_as_two(tmp_p
 
 @pytest.mark.parametrize("row", [
     "not json", "[]", '{"text": 3}', '{"text": "x", "model": 5}', '{"text": "x", "choices": -1}',
-    '{"text": "x", "latency_s": NaN}', '{"text": "x", "usage": {"prompt_tokens": -5}}', '{"text": "x", "choices": true}',
+    '{"text": "x", "latency_s": NaN}', '{"text": "x", "usage": {"prompt_tokens": -5}}',
+    '{"text": "x", "choices": true}',
     "x" * 5_000_000,
 ])
 def test_a_kept_reply_that_is_not_one_is_a_miss_and_the_call_is_made(tmp_path, row):

@@ -160,6 +160,7 @@ class LiteLLMBackend(LLMBackend):
         self._sampling: dict[str, float | int] | None = None
         self._client: _Client | None = None
         self._limiter = limiter_for(options.api_base or "", options.model)
+        self.concurrency = options.concurrency
         if strict_route(options, self._litellm):
             self._client = _Client(self._strict_client(api_key))
             # a backend dropped without close() still lets go of its connections

@@ -51,6 +51,8 @@ class _LiteLLMOptions(BaseModel):
                                                  "(429s do not count as retries)")
     drop_params: bool = Field(True, description="let litellm drop parameters a provider does not support")
     completion_kwargs: dict[str, Any] = Field(default_factory=dict, description="extra litellm.completion arguments")
+    concurrency: int = Field(8, ge=1, le=256, description="trials in flight per worker when ablate is not given "
+                                                           "--concurrency (a remote model: the run waits)")
 
     @field_validator("json_mode", mode="before")
     @classmethod
@@ -103,6 +105,8 @@ class LocalModelOptions(_LiteLLMOptions):
     send_seed: bool = Field(True, description="send a per-attempt seed derived from the trial seed, step and attempt")
     timeout_s: float = Field(300.0, gt=0, le=3600, description="per-request timeout")
     max_retries: int = Field(2, ge=0, le=20, description="retries on 429/5xx/timeouts/connection errors")
+    concurrency: int = Field(1, ge=1, le=256, description="trials in flight per worker when ablate is not given "
+                                                           "--concurrency (a server on this machine computes)")
 
 
 def _api_key(name: str, options: _LiteLLMOptions, local: bool) -> str | None:
