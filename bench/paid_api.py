@@ -4,9 +4,10 @@ the calls come to the ideal rate, how long before the first call, and the memory
 Run: ``python bench/paid_api.py [--latency 3.0] [--trials 16] [--max-steps 6] [--setting "--concurrency 16"]...``
 
 A fake OpenAI-compatible server on 127.0.0.1 (``tests/backends/fake_openai.py``) answers every call
-after ``--latency`` seconds with a valid plan; ``safeembodai ablate scenarios/mo.yaml --backend
-gpt-4o`` runs against it once per ``--setting`` (default: ``--workers 1``, ``--concurrency 16``,
-``--concurrency 64``, ``--workers 2 --concurrency 32``, ``--concurrency 128``), each in a fresh run
+after ``--latency`` seconds with a valid plan; ``safeembodai ablate scenarios/<--scenario>.yaml``
+(default ``mo``) with the ``gpt-4o`` backend runs against it once per ``--setting`` (default:
+``--workers 1``, ``--concurrency 16``, ``--concurrency 64``, ``--workers 2 --concurrency 32``,
+``--concurrency 128``), each in a fresh run
 folder with ``--no-cache``. Per setting it prints: trials, wall seconds, seconds to the first call,
 the most calls in flight at once and their mean (sampled every 0.2 s from the first call to the
 end, the tail included), the call rate between the first and the last call against the ideal (the
@@ -112,19 +113,21 @@ def run_setting(server: FakeOpenAI, scenario: Path, setting: list[str], latency:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--latency", type=float, default=3.0, help="seconds before the stand-in answers")
-    parser.add_argument("--trials", type=int, default=16, help="trials per cell of mo.yaml (4 cells)")
+    parser.add_argument("--scenario", default="mo", help="a shipped scenario (mo: Labbots move while the robot "
+                                                           "thinks, which costs CPU; of: static obstacles)")
+    parser.add_argument("--trials", type=int, default=16, help="trials per cell (the shipped scenarios have 4 cells)")
     parser.add_argument("--max-steps", type=int, default=6)
     parser.add_argument("--setting", action="append", help="ablate options to measure (repeatable)")
     args = parser.parse_args()
     with FakeOpenAI(Hang(args.latency, then=Reply(_answer))) as server, \
             tempfile.TemporaryDirectory(prefix="paid-api-scenario-") as folder:
-        data = yaml.safe_load((REPO / "scenarios" / "mo.yaml").read_text())
+        data = yaml.safe_load((REPO / "scenarios" / f"{args.scenario}.yaml").read_text())
         options = {"api_base": server.url, "api_key_env": "SAFEEMBODAI_BENCH_KEY", "timeout_s": args.latency + 30}
         data.update(trials=args.trials, max_steps=args.max_steps, backend={"use": "gpt-4o", "options": options})
-        scenario = Path(folder) / "mo.yaml"
+        scenario = Path(folder) / f"{args.scenario}.yaml"
         scenario.write_text(yaml.safe_dump(data))
-        print(f"mo.yaml, {4 * args.trials} trials of at most {args.max_steps} steps, every call answered after "
-              f"{args.latency:g} s; {os.cpu_count()} cores")
+        print(f"{args.scenario}.yaml, {args.trials} trials per cell of at most {args.max_steps} steps, every call "
+              f"answered after {args.latency:g} s; {os.cpu_count()} cores")
         print(f"{'setting':32} {'calls':>6} {'wall s':>7} {'first call s':>12} {'peak/asked':>10} "
               f"{'mean':>6} {'calls/s':>8} {'ideal':>6} {'of ideal':>8} {'peak MB':>8}")
         for setting in args.setting or SETTINGS:

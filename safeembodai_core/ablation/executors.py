@@ -23,15 +23,16 @@ POLL_S = 0.5
 RATE_SHARE = "SAFEEMBODAI_RATE_SHARE"
 
 
-def build_worker_runner(scenario_json: dict[str, Any], run_dir: str, plugins: Any = None) -> Any:
-    """What every worker thread (of a process or a Ray actor) runs trials with: its own worlds and
-    store, built from the recorded scenario; ``plugins`` may be shared by a process's threads."""
+def build_worker_runner(scenario_json: dict[str, Any], run_dir: str, plugins: Any = None, state: Any = None) -> Any:
+    """What every worker thread (of a process or a Ray actor) runs trials with: its own worlds, built
+    from the recorded scenario; ``plugins`` and ``state`` (a :class:`.shared_store.SharedStateStore`)
+    may be shared by a process's threads, else it builds its own."""
     from ..plugins import load_plugins
     from ..runner import ScenarioRunner
     from ..scenario import Scenario
 
     scenario = Scenario.model_validate(scenario_json)
-    return ScenarioRunner(scenario, plugins or load_plugins(), run_dir=run_dir, save_trajectories=True)
+    return ScenarioRunner(scenario, plugins or load_plugins(), run_dir=run_dir, save_trajectories=True, state=state)
 
 
 def _worker_logging() -> None:
@@ -56,15 +57,21 @@ class RunnerPool:
         self._idle: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._built = 0
         self._lock = threading.Lock()
+        self._store: Any = None  # the threads' one state store, closed by the pool last
+        self._shared: Any = None  # ... behind the one lock all threads share
+        self._runners: list[Any] = []
+        # one runner built at a time: the first trials start while the others are still being built,
+        # instead of every thread sharing the GIL through its build
+        self._building = threading.Lock()
 
     def run(self, spec: TrialSpec) -> TrialResult:
-        runner = self._take()
+        runner = self._take(spec)
         try:
             return runner.run(spec)
         finally:
             self._idle.put(runner)
 
-    def _take(self) -> Any:
+    def _take(self, spec: TrialSpec) -> Any:
         try:
             return self._idle.get_nowait()
         except queue.Empty:
@@ -75,18 +82,42 @@ class RunnerPool:
                 self._built += 1
         if not build:
             return self._idle.get()
-        if self.plugins is None:
-            from ..plugins import load_plugins
+        with self._building:
+            if self.plugins is None:
+                from ..plugins import load_plugins
 
-            self.plugins = load_plugins()
-        return build_worker_runner(self.scenario_json, self.run_dir, self.plugins)
+                self.plugins = load_plugins()
+            if self._store is None and self.size > 1:
+                from .shared_store import SharedStateStore
+
+                self._store = self._build_store()
+                self._shared = SharedStateStore(self._store)
+            runner = build_worker_runner(self.scenario_json, self.run_dir, self.plugins, self._shared)
+            try:
+                runner.environment(spec.environment)  # the world, the slow part of a build
+            except Exception:  # the trial itself reports a world that cannot be built
+                pass
+        with self._lock:
+            self._runners.append(runner)
+        return runner
+
+    def _build_store(self) -> Any:
+        """The scenario's state store, built once for the pool's threads."""
+        from ..runner import ScenarioRunner
+        from ..scenario import Scenario
+
+        scenario = Scenario.model_validate(self.scenario_json)
+        return ScenarioRunner(scenario, self.plugins, run_dir=self.run_dir).build("state_store", scenario.state)
 
     def close(self) -> None:
-        while True:
-            try:
-                self._idle.get_nowait().close()
-            except queue.Empty:
-                return
+        """Close every runner, then the shared store."""
+        with self._lock:
+            runners, self._runners = self._runners, []
+        for runner in runners:
+            runner.close()
+        if self._store is not None:
+            self._store.close()
+            self._store = None
 
 
 def _worker_main(scenario_json: dict[str, Any], run_dir: str, coordinator: int, concurrency: int,
