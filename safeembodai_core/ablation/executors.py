@@ -174,7 +174,8 @@ class SerialExecutor:
 
 class ProcessExecutor:
     """``workers`` spawned processes, each running up to ``concurrency`` trials at once in threads
-    (one trial runner per thread: its own worlds and store connection), fed from one queue.
+    (a trial runner and its worlds per thread; one state store per process), fed from one queue;
+    started with the first trial to run.
 
     Threads suit trials that wait (a remote model answers in seconds); processes suit trials that
     compute (the mock pilot, many rooms). Results come back in completion order.
@@ -187,10 +188,12 @@ class ProcessExecutor:
         self.processes = [context.Process(target=_worker_main, name=f"safeembodai-worker-{k}", daemon=True,
                                           args=(scenario_json, run_dir, os.getpid(), concurrency, self.tasks,
                                                 self.results, workers)) for k in range(workers)]
-        for process in self.processes:
-            process.start()
 
     def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
+        if not specs:  # nothing to run: no worker is started
+            return
+        for process in self.processes:
+            process.start()
         for spec in specs:
             self.tasks.put(spec.model_dump(mode="json"))
         for _ in range(self.workers * self.concurrency):
@@ -214,16 +217,18 @@ class ProcessExecutor:
     def close(self) -> None:
         """Wait for the workers to finish (the run ended normally)."""
         for process in self.processes:
-            process.join()
+            if process.pid is not None:
+                process.join()
         self._close_queues()
 
     def abort(self) -> None:
         """Kill the workers now (the run was interrupted or failed): the trials they were running
         are not recorded as finished and run again, from scratch, on resume."""
-        for process in self.processes:
+        started = [process for process in self.processes if process.pid is not None]
+        for process in started:
             if process.is_alive():
                 process.kill()
-        for process in self.processes:
+        for process in started:
             process.join()
         self._close_queues()
 

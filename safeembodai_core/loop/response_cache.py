@@ -133,6 +133,21 @@ class ResponseCache:
         self._db.close()
 
 
+_open: dict[tuple[str, bool], ResponseCache] = {}
+_open_lock = threading.Lock()
+
+
+def shared_cache(path: str | Path, read: bool = True) -> ResponseCache:
+    """The process's one :class:`ResponseCache` of ``path`` (its trial threads share it, behind its
+    lock, rather than queue on the file's write lock with one connection each); closed at exit."""
+    key = (str(Path(path).resolve()), read)
+    with _open_lock:
+        cache = _open.get(key)
+        if cache is None:
+            cache = _open[key] = ResponseCache(path, read=read)
+        return cache
+
+
 def stored_reply(text: Any) -> BackendReply | None:
     """A stored reply read back, or None when it is not one (wrong types, too large, not JSON)."""
     if not isinstance(text, str) or len(text) > MAX_STORED_BYTES:
