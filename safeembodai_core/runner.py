@@ -152,13 +152,13 @@ class ScenarioRunner:
         when it can say what it sends and the run folder keeps a cache; else ``backend`` itself."""
         if self.run_dir is None or type(backend).cache_request is LLMBackend.cache_request:
             return backend
-        from .loop.response_cache import CachedBackend, CacheSettings, shared_cache
+        from .loop.response_cache import CachedBackend, CacheSettings, ResponseCache
 
         if self._cache is None:
             settings = CacheSettings.recorded(self.run_dir)
             if not settings.enabled:
                 return backend
-            self._cache = shared_cache(settings.path(self.run_dir), read=settings.read)
+            self._cache = ResponseCache(settings.path(self.run_dir), read=settings.read)
         return CachedBackend(backend, self._cache, spec.trial_id)
 
     def settings(self, arm: str) -> LoopSettings:
@@ -290,6 +290,6 @@ class ScenarioRunner:
         for env in self._environments.values():
             env.close()
         self._environments.clear()
-        self._cache = None  # the process's shared cache stays open for its other runners
+        self._cache = None
         if self._state is not None:
             self._state.close()

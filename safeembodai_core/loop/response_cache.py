@@ -3,28 +3,30 @@
 A backend that says what it would send (:meth:`LLMBackend.cache_request
 <safeembodai_core.components.LLMBackend.cache_request>`: the litellm backends) is wrapped, per
 trial, in a :class:`CachedBackend`. Its key is the SHA-256 of the trial's id, the exact request
-(model, messages with their images, sampling, seed, response format) and how many times the
-trial has asked that same request before -- so the same request at the same point of the same
-trial gets the same reply back, and nothing else does: another trial, arm or scenario never
-shares an answer, and a trial that asks twice the same thing (a robot stuck in place) gets two
-calls. A resumed trial, cut off mid-way, replays its first steps from the cache instead of paying
-for them again; a run repeated with the same scenario and seed replays all of it (so it measures
-nothing new: ``--refresh`` calls again, ``--no-cache`` keeps nothing).
+(model, messages with their images, sampling, seed, response format) and how many times the trial
+has asked that same request before -- so the same request at the same point of a trial with the
+same id gets the same reply back: another trial or arm never shares an answer (its id differs), and
+a trial that asks twice the same thing (a robot stuck in place) gets two calls. A resumed trial, cut
+off mid-way, replays its first steps instead of paying for them again; a run repeated with the same
+scenario and seed replays all of it (so it measures nothing new: ``--refresh`` calls again,
+``--no-cache`` keeps nothing).
 
-The cache is a SQLite file, by default the run folder's ``responses.sqlite``; ``ablate --cache DIR``
-shares ``DIR/responses.sqlite`` between runs. A stored reply is read back as hostile input: its
-fields are type- and size-checked, and the loop reads its text as strictly as a live one. Keys are
-hashes and replies are stored as the backend returned them (the backend masks its key out of the
-text first), so no credential is written.
+The cache is a folder of small JSON files, one per reply, by default the run folder's
+``responses/``; ``ablate --cache DIR`` shares ``DIR/responses/`` between runs. A stored reply is
+read back as hostile input: only a regular file of bounded size is opened (no symlink followed),
+its fields are type- and size-checked, and the loop reads its text as strictly as a live one. Keys
+are hashes and replies are stored as the backend returned them (the backend masks its key out of
+the text first), so no credential is written. A reply that cannot be kept (a full disk) is logged
+and the trial goes on with it.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import sqlite3
+import os
+import stat
 import threading
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -39,7 +41,7 @@ from ..models.reply import BackendReply
 
 log = get_logger(__name__)
 
-CACHE_FILE = "responses.sqlite"
+CACHE_DIR = "responses"
 #: The run folder's word on its cache (written by ``ablate``, read by every worker).
 SETTINGS_FILE = "response_cache.json"
 #: The largest stored reply read back (a reply's text is bounded far below by the loop).
@@ -81,71 +83,75 @@ class CacheSettings:
         return cls(data["enabled"], data["folder"], data["read"])
 
     def path(self, run_dir: str | Path) -> Path:
-        return Path(self.folder).expanduser() / CACHE_FILE if self.folder else Path(run_dir) / CACHE_FILE
+        return Path(self.folder).expanduser() / CACHE_DIR if self.folder else Path(run_dir) / CACHE_DIR
 
 
 class ResponseCache:
-    """One SQLite file of replies by key; one connection per instance (one per trial runner)."""
+    """Replies by key, one small JSON file each under ``folder`` (``<key[:2]>/<key>.json``): written
+    aside and renamed into place, so a reader never sees half a reply and workers and threads need no
+    lock; a file that is not a regular file, too large or not a reply is a miss."""
 
-    def __init__(self, path: str | Path, read: bool = True) -> None:
-        self.path, self.read = Path(path), read
+    def __init__(self, folder: str | Path, read: bool = True) -> None:
+        self.folder, self.read = Path(folder), read
         self.hits = self.misses = 0
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._db = sqlite3.connect(self.path, timeout=30.0, check_same_thread=False, isolation_level=None)
-            self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("CREATE TABLE IF NOT EXISTS replies (key TEXT PRIMARY KEY, reply TEXT NOT NULL, "
-                             "stored REAL NOT NULL)")
-        except (OSError, sqlite3.Error) as error:
-            raise SafeEmbodAIError(f"response cache {self.path}: {error}") from None
-        self._lock = threading.Lock()
+            self.folder.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise SafeEmbodAIError(f"response cache {self.folder}: {error.strerror or error}") from None
+        if self.folder.is_symlink() or not self.folder.is_dir():
+            raise SafeEmbodAIError(f"response cache {self.folder} is not a folder")
+
+    def _path(self, key: str) -> Path:
+        return self.folder / key[:2] / f"{key}.json"
 
     def get(self, key: str) -> BackendReply | None:
         if not self.read:
             return None
-        with self._lock:
-            try:
-                row = self._db.execute("SELECT reply FROM replies WHERE key = ?", (key,)).fetchone()
-            except sqlite3.Error as error:
-                raise SafeEmbodAIError(f"response cache {self.path}: {error}") from None
-        if row is None:
-            self.misses += 1
-            return None
-        reply = stored_reply(row[0])
+        reply = stored_reply(_read_regular(self._path(key)))
         if reply is None:
-            log.warning("cache.unreadable_reply", cache=str(self.path), key=key[:16])
             self.misses += 1
             return None
         self.hits += 1
         return reply
 
     def put(self, key: str, reply: BackendReply) -> None:
+        """Keep ``reply``; a reply that cannot be kept is logged, never a reason to lose a paid answer."""
         data = asdict(reply)
         data["usage"] = reply.usage.model_dump()
-        with self._lock:
-            try:
-                self._db.execute("INSERT OR REPLACE INTO replies VALUES (?, ?, ?)",
-                                 (key, json.dumps(data, allow_nan=False), time.time()))
-            except (sqlite3.Error, ValueError) as error:
-                raise SafeEmbodAIError(f"response cache {self.path}: {error}") from None
+        target = self._path(key)
+        aside = target.with_name(f".{target.name}.{os.getpid()}.{threading.get_ident()}")
+        try:
+            text = json.dumps(data, allow_nan=False)
+            target.parent.mkdir(exist_ok=True)
+            aside.write_text(text, encoding="utf-8")
+            os.replace(aside, target)
+        except (OSError, ValueError) as error:
+            log.warning("cache.unkept_reply", cache=str(self.folder), error=str(error))
+            aside.unlink(missing_ok=True)
 
     def close(self) -> None:
-        self._db.close()
+        """Nothing to release: every reply is its own file."""
 
 
-_open: dict[tuple[str, bool], ResponseCache] = {}
-_open_lock = threading.Lock()
-
-
-def shared_cache(path: str | Path, read: bool = True) -> ResponseCache:
-    """The process's one :class:`ResponseCache` of ``path`` (its trial threads share it, behind its
-    lock, rather than queue on the file's write lock with one connection each); closed at exit."""
-    key = (str(Path(path).resolve()), read)
-    with _open_lock:
-        cache = _open.get(key)
-        if cache is None:
-            cache = _open[key] = ResponseCache(path, read=read)
-        return cache
+def _read_regular(path: Path) -> str | None:
+    """The text of ``path`` if it is a regular file (no symlink followed) of at most
+    :data:`MAX_STORED_BYTES`; else None."""
+    try:
+        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+            return None
+        data = os.read(descriptor, MAX_STORED_BYTES + 1)
+    finally:
+        os.close(descriptor)
+    if len(data) > MAX_STORED_BYTES:
+        return None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
 
 
 def stored_reply(text: Any) -> BackendReply | None:

@@ -55,7 +55,7 @@ def test_a_run_sharing_the_cache_replays_every_reply_and_refresh_calls_again(fak
     scenario, shared = _scenario(tmp_path, fake_server), tmp_path / "cache"
     first = _ablate(scenario, tmp_path / "a", fake_key, "--cache", str(shared))
     paid = len(fake_server.requests)
-    assert paid >= 2 and (shared / "responses.sqlite").is_file() and not (first / "responses.sqlite").exists()
+    assert paid >= 2 and (shared / "responses").is_dir() and not (first / "responses").exists()
     second = _ablate(scenario, tmp_path / "b", fake_key, "--cache", str(shared))
     assert len(fake_server.requests) == paid  # not one call: every reply came from the cache
     steps = [(r.steps, r.outcome, r.tokens) for r in _results(first)]
@@ -63,7 +63,7 @@ def test_a_run_sharing_the_cache_replays_every_reply_and_refresh_calls_again(fak
     _ablate(scenario, tmp_path / "c", fake_key, "--cache", str(shared), "--refresh")
     assert len(fake_server.requests) == 2 * paid
     plain = _ablate(scenario, tmp_path / "d", fake_key, "--no-cache")
-    assert len(fake_server.requests) == 3 * paid and not (plain / "responses.sqlite").exists()
+    assert len(fake_server.requests) == 3 * paid and not (plain / "responses").exists()
 
 
 def _results(run):
@@ -125,7 +125,7 @@ class _Counting:
 
 
 def test_the_same_request_twice_in_a_trial_is_two_calls_and_replays_as_two(tmp_path):
-    cache, inner = ResponseCache(tmp_path / "r.sqlite"), _Counting()
+    cache, inner = ResponseCache(tmp_path / "responses"), _Counting()
     backend = CachedBackend(inner, cache, "OF/a/c/0")
     rng = np.random.default_rng(0)
     assert [backend.complete("same", rng).text for _ in range(2)] == ["answer 1", "answer 2"]
@@ -144,9 +144,37 @@ def test_the_same_request_twice_in_a_trial_is_two_calls_and_replays_as_two(tmp_p
 ])
 def test_a_kept_reply_that_is_not_one_is_a_miss_and_the_call_is_made(tmp_path, row):
     assert stored_reply(row) is None
-    cache, inner = ResponseCache(tmp_path / "r.sqlite"), _Counting()
+    cache, inner = ResponseCache(tmp_path / "responses"), _Counting()
     backend = CachedBackend(inner, cache, "t")
     backend.complete("p", np.random.default_rng(0))
-    cache._db.execute("UPDATE replies SET reply = ?", (row,))
+    [kept] = (tmp_path / "responses").rglob("*.json")
+    kept.write_text(row)
     assert CachedBackend(inner, cache, "t").complete("p", np.random.default_rng(0)).text == "answer 2"
     cache.close()
+
+
+def test_a_kept_reply_that_is_a_symlink_or_a_folder_is_a_miss(tmp_path):
+    cache, inner = ResponseCache(tmp_path / "responses"), _Counting()
+    CachedBackend(inner, cache, "t").complete("p", np.random.default_rng(0))
+    [kept] = (tmp_path / "responses").rglob("*.json")
+    elsewhere = tmp_path / "forged.json"
+    elsewhere.write_text('{"text": "forged"}')
+    kept.unlink()
+    kept.symlink_to(elsewhere)  # a reply planted through a link is not read
+    assert CachedBackend(inner, cache, "t").complete("p", np.random.default_rng(0)).text == "answer 2"
+    kept.unlink()
+    kept.mkdir()
+    assert CachedBackend(inner, cache, "t").complete("p", np.random.default_rng(0)).text == "answer 3"
+
+
+def test_a_reply_that_cannot_be_kept_is_still_returned(tmp_path, monkeypatch):
+    """A full disk loses the cache entry, never the paid answer: the trial goes on with it."""
+    cache, inner = ResponseCache(tmp_path / "responses"), _Counting()
+
+    def full(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("pathlib.Path.write_text", full)
+    assert CachedBackend(inner, cache, "t").complete("p", np.random.default_rng(0)).text == "answer 1"
+    monkeypatch.undo()
+    assert not list((tmp_path / "responses").rglob("*"))[1:]  # nothing half-written left (at most the fan-out folder)
