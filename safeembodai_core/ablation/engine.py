@@ -118,7 +118,7 @@ class Ablation:
         self.lock.acquire()
         if bags is not None:
             folder.record_bags(bags)  # before any runner: every worker's reads it from the folder
-        if cache is not None:  # a CacheSettings; None on resume keeps what the run recorded
+        if cache is not None:  # a CacheSettings (what the run recorded on a resume without cache options)
             cache.write(folder.path)
         self.runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
         try:

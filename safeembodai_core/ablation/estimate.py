@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..errors import SafeEmbodAIError
 from ..models import Outcome, TrialSpec
 from ..plugins import Plugins
 from ..scenario import Scenario
@@ -49,7 +50,7 @@ def estimate(scenario: Scenario, plugins: Plugins, pending: list[TrialSpec]) -> 
             condition = trials[0].condition
             result = runner.run(trial_spec(probe, environment, arm, condition, trials[0].index))
             if result.outcome == Outcome.ERROR:
-                raise ValueError(f"the probe step of {environment}/{arm} failed: {result.detail}")
+                raise SafeEmbodAIError(f"--dry-run: the probe step of {environment}/{arm} failed: {result.detail}")
             calls = max(1, result.steps + result.retries)
             tries = scenario.arms[arm].failure_threshold + 1  # every arm retries an answer that does not parse
             rows.append(CellEstimate(environment, arm, len(trials), len(trials), len(trials) * scenario.max_steps,

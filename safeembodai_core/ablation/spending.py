@@ -5,7 +5,9 @@ Counted from the trials this invocation finishes (their prompt and completion to
 included; a trial's replayed answers count as if paid, so the count errs on the safe side), priced
 by the backend (:meth:`LLMBackend.cost <safeembodai_core.components.LLMBackend.cost>`: litellm's
 list prices). The trials in flight when the cap is reached are cut off; their answered calls are in
-the response cache, so ``--resume`` with a higher cap does not pay for them again.
+the response cache, so ``--resume`` does not pay for them again. Each invocation counts from zero,
+and a run may spend past the cap by what its trials in flight use (up to ``--workers`` ×
+``--concurrency`` trials).
 """
 
 from __future__ import annotations
@@ -25,17 +27,30 @@ class SpendingCap:
 
     def __init__(self, max_tokens: int | None = None, max_cost: float | None = None,
                  price: Callable[[int, int], float | None] | None = None) -> None:
-        if max_cost is not None and (price is None or price(1000, 1000) is None):
-            raise SafeEmbodAIError("--max-cost needs the model's price, and this backend knows none "
-                                   "(a simulated pilot or a model litellm has no price for): use --max-tokens")
+        if max_cost is not None:
+            try:
+                known = price is not None and price(1000, 1000) is not None
+            except Exception as error:  # a plugin's cost() that fails: no price, said plainly
+                raise SafeEmbodAIError(f"--max-cost: the backend's price failed ({type(error).__name__}: "
+                                       f"{error}): use --max-tokens") from None
+            if not known:
+                raise SafeEmbodAIError("--max-cost needs the model's price, and this backend knows none "
+                                       "(a simulated pilot or a model litellm has no price for): use --max-tokens")
         self.max_tokens, self.max_cost, self.price = max_tokens, max_cost, price
         self.tokens, self.cost = 0, 0.0
 
-    def add(self, result: TrialResult) -> None:
-        """Count a finished trial; raise :class:`SpendingCapReached` once a cap is reached."""
+    def add(self, result: TrialResult, more: bool = True) -> None:
+        """Count a finished trial; raise :class:`SpendingCapReached` once a cap is reached and ``more``
+        trials are left to run (a run whose last trial crosses the cap is complete, not stopped).
+        A trial's cost is the one it recorded (``TrialResult.cost_usd``), priced again only without one."""
         self.tokens += result.prompt_tokens + result.completion_tokens
         if self.max_cost is not None and self.price is not None:
-            self.cost += self.price(result.prompt_tokens, result.completion_tokens) or 0.0
+            cost = result.cost_usd
+            if cost is None:
+                cost = self.price(result.prompt_tokens, result.completion_tokens) or 0.0
+            self.cost += cost
+        if not more:
+            return
         if self.max_tokens is not None and self.tokens >= self.max_tokens:
             raise SpendingCapReached(f"--max-tokens {self.max_tokens} reached: the finished trials used "
                                      f"{self.tokens} tokens")

@@ -73,7 +73,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     from .summary import summary_table
 
     executor_name(workers, executor, address, concurrency or 1)  # options the executor would ignore: refused at once
-    cache = _cache_settings(cache_dir, no_cache, refresh, resume_dir is not None)
+    cache = _cache_settings(cache_dir, no_cache, refresh, resume_dir)
     if scenario_path is not None:
         scenario, plugins = load(scenario_path, backend, seed, overrides)
     elif resume_dir is None:
@@ -111,7 +111,8 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
             # a signal sent to the whole process group also kills workers: the broken pool is the signal's doing
             if isinstance(error, SpendingCapReached):
                 raise SafeEmbodAIError(f"{error}; finished trials are recorded, the answers of those cut off are "
-                                       f"kept: resume with --resume {folder.path} and a higher cap") from None
+                                       f"kept: resume with --resume {folder.path} (a cap counts from zero on "
+                                       "each invocation)") from None
             if isinstance(error, SafeEmbodAIError) and stop.signum is None:
                 raise
             console.print(f"[yellow]interrupted[/yellow] ({signal.Signals(stop.exit_code - 128).name}): "
@@ -126,15 +127,21 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
         raise SafeEmbodAIError(f"{failed} -- once fixed, resume with --resume {folder.path}")
 
 
-def _cache_settings(cache_dir, no_cache, refresh, resume):
-    """The response cache the options ask for; None on a resume without cache options (the run's own stays)."""
+def _cache_settings(cache_dir, no_cache, refresh, resume_dir):
+    """The response cache the options ask for (a --cache folder made absolute: a resume from another
+    folder finds it); a resume without cache options keeps the run's folder and reads its replies
+    (a --refresh is for the invocation that asked for it, not for every resume after it)."""
+    from dataclasses import replace
+    from pathlib import Path
+
     from ..loop.response_cache import CacheSettings
 
     if no_cache and (cache_dir or refresh):
         raise click.UsageError("--no-cache keeps no replies: drop --cache and --refresh, or --no-cache")
-    if resume and not (cache_dir or no_cache or refresh):
-        return None
-    return CacheSettings(enabled=not no_cache, folder=str(cache_dir) if cache_dir else None, read=not refresh)
+    if resume_dir is not None and not (cache_dir or no_cache or refresh):
+        return replace(CacheSettings.recorded(resume_dir), read=True)
+    folder = str(Path(cache_dir).expanduser().resolve()) if cache_dir else None
+    return CacheSettings(enabled=not no_cache, folder=folder, read=not refresh)
 
 
 def _default_concurrency(scenario, plugins, suggested, workers, executor, address):
@@ -202,8 +209,8 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address,
                 progress.advance(trials)
                 if left[cell] == 0:
                     progress.advance(finished_cells)
-                if cap is not None:
-                    cap.add(result)  # the trial is recorded: the cap stops the ones after it
+                if cap is not None:  # the trial is recorded: the cap stops the ones after it
+                    cap.add(result, more=any(left.values()))
 
             results = ablation.run(advance)
         if not report:

@@ -78,8 +78,9 @@ class CacheSettings:
             raise SafeEmbodAIError(f"{marker} is unreadable: {error}") from None
         if (not isinstance(data, dict) or set(data) != {"enabled", "folder", "read"}
                 or not isinstance(data["enabled"], bool) or not isinstance(data["read"], bool)
-                or not (data["folder"] is None or isinstance(data["folder"], str) and 0 < len(data["folder"]) < 4096)):
-            raise SafeEmbodAIError(f"{marker} must hold enabled, folder and read (as written by ablate)")
+                or not (data["folder"] is None or isinstance(data["folder"], str) and 0 < len(data["folder"]) < 4096
+                        and Path(data["folder"]).is_absolute())):
+            raise SafeEmbodAIError(f"{marker} must hold enabled, folder (absolute) and read, as written by ablate")
         return cls(data["enabled"], data["folder"], data["read"])
 
     def path(self, run_dir: str | Path) -> Path:

@@ -30,9 +30,23 @@ if TYPE_CHECKING:
 
 #: The origin of the built-in entries (a plugin's entries name their plugin).
 CORE = "safeembodai"
-#: Names a metric may not take: the fixed fields of a cell's row and of :class:`CellMetrics`.
+#: Names a metric may not take: the fixed fields of a cell's row (``report/writer.py``) and of
+#: :class:`CellMetrics`; and the prefixes of the row's counted columns (``outcome_<o>``, ...).
 RESERVED = frozenset({"environment", "arm", "condition", "trials", "outcomes", "s_max", "s_max_from", "errors",
-                      "crashed", "estimates", "catalog"})
+                      "crashed", "estimates", "catalog", "collisions_self", "collisions_struck",
+                      "trials_collided_self", "trials_collided_struck", "self_collision_reference_arm",
+                      "self_collision_rate", "struck_collision_rate", "self_collision_rate_diff", "steps_total",
+                      "attacked_steps", "attack_rate", "adr_precision_release", "adr_recall_release",
+                      "adr_f1_release", "tlr_release"})
+RESERVED_PREFIXES = ("outcome_", "errors_", "refusals_", "attacked_steps_", "self_collision_rate_",
+                     "struck_collision_rate_")
+#: The columns a metric writes besides its own name.
+SUFFIXES = ("_low", "_high", "_n")
+
+
+def columns(name: str) -> set[str]:
+    """The metrics.csv / metrics.json columns of metric ``name``."""
+    return {name, *(name + suffix for suffix in SUFFIXES)}
 _NAME = re.compile(r"[a-z][a-z0-9_]{0,47}")
 
 
@@ -98,9 +112,11 @@ class Metric:
     origin: str = CORE
 
     def __post_init__(self) -> None:
-        if not isinstance(self.name, str) or not _NAME.fullmatch(self.name) or self.name in RESERVED:
-            raise ValueError(f"metric name {self.name!r}: lower case letters, digits and '_' (at most 48), "
-                             f"not one of {sorted(RESERVED)}")
+        if (not isinstance(self.name, str) or not _NAME.fullmatch(self.name)
+                or columns(self.name) & RESERVED or self.name.startswith(RESERVED_PREFIXES)):
+            raise ValueError(f"metric name {self.name!r}: lower case letters, digits and '_' (at most 48); its "
+                             f"columns ({', '.join(sorted(columns(self.name)))}) may not be a cell's own (one of "
+                             f"{sorted(RESERVED)}, or starting {', '.join(RESERVED_PREFIXES)})")
         if not callable(self.compute):
             raise ValueError(f"metric {self.name!r}: compute must be callable, got {type(self.compute).__name__}")
         if not isinstance(self.digits, int) or not 0 <= self.digits <= 6:
@@ -133,6 +149,12 @@ class CatalogBuilder:
         if entry.name in self._entries:
             raise PluginError(entry.origin, f"metric {entry.name!r} is already defined by "
                                             f"{self._entries[entry.name].origin}: choose another name")
+        for other in self._entries.values():
+            shared = columns(entry.name) & columns(other.name)
+            if shared:
+                raise PluginError(entry.origin, f"metric {entry.name!r} would write the column "
+                                                f"{sorted(shared)[0]!r} of metric {other.name!r} "
+                                                f"({other.origin}): choose another name")
         if entry.figure is not None and entry.figure in self._figures:
             raise PluginError(entry.origin, f"metric {entry.name!r}: figure {entry.figure!r} is already drawn for "
                                             f"metric {self._figures[entry.figure]!r}")

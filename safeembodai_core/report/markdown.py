@@ -80,13 +80,13 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
 def spending(results: list[TrialResult]) -> list[str]:
     """What the recorded trials used: tokens, and their cost where every trial has a price."""
     tokens = sum(r.tokens for r in results)
-    costs = [r.cost_usd for r in results]
+    costs = [r.cost_usd for r in results if r.tokens]  # a trial that used no token costs nothing
     priced = (f"${sum(c for c in costs if c is not None):.4f} at the backend's list price"
               if costs and all(c is not None for c in costs) else
-              "no price: the backend knows none for some trials (a simulated pilot pays nothing)")
+              "no price: the backend knows none (a simulated pilot pays nothing)" if costs else "nothing to price")
     return [f"**Spent:** {tokens:,} tokens over {plural(len(results), 'trial')} (retries and `error` trials included; "
-            f"answers replayed from the response cache count as if paid); {priced}. Per cell: `tokens_spent` "
-            "and `cost_usd` in metrics.csv.", ""]
+            f"answers replayed from the response cache count as if paid); {priced}. Per cell, over its scored "
+            "trials: `tokens_spent` and `cost_usd` in metrics.csv.", ""]
 
 
 def metrics_table(cells: list[Cell], catalog: Sequence[Metric] | None = None) -> list[str]:

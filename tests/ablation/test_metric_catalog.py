@@ -152,8 +152,15 @@ class SameFigure:
         register(Metric("my_tlr", "my TLR", _long, figure="tlr"))
 
 
+class ColumnOfAnother:
+    @hookimpl
+    def register_metrics(self, register):
+        register(Metric("adr_n", "ADR n", _long))  # a fine name alone, but it writes adr's column
+
+
 @pytest.mark.parametrize(("plugin", "message"), [
     (Taken(), "metric 'moer' is already defined by safeembodai"),
+    (ColumnOfAnother(), "metric 'adr_n' would write the column 'adr_n' of metric 'adr'"),
     (NotAMetric(), "register\\(\\) takes a safeembodai_core.metrics.Metric, got dict"),
     (SameFigure(), "figure 'tlr' is already drawn for metric 'tlr_all'"),
 ])
@@ -165,7 +172,9 @@ def test_a_plugin_metric_that_clashes_or_is_not_a_metric_names_the_plugin(plugin
 
 
 @pytest.mark.parametrize("fields", [
-    {"name": "Has Space"}, {"name": "trials"}, {"digits": 9}, {"interval": "normal"}, {"figure": "../x"},
+    {"name": "Has Space"}, {"name": "trials"}, {"name": "attack_rate"}, {"name": "outcome_completed"},
+    {"name": "refusals_total"}, {"name": "self_collision_rate"}, {"digits": 9}, {"interval": "normal"},
+    {"figure": "../x"},
     {"label": "two\nlines"}, {"label": "a | b"}, {"compute": 3},
 ])
 def test_a_malformed_metric_is_refused_when_it_is_defined(fields):

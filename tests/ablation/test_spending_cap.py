@@ -57,3 +57,20 @@ def test_a_cost_cap_for_a_pilot_without_a_price_is_refused_before_any_folder(rep
                           timeout=120)
     assert done.returncode != 0 and "--max-cost needs the model's price" in done.stderr
     assert not (tmp_path / "runs").exists()
+
+
+def test_the_last_trial_crossing_the_cap_ends_a_complete_run_and_a_recorded_cost_is_used():
+    cap = SpendingCap(max_tokens=100)
+    cap.add(_result(600, 100), more=False)  # nothing left to stop: the run is complete
+    priced = SpendingCap(max_cost=1.0, price=lambda p, c: 0.0)
+    recorded = _result(10, 10).model_copy(update={"cost_usd": 2.0})
+    with pytest.raises(SpendingCapReached, match=r"\$2.0000"):
+        priced.add(recorded)  # the trial's own cost, not a new pricing
+
+
+def test_a_price_that_fails_is_a_clear_error():
+    def broken(p, c):
+        raise RuntimeError("no table")
+
+    with pytest.raises(SafeEmbodAIError, match="--max-cost: the backend's price failed \\(RuntimeError: no table\\)"):
+        SpendingCap(max_cost=1.0, price=broken)

@@ -225,3 +225,13 @@ def test_the_backend_prices_tokens_from_litellms_offline_table(built_plugins, fa
     assert prompt + completion > 0
     assert _backend(built_plugins, fake_server).cost(1000, 100) == pytest.approx(prompt + completion)
     assert _backend(built_plugins, fake_server, name="local", model="openai/no-such-model").cost(1000, 100) is None
+
+
+def test_a_429_for_a_spent_quota_fails_at_once_instead_of_waiting(built_plugins, fake_server, fake_key):
+    """OpenAI answers an exhausted account with 429 ``insufficient_quota``: no wait cures it, so the
+    call fails at once (as a bad key does) rather than holding every call back for rate_limit_wait_s."""
+    fake_server.default = Status(429, "You exceeded your current quota, please check your plan and billing details.")
+    with pytest.raises(BackendError, match=r"gave up after 1 try: rate limited \(HTTP 429\): the account's quota "
+                                           r"is spent"):
+        _backend(built_plugins, fake_server, backoff_max_s=5.0).complete(_prompt(), _rng())
+    assert len(fake_server.requests) == 1

@@ -178,3 +178,22 @@ def test_a_reply_that_cannot_be_kept_is_still_returned(tmp_path, monkeypatch):
     assert CachedBackend(inner, cache, "t").complete("p", np.random.default_rng(0)).text == "answer 1"
     monkeypatch.undo()
     assert not list((tmp_path / "responses").rglob("*"))[1:]  # nothing half-written left (at most the fan-out folder)
+
+
+def test_cache_options_a_relative_folder_is_made_absolute_and_a_resume_reads_the_kept_replies(tmp_path,
+                                                                                               monkeypatch):
+    from safeembodai_core.cli.ablate_cmd import _cache_settings
+    from safeembodai_core.errors import SafeEmbodAIError
+    from safeembodai_core.loop.response_cache import CacheSettings
+
+    monkeypatch.chdir(tmp_path)
+    chosen = _cache_settings("shared", False, True, None)  # --cache shared --refresh
+    assert chosen == CacheSettings(True, str(tmp_path / "shared"), read=False)
+    run = tmp_path / "run"
+    run.mkdir()
+    chosen.write(run)
+    resumed = _cache_settings(None, False, False, str(run))  # --resume RUN alone
+    assert resumed == CacheSettings(True, str(tmp_path / "shared"), read=True)  # --refresh was for that call
+    (run / "response_cache.json").write_text('{"enabled": true, "folder": "elsewhere", "read": true}')
+    with pytest.raises(SafeEmbodAIError, match="folder \\(absolute\\)"):
+        CacheSettings.recorded(run)

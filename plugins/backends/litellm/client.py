@@ -66,6 +66,8 @@ log = structlog.get_logger(__name__)
 _MALFORMED_RETRIES = 1
 #: The shortest hold-off after a 429, whatever ``backoff_max_s`` or ``Retry-After`` say.
 MIN_RATE_LIMIT_WAIT_S = 0.1
+#: A 429 that no waiting cures (OpenAI's ``insufficient_quota``): it fails at once, as a bad key does.
+_QUOTA_SPENT = re.compile(r"insufficient_quota|exceeded your current quota|check your plan and billing", re.I)
 _SECRET_NAME = re.compile(r"authorization|api[-_]?key|secret|password|passwd|credential|cookie|(^|[-_])token$", re.I)
 _MIN_SECRET_CHARS = 4
 
@@ -259,7 +261,9 @@ class LiteLLMBackend(LLMBackend):
                     reply = self._reply(response, recorder, time.perf_counter() - started)
                     self._limiter.spent(reply.usage.total, o.tokens_per_minute)
                     return reply
-            if failure.kind == RATE_LIMITED:  # not a retry: the run slows down until the provider lets it on
+            if failure.kind == RATE_LIMITED and _QUOTA_SPENT.search(failure.detail):
+                failure = Failure(f"{RATE_LIMITED}: the account's quota is spent", False, failure.detail)
+            elif failure.kind == RATE_LIMITED:  # not a retry: the run slows down until the provider lets it on
                 first_429 = first_429 or time.monotonic()
                 self._rate_limited(failure, limited, first_429, rng)
                 limited += 1

@@ -68,7 +68,13 @@ def _redirect() -> None:
             pass
     _flush_c_stdio()
     _saved[:] = [os.dup(fd) for fd in _FDS]
-    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+    except OSError:  # no descriptor left: nothing is silenced, nothing leaks
+        for copy in _saved:
+            os.close(copy)
+        _saved.clear()
+        raise
     try:
         for fd in _FDS:
             os.dup2(devnull, fd)
@@ -77,6 +83,8 @@ def _redirect() -> None:
 
 
 def _restore() -> None:
+    if not _saved:  # the redirect failed: nothing to put back
+        return
     _flush_c_stdio()
     for fd, copy in zip(_FDS, _saved):
         os.dup2(copy, fd)
