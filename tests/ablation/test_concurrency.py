@@ -22,7 +22,7 @@ def _ablate(repo, scenario, out, *args):
 @pytest.mark.slow
 @pytest.mark.parametrize(("scenario", "overrides"), [
     ("quickstart.yaml", ["--set", "trials=4"]),
-    ("mo.yaml", ["--set", "trials=2", "--set", "max_steps=6"]),  # pybullet rooms: a client per thread
+    ("mo.yaml", ["--set", "trials=2", "--set", "max_steps=4"]),  # pybullet rooms: a client per thread
 ])
 def test_trials_in_flight_give_the_same_metrics_as_one_at_a_time(repo, tmp_path, scenario, overrides):
     serial, _ = _ablate(repo, scenario, tmp_path / "serial", *overrides)

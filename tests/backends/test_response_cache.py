@@ -34,7 +34,9 @@ def _scenario(tmp_path, server, trials=2, max_steps=3):
 
 
 def _command(path, out, *args):
-    return [sys.executable, "-m", "safeembodai_core", "ablate", str(path), "--out", str(out), "--no-report", *args]
+    # one trial at a time in this process (the cache is what is tested, not the threads: no worker to start)
+    return [sys.executable, "-m", "safeembodai_core", "ablate", str(path), "--out", str(out), "--no-report",
+            "--concurrency", "1", *args]
 
 
 def _ablate(path, out, key, *args):
@@ -97,7 +99,8 @@ def test_a_killed_run_resumes_without_paying_again_for_the_steps_it_had(fake_ser
     before = len(fake_server.requests)
     assert before == calls - 1
     run = next(out.iterdir())
-    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", "--resume", str(run), "--no-report"],
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", "--resume", str(run), "--no-report",
+                           "--concurrency", "1"],
                           capture_output=True, text=True, timeout=300,
                           env={**os.environ, "SAFEEMBODAI_TEST_KEY": fake_key})
     assert done.returncode == 0, done.stderr[-3000:]
