@@ -12,10 +12,20 @@ and a run may spend past the cap by what its trials in flight use (up to ``--wor
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult
+
+
+def backend_price(scenario: Any, plugins: Any) -> Callable[[int, int], float | None]:
+    """The scenario's backend's :meth:`~safeembodai_core.components.LLMBackend.cost` (the backend is
+    built to ask it, then closed: a price needs no connection); raises what building raises."""
+    from ..runner import ScenarioRunner
+
+    backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
+    backend.close()
+    return backend.cost
 
 
 class SpendingCapReached(SafeEmbodAIError):

@@ -163,18 +163,9 @@ def _spending_cap(scenario, plugins, max_tokens, max_cost):
     priced by the scenario's backend."""
     if max_tokens is None and max_cost is None:
         return None
-    from ..ablation.spending import SpendingCap
-    from ..runner import ScenarioRunner
+    from ..ablation.spending import SpendingCap, backend_price
 
-    price = None
-    if max_cost is not None:
-        backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
-        try:
-            price = backend.cost
-            price(1000, 1000)  # looked up once, before the run
-        finally:
-            backend.close()
-    return SpendingCap(max_tokens, max_cost, price)
+    return SpendingCap(max_tokens, max_cost, backend_price(scenario, plugins) if max_cost is not None else None)
 
 
 def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False,

@@ -9,20 +9,21 @@ from rich.table import Table
 
 def _price(scenario, plugins):
     """The backend's ``cost`` function and why there is none (a missing key, a simulated pilot)."""
+    from ..ablation.spending import backend_price
     from ..errors import SafeEmbodAIError
-    from ..runner import ScenarioRunner
 
     try:
-        backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
+        price = backend_price(scenario, plugins)
     except SafeEmbodAIError as error:
         return None, f"the backend could not be built to ask its price: {error}"
     try:
-        if backend.cost(1000, 1000) is None:
-            return None, (f"backend {scenario.backend.use!r} knows no price (a simulated pilot, or a model litellm "
-                          "has none for)")
-        return backend.cost, ""
-    finally:
-        backend.close()
+        known = price(1000, 1000) is not None
+    except Exception as error:  # a plugin's cost() that fails: no price, said plainly
+        return None, f"backend {scenario.backend.use!r}: its price failed ({type(error).__name__}: {error})"
+    if not known:
+        return None, (f"backend {scenario.backend.use!r} knows no price (a simulated pilot, or a model litellm "
+                      "has none for)")
+    return price, ""
 
 
 def show_estimate(scenario, plugins, resume_dir: str | None) -> None:
