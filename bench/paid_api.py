@@ -11,8 +11,10 @@ after ``--latency`` seconds with a valid plan; ``safeembodai ablate scenarios/<-
 folder with ``--no-cache``. Per setting it prints: trials, wall seconds, seconds to the first call,
 the most calls in flight at once and their mean (sampled every 0.2 s from the first call to the
 end, the tail included), the call rate between the first and the last call against the ideal (the
-in-flight count the setting asks for / latency), and the peak resident memory of the run's
-processes (summed, read from /proc every 0.2 s). Numbers, never asserts.
+in-flight count the setting asks for / latency), the *steady* rate (between the call a quarter of
+the way through and the one three quarters through: past the ramp while runners are built, before
+the tail when fewer trials are left than slots) against the same ideal, and the peak resident
+memory of the run's processes (summed, read from /proc every 0.2 s). Numbers, never asserts.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from fake_openai import FakeOpenAI, Hang, Reply  # noqa: E402
 
 from safeembodai_core.testing import answer, straight, turn  # noqa: E402
 
+TIMELINE_S = 5.0
 SETTINGS = ["--workers 1", "--concurrency 16", "--concurrency 64", "--workers 2 --concurrency 32",
             "--concurrency 128"]
 
@@ -104,7 +107,15 @@ def run_setting(server: FakeOpenAI, scenario: Path, setting: list[str], latency:
     span = stamps[-1] - stamps[0] if len(stamps) > 1 else float("nan")
     asked = _in_flight(setting)
     rate = (calls - 1) / span if span and span == span else float("nan")
-    return {"calls": calls, "wall_s": wall, "first_call_s": stamps[0] - started if stamps else float("nan"),
+    timeline = [0] * (int((stamps[-1] - started) // TIMELINE_S) + 1) if stamps else []
+    for stamp in stamps:
+        timeline[int((stamp - started) // TIMELINE_S)] += 1
+    # the steady rate: between the call that leaves a quarter of the way and the one three quarters of
+    # the way, past the start (runners still being built) and before the tail (fewer trials than slots)
+    low, high = calls // 4, (3 * calls) // 4
+    steady = (high - low) / (stamps[high] - stamps[low]) if calls >= 8 and stamps[high] > stamps[low] else float("nan")
+    return {"calls": calls, "wall_s": wall, "timeline": timeline, "steady": steady,
+            "first_call_s": stamps[0] - started if stamps else float("nan"),
             "peak_in_flight": server.peak_in_flight, "asked": asked, "rate": rate,
             "mean_in_flight": sum(busy) / len(busy) if busy else float("nan"),
             "ideal": asked / latency, "peak_mb": peak}
@@ -118,6 +129,8 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=16, help="trials per cell (the shipped scenarios have 4 cells)")
     parser.add_argument("--max-steps", type=int, default=6)
     parser.add_argument("--setting", action="append", help="ablate options to measure (repeatable)")
+    parser.add_argument("--timeline", action="store_true",
+                        help=f"also print the calls made in each {TIMELINE_S:g} s from the start")
     args = parser.parse_args()
     with FakeOpenAI(Hang(args.latency, then=Reply(_answer))) as server, \
             tempfile.TemporaryDirectory(prefix="paid-api-scenario-") as folder:
@@ -129,14 +142,17 @@ def main() -> None:
         print(f"{args.scenario}.yaml, {args.trials} trials per cell of at most {args.max_steps} steps, every call "
               f"answered after {args.latency:g} s; {os.cpu_count()} cores")
         print(f"{'setting':32} {'calls':>6} {'wall s':>7} {'first call s':>12} {'peak/asked':>10} "
-              f"{'mean':>6} {'calls/s':>8} {'ideal':>6} {'of ideal':>8} {'peak MB':>8}")
+              f"{'mean':>6} {'calls/s':>8} {'ideal':>6} {'of ideal':>8} {'steady':>7} {'of ideal':>8} {'peak MB':>8}")
         for setting in args.setting or SETTINGS:
             row = run_setting(server, scenario, shlex.split(setting), args.latency)
             threading.Event().wait(1.0)  # let the stand-in's sockets settle between runs
             print(f"{setting:32} {row['calls']:>6} {row['wall_s']:>7.1f} {row['first_call_s']:>12.1f} "
                   f"{row['peak_in_flight']:>4}/{row['asked']:<5} {row['mean_in_flight']:>6.1f} "
                   f"{row['rate']:>8.2f} {row['ideal']:>6.2f} "
-                  f"{row['rate'] / row['ideal']:>8.0%} {row['peak_mb']:>8.0f}", flush=True)
+                  f"{row['rate'] / row['ideal']:>8.0%} {row['steady']:>7.2f} {row['steady'] / row['ideal']:>8.0%} "
+                  f"{row['peak_mb']:>8.0f}", flush=True)
+            if args.timeline:
+                print(f"  calls per {TIMELINE_S:g} s: {' '.join(str(n) for n in row['timeline'])}", flush=True)
 
 
 if __name__ == "__main__":

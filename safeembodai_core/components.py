@@ -217,6 +217,13 @@ class StateStore(ABC):
         """True when records survive the process (a resumed ablation can read them)."""
         return False
 
+    @property
+    def thread_safe(self) -> bool:
+        """True when several threads may call the store at once (``ablate --concurrency`` then
+        shares it without a lock around each call: work done before the store's own lock, such as
+        serialising a record, overlaps other threads' calls). False by default: calls are serialised."""
+        return False
+
     def close(self) -> None:
         """Flush and release."""
 

@@ -309,6 +309,11 @@ class SqliteStateStore(StateStore):
     def persistent(self) -> bool:
         return True
 
+    @property
+    def thread_safe(self) -> bool:
+        """One connection, every statement under the store's lock; records are serialised before it."""
+        return True
+
     # -- reading a run ------------------------------------------------------------------------
 
     def trials(self) -> list[dict[str, Any]]:

@@ -8,7 +8,6 @@ own plugins, environments and store from the recorded scenario. Workers load ins
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import queue
 import threading
@@ -16,6 +15,7 @@ from typing import Any, Iterator
 
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult, TrialSpec
+from .warm_start import start_warm_server, worker_context
 
 #: How often the coordinator looks for a dead worker while it waits for results.
 POLL_S = 0.5
@@ -121,14 +121,21 @@ class RunnerPool:
 
 
 def _worker_main(scenario_json: dict[str, Any], run_dir: str, coordinator: int, concurrency: int,
-                 tasks: Any, results: Any, workers: int = 1) -> None:
+                 tasks: Any, results: Any, workers: int = 1, lifeline: Any = None,
+                 environ: dict[str, str] | None = None) -> None:
     """A worker process: ``concurrency`` threads, each taking specs from ``tasks`` until it meets
     None, running them and putting ``("result", result)`` (or ``("failed", message)``) on ``results``.
-    ``workers`` processes split a backend's rate limits (``SAFEEMBODAI_RATE_SHARE``)."""
+    ``workers`` processes split a backend's rate limits (``SAFEEMBODAI_RATE_SHARE``). ``environ``:
+    the coordinator's environment variables when it started the worker (a worker forked from the
+    fork server would otherwise have the server's, from an earlier moment); ``lifeline``: see
+    :mod:`.lifeline`."""
     from .lifeline import bind_to_coordinator, orphaned
     from .run_folder import hold_worker_lock
 
-    bind_to_coordinator(coordinator)
+    bind_to_coordinator(coordinator, lifeline)
+    if environ is not None:
+        os.environ.clear()
+        os.environ.update(environ)
     os.environ[RATE_SHARE] = str(workers)
     _worker_logging()
     lock = hold_worker_lock(run_dir)  # noqa: F841 -- held until the process exits
@@ -139,7 +146,7 @@ def _worker_main(scenario_json: dict[str, Any], run_dir: str, coordinator: int, 
             spec_json = tasks.get()
             if spec_json is None:
                 return
-            if orphaned(coordinator):  # start no trial nobody will count
+            if orphaned(coordinator, lifeline):  # start no trial nobody will count
                 os._exit(1)
             try:
                 result = pool.run(TrialSpec.model_validate(spec_json))
@@ -173,27 +180,34 @@ class SerialExecutor:
 
 
 class ProcessExecutor:
-    """``workers`` spawned processes, each running up to ``concurrency`` trials at once in threads
-    (a trial runner and its worlds per thread; one state store per process), fed from one queue;
-    started with the first trial to run.
+    """``workers`` processes, each running up to ``concurrency`` trials at once in threads (a trial
+    runner and its worlds per thread; one state store per process), fed from one queue; started
+    with the first trial to run, forked from the warm fork server where there is one
+    (:mod:`.warm_start`), else spawned.
 
     Threads suit trials that wait (a remote model answers in seconds); processes suit trials that
     compute (the mock pilot, many rooms). Results come back in completion order.
     """
 
     def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int, concurrency: int = 1) -> None:
-        context = multiprocessing.get_context("spawn")
+        context = worker_context()
+        self.scenario_json = scenario_json
         self.tasks, self.results = context.Queue(), context.Queue()
         self.workers, self.concurrency = workers, concurrency
+        # the workers' lifeline: the coordinator holds the only writing end until the workers are done
+        self._lifeline, self._alive = context.Pipe(duplex=False)
         self.processes = [context.Process(target=_worker_main, name=f"safeembodai-worker-{k}", daemon=True,
                                           args=(scenario_json, run_dir, os.getpid(), concurrency, self.tasks,
-                                                self.results, workers)) for k in range(workers)]
+                                                self.results, workers, self._lifeline, dict(os.environ)))
+                          for k in range(workers)]
 
     def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
         if not specs:  # nothing to run: no worker is started
             return
+        start_warm_server(self.scenario_json)  # nothing if the command started it already
         for process in self.processes:
             process.start()
+        self._lifeline.close()  # the workers hold the reading end
         for spec in specs:
             self.tasks.put(spec.model_dump(mode="json"))
         for _ in range(self.workers * self.concurrency):
@@ -233,6 +247,8 @@ class ProcessExecutor:
         self._close_queues()
 
     def _close_queues(self) -> None:
+        self._lifeline.close()
+        self._alive.close()  # the workers' lifeline (they are gone: nothing reads it)
         for channel in (self.tasks, self.results):
             channel.cancel_join_thread()  # never block on data no worker will read
             channel.close()

@@ -2,10 +2,13 @@
 stops cleanly on SIGINT or SIGTERM.
 
 A worker whose coordinator is gone (``kill -9``, out of memory, a crash) must not live on: it would
-sit blocked on the call queue, holding the workers lock that keeps a resume out. Each worker asks
-Linux to kill it when its parent dies (``PR_SET_PDEATHSIG``) and, on every platform, runs a daemon
-thread that checks its parent pid a few times a second and ends the process at once with
-``os._exit``, whatever the main thread is doing. A trial cut off that way is not recorded as
+sit blocked on the call queue, holding the workers lock that keeps a resume out. A worker spawned
+by its coordinator asks Linux to kill it when its parent dies (``PR_SET_PDEATHSIG``) and, on every
+platform, runs a daemon thread that ends the process at once with ``os._exit``, whatever the main
+thread is doing, when its coordinator is gone: when the *lifeline* -- the reading end of a pipe
+whose only writing end the coordinator holds -- reads end-of-file, or, without one, when its parent
+pid changes. A worker forked from the fork server (:mod:`.warm_start`) has the server for parent,
+not the coordinator: the lifeline is how it knows. A trial cut off that way is not recorded as
 finished (its steps are dropped when it runs again); a trial whose result was stored just before
 counts as done, so resuming neither repeats nor changes it.
 
@@ -27,8 +30,15 @@ PR_SET_PDEATHSIG = 1
 POLL_S = 0.2
 
 
-def orphaned(coordinator: int) -> bool:
-    return os.getppid() != coordinator
+def orphaned(coordinator: int, lifeline: Any = None) -> bool:
+    """Is the coordinator gone? With a ``lifeline`` (a ``multiprocessing`` connection the coordinator
+    never writes to): it reads end-of-file; without one: this process's parent is no longer ``coordinator``."""
+    if lifeline is None:
+        return os.getppid() != coordinator
+    try:
+        return lifeline.poll(0)
+    except (OSError, EOFError):
+        return True
 
 
 def _die_with_parent() -> None:
@@ -44,19 +54,27 @@ def _die_with_parent() -> None:
         pass
 
 
-def _watch(coordinator: int) -> None:
+def _watch(coordinator: int, lifeline: Any) -> None:
+    if lifeline is not None:
+        try:
+            lifeline.poll(None)  # returns at end-of-file: the coordinator's end closed with it
+        except (OSError, EOFError):
+            pass
+        os._exit(1)
     while not orphaned(coordinator):
         time.sleep(POLL_S)
     os._exit(1)
 
 
-def bind_to_coordinator(coordinator: int) -> None:
-    """In a worker: end this process as soon as ``coordinator`` (its parent) is gone."""
+def bind_to_coordinator(coordinator: int, lifeline: Any = None) -> None:
+    """In a worker: end this process as soon as ``coordinator`` is gone (its ``lifeline`` reads
+    end-of-file; without one: its parent, which must be the coordinator, is gone)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent()
-    if orphaned(coordinator):  # it died before the line above took effect
+    if os.getppid() == coordinator:  # a worker forked from the fork server has the server for parent
+        _die_with_parent()
+    if orphaned(coordinator, lifeline):  # it died before the line above took effect
         os._exit(1)
-    threading.Thread(target=_watch, args=(coordinator,), name="coordinator-watchdog", daemon=True).start()
+    threading.Thread(target=_watch, args=(coordinator, lifeline), name="coordinator-watchdog", daemon=True).start()
 
 
 class StopSignals:

@@ -90,6 +90,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
         return
     if executor == "ray":
         _check_ray()
+    _warm_workers_early(scenario, plugins, workers, executor, concurrency)
     from ..runner import preflight
 
     suggested = preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
@@ -142,6 +143,26 @@ def _cache_settings(cache_dir, no_cache, refresh, resume_dir):
         return replace(CacheSettings.recorded(resume_dir), read=True)
     folder = str(Path(cache_dir).expanduser().resolve()) if cache_dir else None
     return CacheSettings(enabled=not no_cache, folder=folder, read=not refresh)
+
+
+def _warm_workers_early(scenario, plugins, workers, executor, concurrency):
+    """Start the workers' fork server now, warming it while the coordinator runs its own checks,
+    when the run will likely use worker processes: ``--workers``/``--concurrency`` above 1, or the
+    backend's options asking for trials in flight (the litellm backends' ``concurrency``). A guess
+    only: the process executor starts the server itself when none runs."""
+    if executor not in (None, "process"):
+        return
+    wanted = concurrency
+    if wanted is None:
+        try:
+            options = plugins.registry.validate_options("llm_backend", scenario.backend.use, scenario.backend.options)
+            wanted = getattr(options, "concurrency", 1)
+        except Exception:  # noqa: BLE001 -- preflight reports a backend that cannot be built
+            wanted = 1
+    if workers > 1 or executor == "process" or (type(wanted) is int and wanted > 1):
+        from ..ablation.warm_start import start_warm_server
+
+        start_warm_server(scenario.model_dump(mode="json"))
 
 
 def _default_concurrency(scenario, plugins, suggested, workers, executor, address):

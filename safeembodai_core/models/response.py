@@ -23,6 +23,7 @@ literal (:func:`safeembodai_core.quoting.quote_untrusted`), never repeated bare.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from typing import Any, Literal, get_args
@@ -132,6 +133,13 @@ def _drawn(limit: float, rng: np.random.Generator) -> int | float:
     return round(float(rng.uniform(0.05, 0.95)) * limit, 3)
 
 
+@functools.lru_cache(maxsize=1)
+def _response_schema() -> dict[str, Any]:
+    """:class:`LLMResponse`'s JSON schema, made once (pydantic takes milliseconds per call; every
+    prompt's outline reads it, never writes it)."""
+    return LLMResponse.model_json_schema()
+
+
 def schema_outline(limits: ControlLimits = DEFAULT_LIMITS, examples: OutlineExamples = "half",
                    rng: np.random.Generator | None = None) -> str:
     """A compact JSON outline of the response schema, generated from :class:`LLMResponse`.
@@ -156,7 +164,7 @@ def schema_outline(limits: ControlLimits = DEFAULT_LIMITS, examples: OutlineExam
         raise ValueError(f"examples must be one of {', '.join(OUTLINE_EXAMPLES)}, got {examples!r}")
     if examples == "seeded" and rng is None:
         raise ValueError("the seeded outline needs an rng")
-    schema = LLMResponse.model_json_schema()
+    schema = _response_schema()
     defs = schema.get("$defs", {})
     limit_of = {"distance": limits.max_distance_mm, "angle": limits.max_angle_deg}
     command_of = {"distance": "straight", "angle": "turn"}

@@ -24,6 +24,9 @@ and the backend masks it before the body goes anywhere.
 from __future__ import annotations
 
 import contextvars
+import functools
+import os
+import ssl
 import urllib.request
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -169,12 +172,21 @@ def _proxy_for(url: str) -> str | None:
     return proxy if "://" in proxy else f"http://{proxy}"
 
 
+@functools.lru_cache(maxsize=4)
+def _ssl_context(cert_file: str | None, cert_dir: str | None) -> ssl.SSLContext:
+    """httpx's default verifying context for these ``SSL_CERT_FILE`` / ``SSL_CERT_DIR`` values, made
+    once per process: loading the CA bundle takes ~50 ms, and every trial builds its own backend. An
+    ``SSLContext`` is shared safely by threads and clients (each connection gets its own socket)."""
+    return httpx.create_ssl_context()
+
+
 def openai_client(base_url: str, api_key: str | None, timeout_s: float) -> Any:
     """An ``openai.OpenAI`` for ``base_url`` whose requests go through a :class:`RecordingTransport`."""
     import openai
 
     proxy = _proxy_for(base_url)
-    transport = RecordingTransport(origin_of(base_url), httpx.HTTPTransport(proxy=proxy))
+    verify = _ssl_context(os.environ.get("SSL_CERT_FILE"), os.environ.get("SSL_CERT_DIR"))
+    transport = RecordingTransport(origin_of(base_url), httpx.HTTPTransport(verify=verify, proxy=proxy))
     http_client = httpx.Client(transport=transport, follow_redirects=False, timeout=timeout_s)
     return openai.OpenAI(api_key=api_key or "no-key-required", base_url=base_url, http_client=http_client,
                          max_retries=0, timeout=timeout_s)

@@ -78,6 +78,9 @@ class LabbotSwarm:
         self.speed = np.array(speed, dtype=float)  # mm/s, per Labbot
         self.wander = np.array(wander, dtype=float)  # deg per sqrt(s), per Labbot
         self.top_speed = float(self.speed.max()) if n else 0.0
+        self._speeds = self.speed.tolist()
+        self._drift_scale = self.wander * math.sqrt(TICK_S)
+        self._any_stop_and_go = any(self.stop_and_go)
         # stop-and-go: per Labbot, the (go, stop) duration ranges and the cycles drawn so far
         self._phases = [(m.go_s, m.stop_s) if stops else None for m, stops in zip(movers, self.stop_and_go)]
         self._cycles: list[list[tuple[int, int, float]]] = [[] for _ in range(n)]
@@ -123,29 +126,32 @@ class LabbotSwarm:
 
     def _tick(self, robot_xy: np.ndarray, rng: np.random.Generator) -> None:
         o, dt = self.o, TICK_S
+        n = len(self.heading)
         robot = (float(robot_xy[0]), float(robot_xy[1]))
-        # one draw of len(self) normals, each scaled by its Labbot's wander (the same stream as one scale)
-        drift = rng.normal(0.0, self.wander * math.sqrt(dt), size=len(self)).tolist()
-        sides = np.where(rng.random(size=len(self)) < 0.5, -1.0, 1.0).tolist()
+        # one draw of n normals, each scaled by its Labbot's wander (the same stream as one scale)
+        drift = rng.normal(0.0, self._drift_scale, size=n).tolist()
+        sides = [-1.0 if u < 0.5 else 1.0 for u in rng.random(size=n).tolist()]
         xs, ys = self.xy[:, 0].tolist(), self.xy[:, 1].tolist()
         turning = self.turning.tolist()
         current = self.heading.tolist()
-        stopped = [False] * len(xs)
-        for i, stops in enumerate(self.stop_and_go):
-            if stops:
-                stopped[i], leave = self._phase(i, self.ticks)
-                if leave is not None:  # the first tick after a stop: off at a new heading
-                    current[i], turning[i] = leave, 0.0
+        stopped = [False] * n
+        if self._any_stop_and_go:
+            for i, stops in enumerate(self.stop_and_go):
+                if stops:
+                    stopped[i], leave = self._phase(i, self.ticks)
+                    if leave is not None:  # the first tick after a stop: off at a new heading
+                        current[i], turning[i] = leave, 0.0
         # the heading each Labbot takes this tick: turning on, or drifting (standing still while stopped)
         headings = [h if halt else h + (t * o.labbot_turn_rate_deg_s * dt if t else d)
                     for h, t, d, halt in zip(current, turning, drift, stopped)]
-        seen = self._seen(np.array(headings), robot_xy)
-        for i in range(len(xs)):
+        seen = self._seen(headings, robot_xy)
+        lookahead_mm = o.labbot_lookahead_mm
+        for i in range(n):
             if stopped[i]:
                 continue
             avoid = robot if self.yielding[i] else None
-            speed = float(self.speed[i])
-            step, lookahead = speed * dt, speed * dt + o.labbot_lookahead_mm
+            step = self._speeds[i] * dt
+            lookahead = step + lookahead_mm
             rad = math.radians(headings[i])
             cos, sin = math.cos(rad), math.sin(rad)
             if turning[i]:
@@ -159,7 +165,7 @@ class LabbotSwarm:
                 else:
                     turning[i] = seen[i] if abs(seen[i]) == 1.0 else sides[i]
             headings[i] = (headings[i] + 180.0) % 360.0 - 180.0
-        self.xy = np.column_stack((xs, ys))
+        self.xy = np.array((xs, ys)).T.copy()
         self.heading, self.turning = np.array(headings), np.array(turning)
         self.track.append(self.xy.copy())
 
@@ -188,19 +194,19 @@ class LabbotSwarm:
         tick = self.ticks if tick is None else tick
         return [stops and self._phase(i, tick)[0] for i, stops in enumerate(self.stop_and_go)]
 
-    def _seen(self, headings: np.ndarray, robot_xy: np.ndarray) -> list[float]:
+    def _seen(self, headings: Sequence[float], robot_xy: np.ndarray) -> list[float]:
         """Per Labbot: 0 if its sensors read nothing within range (or it has none), else the side
         to turn to: +1 (left) or -1 (right), away from the nearer side reading; 2 if only the
         sensor straight ahead reads something (then the side is drawn at random)."""
         if self.sense is None or not any(self.sensing):
             return [0.0] * len(self)
-        ranges = np.asarray(self.sense(self.xy, headings, robot_xy), dtype=float)  # (L, sensors)
+        ranges = np.asarray(self.sense(self.xy, np.array(headings, dtype=float), robot_xy), dtype=float)  # (L, sensors)
         reach = self.o.labbot_sensor_range_mm
         seen = []
-        for row, sensing in zip(ranges, self.sensing):
-            if not sensing or not (row < reach).any():
+        for row, sensing in zip(ranges.tolist(), self.sensing):
+            if not sensing or min(row) >= reach:
                 seen.append(0.0)
                 continue
-            left, right = row[1::2].min(), row[2::2].min()  # sensors: ahead, then left/right pairs
+            left, right = min(row[1::2]), min(row[2::2])  # sensors: ahead, then left/right pairs
             seen.append(2.0 if left == right else -1.0 if left < right else 1.0)
         return seen
