@@ -201,3 +201,24 @@ def test_labbots_depend_on_simulated_time_only_not_on_how_commands_are_split():
                           Turn(command="turn", direction="left", angle=1.5))
     assert one[0] == pytest.approx(split[0])
     assert np.array_equal(one[1], split[1]) and np.array_equal(one[2], split[2])
+
+
+def test_the_sensors_are_skipped_only_when_they_would_read_nothing(make_env, moves):
+    """A tick casts the Labbots' sensors only when something lies near one of them; when the cheap
+    distance bound says nothing does, the real sensors, cast anyway, read nothing on every ray."""
+    env = make_env("DO", think_time_s=5)
+    skipped = cast = 0
+    for seed in range(6):
+        env.reset(seed)
+        for _ in range(60):
+            env.execute(moves.go(100) if seed % 2 else moves.rotate(20))
+            swarm = env.swarm
+            readings = env.labbot_sensors(swarm.xy, swarm.heading, env.xy)
+            if swarm._out_of_reach(env.xy):
+                skipped += 1
+                assert np.isinf(readings).all(), readings
+            else:
+                cast += 1
+            if env.outcome() is not None:
+                break
+    assert skipped >= 20 and cast >= 20  # both branches were exercised
