@@ -44,7 +44,7 @@ def _check_ray() -> None:
                    "(SCENARIO, if given, must be the same, overrides included).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and figures at the end.")
 @click.option("--cache", "cache_dir", type=click.Path(file_okay=False), default=None,
-              help="Keep a paid model's replies in DIR/responses.sqlite, shared by runs (default: the run folder).")
+              help="Keep a paid model's replies in DIR/responses/, shared by runs (default: the run folder).")
 @click.option("--no-cache", is_flag=True, help="Keep no replies: every call is made and paid.")
 @click.option("--refresh", is_flag=True, help="Call again for every request, replacing kept replies.")
 @click.option("--max-tokens", type=click.IntRange(min=1), default=None,

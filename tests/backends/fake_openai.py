@@ -125,6 +125,7 @@ class FakeOpenAI:
         self.queue: deque = deque()
         self.requests: list[Recorded] = []
         self.in_flight = self.peak_in_flight = 0  # requests being answered now, and the most at once
+        self.arrivals: list[int] = []  # per request, how many others were being answered when it came
         self._stop = threading.Event()
         self._lock = threading.Lock()
         self._server = ThreadingHTTPServer(("127.0.0.1", 0), self._handler())
@@ -209,6 +210,7 @@ class FakeOpenAI:
                 fake.requests.append(request)
                 behaviour = fake._next(body)
                 with fake._lock:
+                    fake.arrivals.append(fake.in_flight)
                     fake.in_flight += 1
                     fake.peak_in_flight = max(fake.peak_in_flight, fake.in_flight)
                 try:

@@ -99,6 +99,31 @@ def test_a_429_holds_back_every_call_to_the_model_not_only_its_own(built_plugins
     assert [r.body.get("model") for r in fake_server.requests].count("gpt-4o") == 3  # one 429, two answers
 
 
+def test_after_a_429_one_call_goes_first_and_the_others_wait_for_its_answer(built_plugins, fake_server, fake_key):
+    """Four trials in flight meet 429s: after each hold-off one call (the probe) goes alone; the
+    others go only once it is answered -- two more 429s cost one call each, not one per trial."""
+    import threading
+
+    limited = Hang(0.1, then=Status(429, retry_after=0.3))
+    fake_server.push(*[limited] * 6)
+    fake_server.default = Hang(0.1, then=Reply(GOOD))
+    backends = [_backend(built_plugins, fake_server, backoff_max_s=5.0) for _ in range(4)]
+    start, replies = threading.Barrier(4), []
+
+    def call(backend):
+        start.wait()
+        replies.append(backend.complete(_prompt(), _rng()).text)
+
+    threads = [threading.Thread(target=call, args=(backend,)) for backend in backends]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert replies == [GOOD] * 4
+    assert len(fake_server.arrivals) == 10  # four 429s at once, two probes refused, one answered, three more
+    assert fake_server.arrivals[4:7] == [0, 0, 0]  # the probes went alone
+
+
 def test_requests_per_minute_spaces_the_calls(built_plugins, fake_server, fake_key):
     import time
 

@@ -238,13 +238,20 @@ class LiteLLMBackend(LLMBackend):
         return kwargs
 
     def complete(self, prompt: Prompt, rng: np.random.Generator) -> BackendReply:
-        o = self.options
         kwargs = self.request(prompt, rng)
         key = self._key.reveal()
         if key is not None:
             kwargs["api_key"] = key
         if self._client is not None:
             kwargs["client"] = self._client.value
+        try:
+            return self._call(kwargs, rng)
+        finally:  # whatever ended the call (an answer, a give-up, an interrupt), calls held behind it may go
+            self._limiter.settle(False)
+
+    def _call(self, kwargs: dict[str, Any], rng: np.random.Generator) -> BackendReply:
+        """Ask until answered or given up: pacing, 429 hold-offs and retries (:meth:`complete`)."""
+        o = self.options
         malformed = attempt = limited = 0
         first_429 = 0.0
         previous: Failure | None = None
@@ -258,6 +265,7 @@ class LiteLLMBackend(LLMBackend):
                 except Exception as error:  # every provider error is classified below
                     failure = self._failure(error, recorder, images)
                 else:
+                    self._limiter.settle(False)  # the server answered: calls held after a 429 may go
                     reply = self._reply(response, recorder, time.perf_counter() - started)
                     self._limiter.spent(reply.usage.total, o.tokens_per_minute)
                     return reply
@@ -265,9 +273,13 @@ class LiteLLMBackend(LLMBackend):
                 failure = Failure(f"{RATE_LIMITED}: the account's quota is spent", False, failure.detail)
             elif failure.kind == RATE_LIMITED:  # not a retry: the run slows down until the provider lets it on
                 first_429 = first_429 or time.monotonic()
-                self._rate_limited(failure, limited, first_429, rng)
+                try:
+                    self._rate_limited(failure, limited, first_429, rng)
+                finally:
+                    self._limiter.settle(True)  # held again: the next call to go is the next probe
                 limited += 1
                 continue
+            self._limiter.settle(False)  # any other failure: not the provider's limit
             if is_malformed(failure.kind):
                 malformed += 1
                 failure = Failure(failure.kind, malformed <= _MALFORMED_RETRIES, failure.detail, failure.retry_after_s)

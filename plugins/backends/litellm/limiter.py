@@ -7,7 +7,11 @@ asks the process's :class:`RateLimiter` for its model and server when it may go:
 * ``requests_per_minute``: calls are spaced 60/rpm seconds apart;
 * ``tokens_per_minute``: each answer's tokens push the next call back by tokens × 60/tpm;
 * a 429 holds *every* call to that model back for its ``Retry-After`` (capped by the backend's
-  ``backoff_max_s``), not only the call that met it.
+  ``backoff_max_s``), not only the call that met it;
+* after a 429, one call goes first -- the *probe* -- and the others wait for what it meets: an
+  answer (or any failure that is not a 429) lets them all go; another 429 holds them again. A
+  burst that outlasts one ``Retry-After`` thus costs one call per hold, not one per trial in
+  flight (measured: four trials at once sent four calls after each hold before).
 
 Limits are per worker process: with ``--workers N`` each process paces at 1/N of the configured
 rate (the share is set by the executor, ``SAFEEMBODAI_RATE_SHARE``). A limiter keeps no history
@@ -20,6 +24,9 @@ import os
 import threading
 import time
 from typing import Callable
+
+#: How often a call waiting for the probe checks that the probe's thread is still alive (seconds).
+PROBE_CHECK_S = 1.0
 
 _lock = threading.Lock()
 _limiters: dict[tuple[str, str], "RateLimiter"] = {}
@@ -38,14 +45,26 @@ class RateLimiter:
 
     def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._clock = clock
-        self._lock = threading.Lock()
+        self._lock = threading.Condition()
         self._next_request = 0.0
         self._tokens_free_at = 0.0
         self._held_until = 0.0
+        self._recovering = False  # a 429 was met and no call has been answered since
+        self._probe: threading.Thread | None = None  # the one call out while recovering
 
     def reserve(self, requests_per_minute: float | None) -> float:
-        """Reserve the next call's start; return how long to wait before it (0 when it may go now)."""
+        """Reserve the next call's start; return how long to wait before it (0 when it may go now).
+        After a 429 the first caller becomes the probe and the others block here until it
+        settles (:meth:`settle`; or until its thread is gone)."""
+        me = threading.current_thread()
         with self._lock:
+            while self._recovering and self._probe not in (None, me):
+                if not self._probe.is_alive():  # the probe's trial died without settling
+                    self._probe = None
+                    break
+                self._lock.wait(timeout=PROBE_CHECK_S)
+            if self._recovering:
+                self._probe = me
             now = self._clock()
             start = max(now, self._held_until, self._tokens_free_at)
             if requests_per_minute:
@@ -62,9 +81,22 @@ class RateLimiter:
             self._tokens_free_at = max(self._clock(), self._tokens_free_at) + owed
 
     def hold(self, seconds: float) -> None:
-        """A 429: no call to this model starts for ``seconds`` from now."""
+        """A 429: no call to this model starts for ``seconds`` from now, and the next goes alone."""
         with self._lock:
             self._held_until = max(self._held_until, self._clock() + seconds)
+            self._recovering = True
+
+    def settle(self, rate_limited: bool) -> None:
+        """A call of this thread is over: if it was the probe, an answer (``rate_limited`` False)
+        ends the recovery and lets every waiting call go; a 429 (already :meth:`hold`) passes the
+        probe to the next caller."""
+        with self._lock:
+            if self._probe is not threading.current_thread():
+                return
+            self._probe = None
+            if not rate_limited:
+                self._recovering = False
+            self._lock.notify_all()
 
 
 def limiter_for(server: str, model: str) -> RateLimiter:

@@ -55,9 +55,13 @@ class LabbotSwarm:
     """Positions (mm) and headings (deg) of every Labbot, and how they move."""
 
     def __init__(self, options, xy: np.ndarray, headings_deg: np.ndarray, obstacles: np.ndarray,
-                 seed: int, sense: RangeSense | None = None, movers: Sequence | None = None) -> None:
+                 seed: int, sense: RangeSense | None = None, movers: Sequence | None = None,
+                 sense_reads_room: bool = False) -> None:
+        """``sense_reads_room``: ``sense`` reads only this room's bodies (its walls, the robot,
+        ``obstacles`` and the other Labbots), so a tick with none of them in reach may skip it."""
         self.o = options
         self.sense = sense
+        self._may_skip_sense = bool(sense_reads_room)
         self.radius = float(getattr(options, "labbot_radius_mm", 0.0))
         self.xy = np.array(xy, dtype=float).reshape(-1, 2)  # mm, world frame
         self.heading = np.array(headings_deg, dtype=float).reshape(-1)  # deg, CCW from +x
@@ -201,7 +205,7 @@ class LabbotSwarm:
         """Per Labbot: 0 if its sensors read nothing within range (or it has none), else the side
         to turn to: +1 (left) or -1 (right), away from the nearer side reading; 2 if only the
         sensor straight ahead reads something (then the side is drawn at random)."""
-        if self.sense is None or not any(self.sensing) or self._out_of_reach(robot_xy):
+        if self.sense is None or not any(self.sensing) or (self._may_skip_sense and self._out_of_reach(robot_xy)):
             return [0.0] * len(self)
         ranges = np.asarray(self.sense(self.xy, np.array(headings, dtype=float), robot_xy), dtype=float)  # (L, sensors)
         reach = self.o.labbot_sensor_range_mm

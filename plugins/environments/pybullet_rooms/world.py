@@ -82,7 +82,8 @@ class PybulletRoom(KinematicMotion, Environment):
         movers = draw.movers if draw is not None else None
         sense = self.labbot_sensors if movers is None or any(m.sensing for m in movers) else None
         self.swarm = LabbotSwarm(o, layout.labbots_xy, layout.labbots_heading_deg, statics,
-                                 derive_seed(seed, "labbots"), sense=sense, movers=movers)
+                                 derive_seed(seed, "labbots"), sense=sense, movers=movers,
+                                 sense_reads_room=True)
         self._world = draw.report_json() if draw is not None else None
         self._world_kind = draw.kind if draw is not None else None
         self.sim_time_s, self.collided, self.collision_xy = 0.0, False, None
