@@ -110,6 +110,9 @@ class MovingObstaclesOptions(BaseModel):
         "(0: the last two scans only, nothing learned)"))
     prior_weight_s: float = Field(4.0, ge=0, le=600, allow_inf_nan=False, description=(
         "how much the wander_deg prior weighs against a mover's own chords, in seconds of evidence"))
+    walls: bool = Field(False, description=(
+        "predicted courses turn where the step's scan shows something standing (a wall, a ball), to a "
+        "heading drawn among the clear ones (false: courses pass through walls)"))
     park_check: bool = Field(False, description=(
         "refuse a plan that leaves the robot on a mover's course (its measured velocity held), when a "
         "short step aside leaves it off every course (false: where a plan leaves the robot is not judged)"))

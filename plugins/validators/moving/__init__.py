@@ -20,7 +20,8 @@ What the rule assumes:
 * a mover whose earlier position was not seen (it came out of a shadow) has unknown velocity: its
   courses fan out all the way round at ``unknown_speed_mm_s``;
 * a mover wanders as a random walk; one that turns on the spot at a wall, or behaves otherwise,
-  is covered only as far as the courses' spread covers it (``docs/validation.md``);
+  is covered only as far as the courses' spread covers it (``docs/validation.md``); with ``walls``,
+  courses turn where the scan shows something standing, to a heading drawn among the clear ones;
 * a turn in place is always accepted: the body does not leave its circle, so refusing it keeps
   no mover away (the straights that follow are judged at the times they will run); likewise a
   course counts against a straight only if the motion brings the body nearer to it than standing
@@ -44,6 +45,7 @@ from .learning import LearningSettings, learn_movers
 from ..options import DEFAULT_SAFETY_DISTANCE_MM
 from ..rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
+from .walls import Walls
 
 _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
 
@@ -127,8 +129,15 @@ class MovingObstaclesRule(Validator):
                 earlier, spans = self._earlier_movers(usable)
                 blobs = learn_movers(blobs, earlier, self.learning, spans)
         think = self.think_time_s(context)
-        self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s), blobs, think)
+        walls = Walls.seen(context.scan, context.start_pose, blobs) \
+            if self.options.walls and blobs and context.start_pose is not None else None
+        self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s), blobs, think, walls)
         return blobs, think
+
+    def walls(self, context: ValidationContext) -> Walls | None:
+        """What the context's scan shows standing, for courses to turn at (option ``walls``; else None)."""
+        self.movers(context)
+        return self._cache[5] if self._cache is not None else None
 
     def _earlier_movers(self, usable: list) -> tuple[list[list[Blob]], list[float]]:
         """The movers of each earlier pair of consecutive scans, newest pair first (at most
@@ -198,7 +207,7 @@ class MovingObstaclesRule(Validator):
             # straight; standing still, the robot would be seen elsewhere, so those courses differ
             before = np.arange(0.0, start_s, o.sample_s)
             track = self._track_before(context, before)
-            where, heading = self.futures.courses(blob, np.concatenate((before, times)))
+            where, heading = self.futures.courses(blob, np.concatenate((before, times)), self.walls(context))
 
             def held(robot_track: np.ndarray) -> np.ndarray:
                 return yielding(where, heading, np.concatenate((track, robot_track)), context.robot.radius_mm,
@@ -206,7 +215,7 @@ class MovingObstaclesRule(Validator):
 
             moving, still = held(robot), held(np.repeat(robot[:1], len(times), axis=0))
         else:
-            moving = still = self.futures.at(blob, times)  # (courses, times, 2)
+            moving = still = self.futures.at(blob, times, self.walls(context))  # (courses, times, 2)
         reach = context.robot.radius_mm + blob.radius_mm + o.margin_mm + o.margin_growth_mm_s * times
         distance = np.hypot(*np.moveaxis(robot[None] - moving, -1, 0))
         standing = np.hypot(*np.moveaxis(robot[0][None, None] - still, -1, 0))

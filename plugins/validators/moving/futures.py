@@ -26,8 +26,10 @@ courses wander alike); the share judged is per mover, so that does not matter. T
 fixed by ``seed`` (the same check gives the same verdict, whatever was checked before), and the
 noise of later times never changes the courses' earlier parts, so a shorter motion is judged on
 the same futures as a longer one.
-Courses pass through walls (the rule does not map the room): one that would turn at a wall is
-predicted beyond it, away from the robot -- a failure mode ``docs/validation.md`` lists.
+Given the scan's standing returns (:class:`~.walls.Walls`, option ``walls``), a course turns where
+it would meet one, to a heading drawn among those that stay clear; without them, courses pass through
+walls (the rule does not map the room): one that would turn at a wall is predicted beyond it, away
+from the robot -- a failure mode ``docs/validation.md`` lists.
 """
 
 from __future__ import annotations
@@ -38,8 +40,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .tracking import Blob, chord_share_quantile
+from .walls import HEADINGS, Walls
 
 _CHUNK = 128  # columns of noise drawn at a time (each chunk from its own seeded generator)
+#: courses turning at walls are stepped this many steps at a time (kept for the plan's later checks)
+_WALLED_STEPS = 64
+#: at most this many turns at walls are followed per check (a course still meeting one after: as drawn)
+_MAX_TURNS = 32
 #: a chord shorter than this quantile of a wandering cruiser's says the mover turned or stopped
 TURN_QUANTILE = 0.05
 
@@ -61,6 +68,8 @@ class WanderingFutures:
     def __init__(self, settings: WanderSettings) -> None:
         self.s = settings
         self._noise = np.zeros((settings.count, 0))
+        self._uniform = np.zeros((settings.count, 0))  # which free heading a course takes at a wall
+        self._walled: dict[tuple[int, int], tuple] = {}  # (mover, walls) -> courses on the step grid
         # with a cruising speed: which courses start after a turn (draw below the turned share), and
         # on which heading (each its own stream; course 0 is never turned)
         turns = np.random.default_rng([settings.seed, 2**32 - 1]).random((2, settings.count))
@@ -77,6 +86,16 @@ class WanderingFutures:
             self._noise = np.concatenate([self._noise, *extra], axis=1)
             self._noise[0] = 0.0  # course 0 is the measured course: no wander, the measured speed
         return self._noise[:, :columns]
+
+    def _uniforms(self, columns: int) -> np.ndarray:
+        """Uniform draws in [0, 1), (count, columns), fixed per column like :meth:`_normals`."""
+        have = self._uniform.shape[1] // _CHUNK
+        need = -(-columns // _CHUNK)
+        if need > have:
+            extra = [np.random.default_rng([self.s.seed, 2**32 - 2, chunk]).random((self.s.count, _CHUNK))
+                     for chunk in range(have, need)]
+            self._uniform = np.concatenate([self._uniform, *extra], axis=1)
+        return self._uniform[:, :columns]
 
     def wander_deg(self, blob: Blob) -> float:
         """The mover's wander: what its track taught (:mod:`.learning`), else the settings'."""
@@ -109,37 +128,107 @@ class WanderingFutures:
         """How many of the mover's courses start on a heading drawn all the way round."""
         return int(np.count_nonzero(self._turned(blob)))
 
-    def at(self, blob: Blob, times: np.ndarray) -> np.ndarray:
+    def at(self, blob: Blob, times: np.ndarray, walls: Walls | None = None) -> np.ndarray:
         """The courses' centres (count, len(times), 2) at ``times`` (s after the scan, >= 0)."""
-        return self.courses(blob, times)[0]
+        return self.courses(blob, times, walls)[0]
 
-    def courses(self, blob: Blob, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The courses' centres (count, len(times), 2) and headings (count, len(times), radians)."""
+    def courses(self, blob: Blob, times: np.ndarray, walls: Walls | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The courses' centres (count, len(times), 2) and headings (count, len(times), radians);
+        with ``walls``, courses turn where they would meet a standing return."""
         s = self.s
         times = np.maximum(np.asarray(times, dtype=float), 0.0)
         steps = int(math.ceil(float(times.max(initial=0.0)) / s.step_s)) + 1
-        noise = self._normals(steps + 1)
+        if walls is not None:
+            grid, heading, step = self._walled_grid(blob, steps, walls)
+        else:
+            grid, heading, step = self._grid(blob, steps)
+        index = np.minimum((times // s.step_s).astype(int), steps - 1)
+        within = (times - index * s.step_s)[None, :, None] / s.step_s
+        return grid[:, index] + within * step[:, index], heading[:, index]
+
+    def _start(self, blob: Blob, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray | float]:
+        """Each course's starting heading (radians) and speed (mm/s; an array with a cruising speed)."""
+        s = self.s
         measured = 0.0 if blob.velocity is None else float(np.hypot(*blob.velocity))
-        cruise, wander = self.cruise_mm_s(blob), self.wander_deg(blob)
+        cruise = self.cruise_mm_s(blob)
         if blob.velocity is None:
             # no velocity: courses fanned evenly all the way round
-            speed = s.unknown_speed_mm_s
-            start = np.linspace(-math.pi, math.pi, s.count, endpoint=False)
-        else:
-            spread = math.radians(wander) * math.sqrt(max(blob.span_s, 0.0) / 3.0)
-            start = math.atan2(blob.velocity[1], blob.velocity[0]) + spread * noise[:, 0]
-            speed = measured
-            if cruise is not None:
-                speed = np.full((s.count, 1, 1), max(measured, cruise))
-                speed[0] = measured  # course 0: the measured course
-                start = np.where(self._turned(blob), self._turn_heading, start)
+            return np.linspace(-math.pi, math.pi, s.count, endpoint=False), s.unknown_speed_mm_s
+        spread = math.radians(self.wander_deg(blob)) * math.sqrt(max(blob.span_s, 0.0) / 3.0)
+        start = math.atan2(blob.velocity[1], blob.velocity[0]) + spread * noise[:, 0]
+        if cruise is None:
+            return start, measured
+        speed = np.full(s.count, max(measured, cruise))
+        speed[0] = measured  # course 0: the measured course
+        return np.where(self._turned(blob), self._turn_heading, start), speed
+
+    def _walled_grid(self, blob: Blob, steps: int, walls: Walls) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Like :meth:`_grid`, with each course turned where its next step would bring the disc onto
+        a standing return (from a clear position: a course that starts against a wall leaves it as
+        drawn), to a heading drawn evenly among the :data:`~.walls.HEADINGS` whose next step is
+        clear; with none clear it stands from there on. A turn adds the same angle to the rest of
+        the course's headings (its own wander goes on), so the courses are stepped bounce by bounce,
+        every course at once. Kept per mover and walls: the plan's straights are judged on the same
+        courses."""
+        key = (id(blob), id(walls))
+        kept = self._walled.get(key)
+        if kept is not None and kept[0] is blob and kept[1] is walls and kept[2].shape[1] >= steps:
+            return kept[2], kept[3], kept[4]
+        s = self.s
+        steps = -(-steps // _WALLED_STEPS) * _WALLED_STEPS  # room for the plan's later straights
+        grid, heading, step = self._grid(blob, steps)
+        grid, heading, step = grid[:, :steps].copy(), heading.copy(), step.copy()
+        uniform = self._uniforms(steps)
+        stride = np.hypot(step[:, :1, 0], step[:, :1, 1])  # (count, 1): each course's distance per step
+        around = np.linspace(0.0, 2 * math.pi, HEADINGS, endpoint=False)
+        wall = walls.blocked(grid, blob.radius_mm)  # (count, steps)
+        after = np.zeros(s.count, dtype=int)  # each course is checked from this step on
+        rows = np.arange(s.count)
+        for _ in range(_MAX_TURNS):
+            nxt = np.concatenate((wall[:, 1:], np.zeros((s.count, 1), dtype=bool)), axis=1)
+            meets = nxt & ~wall & (np.arange(steps)[None, :] >= after[:, None])
+            hit = rows[meets.any(axis=1)]
+            if not hit.size:
+                break
+            m = meets[hit].argmax(axis=1)  # the step whose move would meet the wall
+            here = grid[hit, m]
+            options = heading[hit, m][:, None] + around[None, :]
+            ahead = here[:, None, :] + stride[hit][:, :, None] * np.stack((np.cos(options), np.sin(options)), -1)
+            clear = ~walls.blocked(ahead, blob.radius_mm)
+            free = clear.sum(axis=1)
+            pick = np.minimum((uniform[hit, m] * free).astype(int), np.maximum(free - 1, 0))
+            chosen = np.argmax(np.cumsum(clear, axis=1) > pick[:, None], axis=1)
+            turn = np.where(free > 0, options[np.arange(len(hit)), chosen] - heading[hit, m], 0.0)
+            later = np.arange(steps)[None, :] >= m[:, None]
+            heading[hit] += np.where(later, turn[:, None], 0.0)
+            moved = stride[hit][:, :, None] * np.stack((np.cos(heading[hit]), np.sin(heading[hit])), -1)
+            moved = np.where(((free == 0)[:, None] & later)[..., None], 0.0, moved)  # nowhere clear: it stands
+            step[hit] = np.where(later[..., None], moved, step[hit])
+            ahead_of = np.where(later[..., None], moved, 0.0)
+            path = here[:, None, :] + np.cumsum(ahead_of, axis=1) - ahead_of
+            grid[hit] = np.where(later[..., None], path, grid[hit])
+            wall[hit] = np.where(later, walls.blocked(grid[hit], blob.radius_mm), wall[hit])
+            after[hit] = np.where(free > 0, m + 1, steps)
+        kept = (blob, walls, grid, heading, step)
+        if len(self._walled) > 64:
+            self._walled.clear()
+        self._walled[key] = kept
+        return grid, heading, step
+
+    def _grid(self, blob: Blob, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The courses on the step grid: centres (count, steps, 2), headings (count, steps) and the
+        step taken from each point (count, steps, 2)."""
+        s = self.s
+        noise = self._normals(steps + 1)
+        start, speed = self._start(blob, noise)
+        if np.ndim(speed):
+            speed = np.asarray(speed).reshape(-1, 1, 1)
+        wander = self.wander_deg(blob)
         drift = math.radians(wander) * math.sqrt(s.step_s) * noise[:, 1:steps]
         heading = start[:, None] + np.concatenate((np.zeros((s.count, 1)), np.cumsum(drift, axis=1)), axis=1)
         step = speed * s.step_s * np.stack((np.cos(heading), np.sin(heading)), axis=-1)  # (count, steps, 2)
         grid = blob.centre + np.concatenate((np.zeros((s.count, 1, 2)), np.cumsum(step, axis=1)), axis=1)
-        index = np.minimum((times // s.step_s).astype(int), steps - 1)
-        within = (times - index * s.step_s)[None, :, None] / s.step_s
-        return grid[:, index] + within * step[:, index], heading[:, index]
+        return grid, heading, step
 
 
 def yielding(where: np.ndarray, heading: np.ndarray, robot: np.ndarray, robot_radius_mm: float,
