@@ -99,8 +99,9 @@ def test_the_shipped_family_moves_exactly_as_the_default_options(make_env):
 
 # -- the families ------------------------------------------------------------------------------
 
-def test_tuning_and_held_out_share_no_speed_or_wander():
-    tuning, held_out = FAMILIES["tuning"], FAMILIES["held_out"]
+@pytest.mark.parametrize("held_out_name", ["held_out", "held_out_2"])
+def test_tuning_and_held_out_share_no_speed_or_wander(held_out_name):
+    tuning, held_out = FAMILIES["tuning"], FAMILIES[held_out_name]
     assert disjoint(tuning, held_out) == []  # per kind and across kinds
     assert {k.name for k in tuning.kinds} == {k.name for k in held_out.kinds} >= {
         "cruise", "fast", "wandering", "blind", "stop_and_go", MIXED}
@@ -120,7 +121,7 @@ def test_tuning_and_held_out_share_no_speed_or_wander():
 
 
 def test_the_families_behaviours():
-    for name in ("tuning", "held_out"):
+    for name in ("tuning", "held_out", "held_out_2"):
         kinds = {k.name: k for k in FAMILIES[name].plain}
         assert not kinds["blind"].sensing and not kinds["blind"].yielding
         assert kinds["stop_and_go"].stop_and_go == 1.0
@@ -129,7 +130,7 @@ def test_the_families_behaviours():
         assert all(k.stop_and_go == 0.0 for n, k in kinds.items() if n != "stop_and_go")
 
 
-@pytest.mark.parametrize("name", ["tuning", "held_out"])
+@pytest.mark.parametrize("name", ["tuning", "held_out", "held_out_2"])
 def test_drawn_parameters_lie_in_their_kinds_ranges(name):
     fam = FAMILIES[name]
     for seed in range(300):
@@ -147,7 +148,7 @@ def test_drawn_parameters_lie_in_their_kinds_ranges(name):
             assert (mover.go_s, mover.stop_s) == (kind.go_s, kind.stop_s)
 
 
-@pytest.mark.parametrize("name", ["tuning", "held_out"])
+@pytest.mark.parametrize("name", ["tuning", "held_out", "held_out_2"])
 def test_kinds_come_in_proportion_to_their_weights(name):
     fam = FAMILIES[name]
     counts = Counter(fam.draw(seed, 3).kind for seed in range(1200))

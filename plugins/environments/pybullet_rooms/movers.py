@@ -30,11 +30,14 @@ The families shipped (set ``labbot_family`` on ``DO`` or ``MO``; see ``docs/room
 | stop_and_go | 100–180           | 10–30                | 300–360        | 0–8             | yes     | always      |
 | mixed       | each Labbot draws one of the five kinds above (equal weights)                           |
 
+``held_out_2`` (defined after ``held_out`` had been read once): cruise 60–98 mm/s, fast 285–450,
+blind and stop-and-go 285–400; wander 4–9.5 (wandering 62–120); go 0.8–2 s, stop 1.5–4 s.
+
 No kind yields (keeps clear of the robot's true position): that is an oracle, for inline families.
 Every kind weighs 1 (each a sixth of the trials). Stop-and-go phases: tuning go 3–6 s, stop
 1–2 s; held-out go 1–2.5 s, stop 2.5–5 s. ``shipped`` has one kind, ``shipped``: 150 mm/s,
 25 deg/√s, sensing, not yielding, never stopping (the room's defaults). Per kind, and across
-kinds, no speed or wander of ``held_out`` lies in a range of ``tuning`` (:func:`disjoint`):
+kinds, no speed or wander of ``held_out`` or ``held_out_2`` lies in a range of ``tuning`` (:func:`disjoint`):
 speeds ≤ 450 mm/s so the robot (200 mm/s) can still step aside.
 """
 
@@ -250,6 +253,11 @@ FAMILIES: dict[str, MoverFamily] = {
     "held_out": _family("held_out", "the family to measure on: no speed or wander of tuning", _standard(
         plain=(50.0, 95.0), fast=(300.0, 420.0), wander=(0.0, 8.0), high_wander=(70.0, 110.0),
         dangerous=(300.0, 360.0), go=(1.0, 2.5), stop=(2.5, 5.0))),
+    # defined 2026-12-03, after held_out had been read once (docs/evidence/movers.md): a fresh
+    # family for the next held-out reading, no speed or wander of tuning, seeds from 2000
+    "held_out_2": _family("held_out_2", "the second family to measure on: no speed or wander of tuning", _standard(
+        plain=(60.0, 98.0), fast=(285.0, 450.0), wander=(4.0, 9.5), high_wander=(62.0, 120.0),
+        dangerous=(285.0, 400.0), go=(0.8, 2.0), stop=(1.5, 4.0))),
 }
 
 
