@@ -139,7 +139,8 @@ class LaserScan:
         bearing = np.arctan2(self.mount.y_mm + ahead_m * 1000.0 * np.sin(angles),
                              self.mount.x_mm + ahead_m * 1000.0 * np.cos(angles))
         bins = np.rint(bearing / width).astype(int) % count
-        distance = np.hypot(x, y)
+        # a centred scanner's distances are its ranges (no trigonometric round trip: the same numbers)
+        distance = reach_m * 1000.0 if self.mount.offset_mm == 0.0 else np.hypot(x, y)
         nearest = np.full(count, np.inf)
         obstacle = returned | close
         np.minimum.at(nearest, bins[obstacle], distance[obstacle])

@@ -36,9 +36,11 @@ def ros_from_native(native_mm: np.ndarray, shift: int) -> LaserScan:
                      range_min=0.0, range_max=8.0)
 
 
+# ranges a message in metres carries exactly (mm / 1000 * 1000 gives them back): a range of 170 mm
+# is 170.00000000000003 through metres, which a rule's boundary at 170 mm tells apart
+carried_mm = st.floats(min_value=50.0, max_value=7999.0).map(lambda mm: mm / 1000.0 * 1000.0)
 native_scans = st.integers(min_value=8, max_value=720).flatmap(
-    lambda n: st.lists(st.one_of(st.floats(min_value=50.0, max_value=7999.0), st.just(math.inf), st.just(math.nan)),
-                       min_size=n, max_size=n))
+    lambda n: st.lists(st.one_of(carried_mm, st.just(math.inf), st.just(math.nan)), min_size=n, max_size=n))
 plans = st.lists(st.one_of(
     st.builds(lambda d, back: {"command": "straight", "direction": "backward" if back else "forward", "distance": d},
               st.floats(min_value=1.0, max_value=399.0), st.booleans()),
