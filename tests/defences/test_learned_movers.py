@@ -129,6 +129,20 @@ def test_a_blind_mover_heading_for_a_standing_robot_refuses_the_plan_that_parks_
     assert not refused([rotate(10)], too_late, parking)
 
 
+def test_no_step_aside_is_advised_against_a_mover_that_arrives_during_the_think_time():
+    """A Labbot at 250 mm/s, 1.2 m ahead on the robot's line, reaches the robot about 3.5 s after
+    the scan: while the LLM still thinks, the robot stands there whatever the plan, so no plan is
+    safer and a plan that waits is not refused (it was, with a turn-and-go step aside that cannot
+    start before the mover arrives)."""
+    positions = [(ROBOT.x_mm + 1200.0 + 1000.0 * k, ROBOT.y_mm) for k in (2, 1, 0)]
+    context = history_context(ROBOT, positions, dt_s=4.0)
+    parking = rule(park_check=True, max_obstacle_speed_mm_s=2000)
+    blobs, think = parking.movers(context)
+    spot = np.array([ROBOT.x_mm, ROBOT.y_mm])
+    assert parking.parked_on(spot, context.robot.radius_mm, blobs, 0.0, think) is not None
+    assert parking._step_aside(context, blobs, think) is None
+    assert not refused([rotate(10)], context, parking)
+
 
 def test_a_mover_arriving_while_the_robot_still_turns_on_its_spot_counts_as_parking():
     """The robot stands on its spot from the end of the plan's last straight -- for a plan of turns,

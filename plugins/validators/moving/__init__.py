@@ -349,8 +349,13 @@ class MovingObstaclesRule(Validator):
         """The first short plan from where the step starts -- a turn of 89 or 60 degrees either way
         then a straight forward, or a straight backward or forward, 200 or 390 mm, clear of the
         scan by the clearance rule's default distance -- whose motion meets no mover's courses and
-        whose end lies on no mover's course (:meth:`parked_on`); None if there is none."""
+        whose end lies on no mover's course (:meth:`parked_on`); None if there is none, or if a mover
+        reaches the step's spot during the think time (every plan stands there then: none is safer)."""
         base = replace(context, offset=(0.0, 0.0, 0.0), earlier_signals=(), later_signals=())
+        spot = np.array([base.planned_pose.x_mm, base.planned_pose.y_mm])
+        radius = context.robot.radius_mm
+        if self.parked_on(spot, radius, blobs, 0.0, think) is not None:
+            return None  # reached during the think time, where every plan stands: none is safer
         top = context.limits.max_distance_mm - 1.0
         for turn_deg in (89.0, -89.0, 60.0, -60.0, 180.0, 0.0):
             turned = [] if turn_deg in (0.0, 180.0) else \
@@ -369,7 +374,7 @@ class MovingObstaclesRule(Validator):
                     continue
                 end = here.advanced(straight).planned_pose
                 arrive = start + self.duration_s(straight)
-                if self.parked_on(np.array([end.x_mm, end.y_mm]), context.robot.radius_mm, blobs, arrive,
+                if self.parked_on(np.array([end.x_mm, end.y_mm]), radius, blobs, arrive,
                                   self._standing_until(arrive, think)) is None:
                     return [*turned, straight]
         return None
