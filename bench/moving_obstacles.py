@@ -332,7 +332,7 @@ def _collided(steps, judged):
     return None
 
 
-def misses(run: Path) -> None:
+def misses(run: Path, arm: str = "moving") -> None:
     """Replay the ``no_attack`` trials of the ``moving`` arm that ended in a ``self`` collision and
     say, for the straight whose execution collided, what the rule knew: the mover nearest the
     Labbot hit, and the share of that mover's courses the straight met (and the share met before
@@ -341,9 +341,9 @@ def misses(run: Path) -> None:
     from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
     scenario, plugins = _run_scenario(run)
-    rows = _trial_rows(run, "moving", labbot_hit=True)
+    rows = _trial_rows(run, arm, labbot_hit=True)
     rules: dict = {}
-    for room, seed, result, _, collided in _replay(scenario, plugins, "moving", rows, MovingObstaclesRule):
+    for room, seed, result, _, collided in _replay(scenario, plugins, arm, rows, MovingObstaclesRule):
         if not _labbot_self(result):
             print(f"{room} {seed}: not reproduced ({result.detail[:60]})")
             continue
@@ -353,7 +353,7 @@ def misses(run: Path) -> None:
             continue
         hit = int(result.detail.split("Labbot ")[1].split()[0].rstrip(":")) - 1
         signal, context, _, labbots = collided
-        rule = rules.setdefault(room, _moving_rule(scenario, "moving"))
+        rule = rules.setdefault(room, _moving_rule(scenario, arm))
         blobs = rule.movers(context)[0]
         near = [b for b in blobs if np.hypot(*(b.centre - labbots[hit])) < 300]
         if not near:
@@ -378,7 +378,7 @@ def _moving_rule(scenario, arm: str, overrides: dict | None = None):
     return MovingObstaclesRule(MovingObstaclesOptions(**{**options, **(overrides or {})}))
 
 
-def tradeoff(runs: list[Path], variants: list[str], sample: int) -> None:
+def tradeoff(runs: list[Path], variants: list[str], sample: int, arm: str = "moving") -> None:
     """What option settings of ``moving_obstacles`` would have done on the situations of earlier runs:
     replayed, deterministic, and first-order only (a refusal changes what happens next, which a
     replay cannot say). Per variant: how many of the straights that collided with a Labbot under V(C)
@@ -402,12 +402,12 @@ def tradeoff(runs: list[Path], variants: list[str], sample: int) -> None:
     for run in runs:
         scenario, plugins = _run_scenario(run)
         for arm, rule_class, found in (("clearance", LidarClearanceRule, collided),
-                                       ("moving", MovingObstaclesRule, missed)):
+                                       (arm, MovingObstaclesRule, missed)):
             for _, _, result, _, straight in _replay(scenario, plugins, arm, _trial_rows(run, arm, labbot_hit=True),
                                                      rule_class):
                 if _labbot_self(result):
                     found.append(None if straight is None else (scenario, straight))
-        for _, _, _, judged, _ in _replay(scenario, plugins, "moving", _trial_rows(run, "moving", first=sample),
+        for _, _, _, judged, _ in _replay(scenario, plugins, arm, _trial_rows(run, arm, first=sample),
                                           MovingObstaclesRule):
             everyday.extend((scenario, j) for j in judged)
     outside = sum(item is None for item in collided)
@@ -426,7 +426,7 @@ def tradeoff(runs: list[Path], variants: list[str], sample: int) -> None:
                     continue
                 scenario, (signal, context, _, _) = item
                 if id(context.scan) not in rules:
-                    rules[id(context.scan)] = _moving_rule(scenario, "moving", overrides)
+                    rules[id(context.scan)] = _moving_rule(scenario, arm, overrides)
                 count += not rules[id(context.scan)].validate(signal, context).valid
             return count
 
@@ -478,6 +478,7 @@ def main() -> None:
     read.add_argument("runs", type=Path, nargs="+", help="run folders (or results.sqlite files); pooled")
     why = commands.add_parser("misses", help="replay the moving arm's self collisions (no_attack)")
     why.add_argument("run", type=Path)
+    why.add_argument("--arm", default="moving", help="the arm with moving_obstacles")
     hits = commands.add_parser("struck", help="where struck collisions happen (step, robot's motion)")
     hits.add_argument("runs", type=Path, nargs="+")
     trade = commands.add_parser("tradeoff", help="replay earlier runs' straights under other options")
@@ -485,15 +486,16 @@ def main() -> None:
     trade.add_argument("--variant", action="append", default=[], metavar="NAME=JSON",
                        help='option overrides on the run\'s moving arm, e.g. cruise=\'{"cruise_speed_mm_s": 150}\'')
     trade.add_argument("--sample", type=int, default=20, help="trials per room whose straights measure caution")
+    trade.add_argument("--arm", default="moving", help="the arm whose moving_obstacles the variants change")
     args = parser.parse_args()
     if args.command == "micro":
         micro(args.repeats, args.scenario, args.arm, args.scans, json.loads(args.set))
     elif args.command == "misses":
-        misses(args.run)
+        misses(args.run, args.arm)
     elif args.command == "struck":
         struck(args.runs)
     elif args.command == "tradeoff":
-        tradeoff(args.runs, args.variant, args.sample)
+        tradeoff(args.runs, args.variant, args.sample, args.arm)
     else:
         ablation(args.runs)
 

@@ -90,10 +90,16 @@ class Scenario(BaseModel):
 
     @model_validator(mode="after")
     def _names_are_plain(self) -> "Scenario":
-        for what, names in (("arm", self.arms), ("condition", self.conditions)):
+        labels = [e.key for e in self.environments]
+        for what, names in (("environment label", labels), ("arm", self.arms), ("condition", self.conditions)):
             for name in names:
                 if not name or "/" in name:
                     raise ValueError(f"{what} name {name!r} must be non-empty and contain no '/'")
+                if "__" in name or name.startswith("_") or name.endswith("_"):
+                    # a trial's files join these names with '__' (run_files.trial_file_name): two trials
+                    # of different cells would share a file
+                    raise ValueError(f"{what} name {name!r} must not contain '__' or start or end with '_' "
+                                     "(a trial's files join the names of its cell with '__')")
         return self
 
     def environment(self, label: str) -> ComponentRef:

@@ -62,3 +62,21 @@ def test_the_cli_prints_the_suggestion(repo):
     done = subprocess.run([sys.executable, "-m", "safeembodai_core", "run", str(repo / "scenarios" / "quickstart.yaml"),
                            "--set", "trails=3"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 1 and "did you mean 'trials'?" in done.stderr and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("arms, conditions", [
+    ("{a__b: {}, a: {}}", "{c: {}, b__c: {}}"),  # MO__a__b__c__0 twice
+    ("{a_: {}, a: {}}", "{b: {}, _b: {}}"),  # MO__a___b__0 twice
+])
+def test_names_that_would_give_two_trials_one_file_name_are_refused(tmp_path, plugins, arms, conditions):
+    """A trial's picture and bag are named by its cell's names joined with '__'
+    (run_files.trial_file_name): names that could join into another cell's are refused, naming it."""
+    from safeembodai_core.run_files import trial_file_name
+
+    path = tmp_path / "clash.yaml"
+    path.write_text(f"name: clash\nenvironments: [MO]\narms: {arms}\nconditions: {conditions}\n")
+    found = problems(path, plugins)
+    assert any("must not contain '__' or start or end with '_'" in line for line in found), found
+    first, second = (f"MO/{a}/{c}/0" for a, c in (("a__b", "c"), ("a", "b__c"))) if "__" in arms else \
+        (f"MO/{a}/{c}/0" for a, c in (("a_", "b"), ("a", "_b")))
+    assert trial_file_name(first) == trial_file_name(second)  # what the refusal prevents
