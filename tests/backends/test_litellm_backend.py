@@ -124,6 +124,37 @@ def test_after_a_429_one_call_goes_first_and_the_others_wait_for_its_answer(buil
     assert fake_server.arrivals[4:7] == [0, 0, 0]  # the probes went alone
 
 
+def test_a_call_that_waited_behind_the_probe_counts_that_wait_towards_rate_limit_wait_s(built_plugins, fake_server,
+                                                                                         fake_key):
+    """Every call is refused, each 429 after 0.6 s (``rate_limit_wait_s`` 1): a call that starts while
+    another call's probe is out waits behind it (0.6 s), and that wait counts -- its first 429 ends
+    it, instead of starting a second ``rate_limit_wait_s`` of its own (three more answers)."""
+    import threading
+    import time
+
+    fake_server.default = Hang(0.6, then=Status(429, retry_after=0.05))
+    options = {"backoff_max_s": 5.0, "rate_limit_wait_s": 1.0}
+    first, second = (_backend(built_plugins, fake_server, **options) for _ in range(2))
+    errors: dict[str, str] = {}
+
+    def call(name, backend):
+        try:
+            backend.complete(_prompt(), _rng())
+        except BackendError as error:
+            errors[name] = str(error)
+
+    probe = threading.Thread(target=call, args=("first", first))
+    probe.start()
+    while len(fake_server.requests) < 2:  # the first 429 came: the second call out is the probe's
+        time.sleep(0.005)
+    later = threading.Thread(target=call, args=("later", second))
+    later.start()
+    probe.join()
+    later.join()
+    assert set(errors) == {"first", "later"} and "rate_limit_wait_s 1" in errors["later"]
+    assert "after 1 answers" in errors["later"], errors["later"]
+
+
 def test_requests_per_minute_spaces_the_calls(built_plugins, fake_server, fake_key):
     import time
 

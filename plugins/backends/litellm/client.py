@@ -246,8 +246,8 @@ class LiteLLMBackend(LLMBackend):
             kwargs["client"] = self._client.value
         try:
             return self._call(kwargs, rng)
-        finally:  # whatever ended the call (an answer, a give-up, an interrupt), calls held behind it may go
-            self._limiter.settle(False)
+        finally:  # a give-up or an interrupt while the probe: the next waiting call goes, alone (no-op otherwise)
+            self._limiter.settle(answered=False)
 
     def _call(self, kwargs: dict[str, Any], rng: np.random.Generator) -> BackendReply:
         """Ask until answered or given up: pacing, 429 hold-offs and retries (:meth:`complete`)."""
@@ -256,7 +256,10 @@ class LiteLLMBackend(LLMBackend):
         first_429 = 0.0
         previous: Failure | None = None
         images = carries_images(kwargs["messages"])
+        held_since: float | None = None  # when this call first waited behind another call's 429
         while True:
+            if held_since is None and not first_429 and self._limiter.recovering:
+                held_since = time.monotonic()
             self._pace()
             started = time.perf_counter()
             with recording() as recorder:  # call_with_deadline's worker sees it (a context copy)
@@ -265,21 +268,22 @@ class LiteLLMBackend(LLMBackend):
                 except Exception as error:  # every provider error is classified below
                     failure = self._failure(error, recorder, images)
                 else:
-                    self._limiter.settle(False)  # the server answered: calls held after a 429 may go
                     reply = self._reply(response, recorder, time.perf_counter() - started)
                     self._limiter.spent(reply.usage.total, o.tokens_per_minute)
+                    self._limiter.settle(answered=True)  # calls held after a 429 may go, its tokens counted
                     return reply
             if failure.kind == RATE_LIMITED and _QUOTA_SPENT.search(failure.detail):
                 failure = Failure(f"{RATE_LIMITED}: the account's quota is spent", False, failure.detail)
             elif failure.kind == RATE_LIMITED:  # not a retry: the run slows down until the provider lets it on
-                first_429 = first_429 or time.monotonic()
+                # refused since its own first 429, or since it first waited behind another call's
+                first_429 = first_429 or held_since or time.monotonic()
                 try:
                     self._rate_limited(failure, limited, first_429, rng)
                 finally:
-                    self._limiter.settle(True)  # held again: the next call to go is the next probe
+                    self._limiter.settle(answered=False)  # held again: the next call to go is the next probe
                 limited += 1
                 continue
-            self._limiter.settle(False)  # any other failure: not the provider's limit
+            self._limiter.settle(answered=True)  # any other failure: not the provider's limit
             if is_malformed(failure.kind):
                 malformed += 1
                 failure = Failure(failure.kind, malformed <= _MALFORMED_RETRIES, failure.detail, failure.retry_after_s)
@@ -307,7 +311,8 @@ class LiteLLMBackend(LLMBackend):
     def _rate_limited(self, failure: Failure, limited: int, since: float, rng: np.random.Generator) -> None:
         """A 429: every call to this model now holds back for the server's ``Retry-After``, else a
         doubling backoff -- at most ``backoff_max_s``, at least :data:`MIN_RATE_LIMIT_WAIT_S` (a 429
-        always means wait); a call still refused ``rate_limit_wait_s`` after its first 429 gives up
+        always means wait); a call still refused ``rate_limit_wait_s`` after its first 429 (or after it
+        first waited behind another call's 429) gives up
         with a :class:`BackendError`."""
         o = self.options
         if failure.retry_after_s is not None:

@@ -86,15 +86,21 @@ class RateLimiter:
             self._held_until = max(self._held_until, self._clock() + seconds)
             self._recovering = True
 
-    def settle(self, rate_limited: bool) -> None:
-        """A call of this thread is over: if it was the probe, an answer (``rate_limited`` False)
-        ends the recovery and lets every waiting call go; a 429 (already :meth:`hold`) passes the
-        probe to the next caller."""
+    @property
+    def recovering(self) -> bool:
+        """A 429 was met and no call has been answered since: a call now waits for the probe."""
+        return self._recovering
+
+    def settle(self, answered: bool) -> None:
+        """A call of this thread is over: if it was the probe, an answer (``answered``; or a failure
+        that is not the provider's limit) ends the recovery and lets every waiting call go; anything
+        else -- a 429 (already :meth:`hold`), a give-up, an interrupt -- passes the probe to the
+        next caller, which goes alone."""
         with self._lock:
             if self._probe is not threading.current_thread():
                 return
             self._probe = None
-            if not rate_limited:
+            if answered:
                 self._recovering = False
             self._lock.notify_all()
 
