@@ -333,7 +333,7 @@ def _collided(steps, judged):
 
 
 def misses(run: Path, arm: str = "moving") -> None:
-    """Replay the ``no_attack`` trials of the ``moving`` arm that ended in a ``self`` collision and
+    """Replay the ``no_attack`` trials of ``arm`` (``moving``) that ended in a ``self`` collision and
     say, for the straight whose execution collided, what the rule knew: the mover nearest the
     Labbot hit, and the share of that mover's courses the straight met (and the share met before
     the standing-still comparison set some aside)."""
@@ -401,10 +401,10 @@ def tradeoff(runs: list[Path], variants: list[str], sample: int, arm: str = "mov
     collided, missed, everyday = [], [], []
     for run in runs:
         scenario, plugins = _run_scenario(run)
-        for arm, rule_class, found in (("clearance", LidarClearanceRule, collided),
-                                       (arm, MovingObstaclesRule, missed)):
-            for _, _, result, _, straight in _replay(scenario, plugins, arm, _trial_rows(run, arm, labbot_hit=True),
-                                                     rule_class):
+        for replayed, rule_class, found in (("clearance", LidarClearanceRule, collided),
+                                            (arm, MovingObstaclesRule, missed)):
+            for _, _, result, _, straight in _replay(scenario, plugins, replayed,
+                                                     _trial_rows(run, replayed, labbot_hit=True), rule_class):
                 if _labbot_self(result):
                     found.append(None if straight is None else (scenario, straight))
         for _, _, _, judged, _ in _replay(scenario, plugins, arm, _trial_rows(run, arm, first=sample),

@@ -56,6 +56,9 @@ def test_courses_turn_at_a_wall_instead_of_passing_through_it():
     assert np.array_equal(turned[:, :5], free[:, :5])
     again = WanderingFutures(WanderSettings(wander_deg=10.0, count=128, step_s=0.1, seed=3))
     assert np.array_equal(again.at(mover, times[:40], room_walls()), turned[:, :40])
+    # every stepped point, the last included, keeps the disc off the wall
+    grid, _, _ = futures._walled_grid(mover, 64, room_walls())
+    assert (grid[..., 1] < ROOM_MM - LABBOT_MM).all() and grid.shape[1] == 65
 
 
 def test_a_mover_that_turns_at_a_wall_can_refuse_a_straight_its_free_courses_never_meet():

@@ -136,6 +136,8 @@ class MovingObstaclesRule(Validator):
 
     def walls(self, context: ValidationContext) -> Walls | None:
         """What the context's scan shows standing, for courses to turn at (option ``walls``; else None)."""
+        if not self.options.walls:
+            return None
         self.movers(context)
         return self._cache[5] if self._cache is not None else None
 

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -76,26 +77,31 @@ class WanderingFutures:
         self._turn_draw, self._turn_heading = turns[0], (turns[1] * 2.0 - 1.0) * math.pi
         self._turn_draw[0] = 1.0
 
-    def _normals(self, columns: int) -> np.ndarray:
-        """Standard normal draws, (count, columns): column j is the same whatever is asked later."""
-        have = self._noise.shape[1] // _CHUNK
-        need = -(-columns // _CHUNK)
+    def _chunked(self, name: str, columns: int, draw: Callable[[int], np.ndarray]) -> np.ndarray:
+        """The draws kept in attribute ``name``, grown by ``draw(chunk)`` (count, _CHUNK) to at least
+        ``columns`` columns: column j is the same whatever is asked later."""
+        kept = getattr(self, name)
+        have, need = kept.shape[1] // _CHUNK, -(-columns // _CHUNK)
         if need > have:
-            extra = [np.random.default_rng([self.s.seed, chunk]).standard_normal((self.s.count, _CHUNK))
-                     for chunk in range(have, need)]
-            self._noise = np.concatenate([self._noise, *extra], axis=1)
-            self._noise[0] = 0.0  # course 0 is the measured course: no wander, the measured speed
-        return self._noise[:, :columns]
+            kept = np.concatenate([kept, *(draw(chunk) for chunk in range(have, need))], axis=1)
+            setattr(self, name, kept)
+        return kept
+
+    def _normals(self, columns: int) -> np.ndarray:
+        """Standard normal draws, (count, columns), each chunk from its own seeded generator."""
+        s = self.s
+        noise = self._chunked("_noise", columns,
+                              lambda chunk: np.random.default_rng([s.seed, chunk]).standard_normal((s.count, _CHUNK)))
+        noise[0] = 0.0  # course 0 is the measured course: no wander, the measured speed
+        return noise[:, :columns]
 
     def _uniforms(self, columns: int) -> np.ndarray:
-        """Uniform draws in [0, 1), (count, columns), fixed per column like :meth:`_normals`."""
-        have = self._uniform.shape[1] // _CHUNK
-        need = -(-columns // _CHUNK)
-        if need > have:
-            extra = [np.random.default_rng([self.s.seed, 2**32 - 2, chunk]).random((self.s.count, _CHUNK))
-                     for chunk in range(have, need)]
-            self._uniform = np.concatenate([self._uniform, *extra], axis=1)
-        return self._uniform[:, :columns]
+        """Uniform draws in [0, 1), (count, columns), from a stream of their own."""
+        s = self.s
+        stream = 2**32 - 2  # the turns' own stream (the starting headings' is 2**32 - 1)
+        uniform = self._chunked("_uniform", columns,
+                                lambda chunk: np.random.default_rng([s.seed, stream, chunk]).random((s.count, _CHUNK)))
+        return uniform[:, :columns]
 
     def wander_deg(self, blob: Blob) -> float:
         """The mover's wander: what its track taught (:mod:`.learning`), else the settings'."""
@@ -172,21 +178,20 @@ class WanderingFutures:
         courses."""
         key = (id(blob), id(walls))
         kept = self._walled.get(key)
-        if kept is not None and kept[0] is blob and kept[1] is walls and kept[2].shape[1] >= steps:
+        if kept is not None and kept[0] is blob and kept[1] is walls and kept[4].shape[1] >= steps:
             return kept[2], kept[3], kept[4]
         s = self.s
         steps = -(-steps // _WALLED_STEPS) * _WALLED_STEPS  # room for the plan's later straights
-        grid, heading, step = self._grid(blob, steps)
-        grid, heading, step = grid[:, :steps].copy(), heading.copy(), step.copy()
+        grid, heading, step = self._grid(blob, steps)  # fresh arrays: (count, steps + 1, 2), (count, steps), ...
         uniform = self._uniforms(steps)
         stride = np.hypot(step[:, :1, 0], step[:, :1, 1])  # (count, 1): each course's distance per step
         around = np.linspace(0.0, 2 * math.pi, HEADINGS, endpoint=False)
-        wall = walls.blocked(grid, blob.radius_mm)  # (count, steps)
+        wall = walls.blocked(grid, blob.radius_mm)  # (count, steps + 1)
+        moves, points = np.arange(steps), np.arange(steps + 1)
         after = np.zeros(s.count, dtype=int)  # each course is checked from this step on
         rows = np.arange(s.count)
         for _ in range(_MAX_TURNS):
-            nxt = np.concatenate((wall[:, 1:], np.zeros((s.count, 1), dtype=bool)), axis=1)
-            meets = nxt & ~wall & (np.arange(steps)[None, :] >= after[:, None])
+            meets = wall[:, 1:] & ~wall[:, :-1] & (moves[None, :] >= after[:, None])  # (count, steps)
             hit = rows[meets.any(axis=1)]
             if not hit.size:
                 break
@@ -199,15 +204,17 @@ class WanderingFutures:
             pick = np.minimum((uniform[hit, m] * free).astype(int), np.maximum(free - 1, 0))
             chosen = np.argmax(np.cumsum(clear, axis=1) > pick[:, None], axis=1)
             turn = np.where(free > 0, options[np.arange(len(hit)), chosen] - heading[hit, m], 0.0)
-            later = np.arange(steps)[None, :] >= m[:, None]
+            later = moves[None, :] >= m[:, None]
             heading[hit] += np.where(later, turn[:, None], 0.0)
             moved = stride[hit][:, :, None] * np.stack((np.cos(heading[hit]), np.sin(heading[hit])), -1)
             moved = np.where(((free == 0)[:, None] & later)[..., None], 0.0, moved)  # nowhere clear: it stands
             step[hit] = np.where(later[..., None], moved, step[hit])
-            ahead_of = np.where(later[..., None], moved, 0.0)
-            path = here[:, None, :] + np.cumsum(ahead_of, axis=1) - ahead_of
-            grid[hit] = np.where(later[..., None], path, grid[hit])
-            wall[hit] = np.where(later, walls.blocked(grid[hit], blob.radius_mm), wall[hit])
+            # from the turn on: where it was, plus the steps taken since (an exclusive running sum)
+            taken = np.concatenate((np.zeros((len(hit), 1, 2)),
+                                    np.cumsum(np.where(later[..., None], moved, 0.0), axis=1)), axis=1)
+            since = points[None, :] >= m[:, None]
+            grid[hit] = np.where(since[..., None], here[:, None, :] + taken, grid[hit])
+            wall[hit] = np.where(since, walls.blocked(grid[hit], blob.radius_mm), wall[hit])
             after[hit] = np.where(free > 0, m + 1, steps)
         kept = (blob, walls, grid, heading, step)
         if len(self._walled) > 64:
