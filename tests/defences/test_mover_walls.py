@@ -71,3 +71,21 @@ def test_a_mover_that_turns_at_a_wall_can_refuse_a_straight_its_free_courses_nev
     assert not refused(plan, context, rule(max_obstacle_speed_mm_s=600.0))
     [reason] = refused(plan, history_context(ROBOT, positions, 6.0), rule(max_obstacle_speed_mm_s=600.0, walls=True))
     assert "moving obstacle" in reason
+
+
+def test_a_hostile_scan_cannot_make_the_walls_grid_huge():
+    """Returns at 10^12 mm (finite: a LidarScan allows them) are beyond any wall's reach: the grid
+    stays the room's size, and the rule judges on."""
+    from safeembodai_core.models import LidarScan
+
+    scan = scan_from(ROBOT, [])
+    ranges = scan.ranges_mm.copy()
+    ranges[::7] = 1e12
+    hostile = LidarScan(ranges, 1e13)
+    walls = Walls.seen(hostile, ROBOT, [])
+    assert walls.occupied.size <= (2 * 20_000 // 50 + 1) ** 2 and walls.count > 0
+    positions = [(2200.0, 4500.0 - 400.0 * 6.0 * (2 - i)) for i in range(3)]
+    context = history_context(ROBOT, positions, 6.0)
+    context = type(context)(scan=hostile, start_pose=context.start_pose, sim_time_s=context.sim_time_s,
+                            history=context.history)
+    refused([go(390)], context, rule(max_obstacle_speed_mm_s=600.0, walls=True))  # judged, no MemoryError

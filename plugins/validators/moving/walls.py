@@ -27,6 +27,9 @@ CELL_MM = 50.0
 HEADINGS = 16
 #: A return this close (mm) beyond a mover's disc belongs to the mover, not to the room.
 OWN_SLACK_MM = 100.0
+#: Returns farther than this (mm), or than the scan's range, are not walls: the grid stays bounded
+#: (at most 800 x 800 cells) whatever a hostile scan reports.
+REACH_MM = 20_000.0
 
 
 class Walls:
@@ -48,8 +51,10 @@ class Walls:
 
     @classmethod
     def seen(cls, scan: LidarScan, pose: Pose, movers: list[Blob]) -> "Walls":
-        """The returns of ``scan`` (taken at ``pose``) that lie on none of ``movers``' discs."""
+        """The returns of ``scan`` (taken at ``pose``) within its range (and :data:`REACH_MM`) that
+        lie on none of ``movers``' discs."""
         _, points = _returns(scan)
+        points = points[np.hypot(points[:, 0], points[:, 1]) <= min(float(scan.max_range_mm), REACH_MM)]
         room = _to_room(points, pose) if len(points) else np.zeros((0, 2))
         keep = np.ones(len(room), dtype=bool)
         for blob in movers:
