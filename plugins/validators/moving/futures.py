@@ -223,8 +223,8 @@ class WanderingFutures:
         return grid, heading, step
 
     def _grid(self, blob: Blob, steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The courses on the step grid: centres (count, steps, 2), headings (count, steps) and the
-        step taken from each point (count, steps, 2)."""
+        """The courses on the step grid: centres (count, steps + 1, 2), headings (count, steps) and
+        the step taken from each point (count, steps, 2)."""
         s = self.s
         noise = self._normals(steps + 1)
         start, speed = self._start(blob, noise)

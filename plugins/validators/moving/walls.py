@@ -61,16 +61,17 @@ class Walls:
             keep &= np.hypot(*(room - blob.centre).T) > blob.radius_mm + OWN_SLACK_MM
         return cls(room[keep])
 
-    def _mask(self, radius_mm: float) -> np.ndarray:
-        """Cells a disc of ``radius_mm`` centred in them may touch a return from (a square bound)."""
+    def _mask(self, radius_mm: float) -> tuple[np.ndarray, int]:
+        """Cells a disc of ``radius_mm`` centred in them may touch a return from (a square bound),
+        and the padding k of that mask: cell (i, j) of the grid is ``mask[i + k, j + k]``."""
         k = int(math.ceil(radius_mm / self.cell))
         mask = self._blocked.get(k)
-        if mask is None:  # a box filter over the grid padded by 2k: cell (i, j) is mask[i + k, j + k]
+        if mask is None:  # a box filter over the grid padded by 2k
             total = np.pad(np.cumsum(np.cumsum(np.pad(self.occupied, 2 * k), axis=0), axis=1), ((1, 0), (1, 0)))
             w = 2 * k + 1
             mask = (total[w:, w:] - total[:-w, w:] - total[w:, :-w] + total[:-w, :-w]) > 0
             self._blocked[k] = mask
-        return mask
+        return mask, k
 
     def blocked(self, xy: np.ndarray, radius_mm: float) -> np.ndarray:
         """Per point of ``xy`` (..., 2): would a disc of ``radius_mm`` there touch a standing
@@ -78,8 +79,7 @@ class Walls:
         xy = np.asarray(xy, dtype=float)
         if not self.count:
             return np.zeros(xy.shape[:-1], dtype=bool)
-        mask = self._mask(radius_mm)
-        k = int(math.ceil(radius_mm / self.cell))
+        mask, k = self._mask(radius_mm)
         cell = np.floor((xy - self.origin) / self.cell).astype(int) + k
         inside = (cell[..., 0] >= 0) & (cell[..., 1] >= 0) & (cell[..., 0] < mask.shape[0]) \
             & (cell[..., 1] < mask.shape[1])
