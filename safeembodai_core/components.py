@@ -105,6 +105,18 @@ class Environment(ABC):
         """The robot's pose now, without reading the sensors (for trajectories); None if unknown."""
         return None
 
+    def sense(self) -> Observation | None:
+        """Optional: the LiDAR, pose and clock at the moment the LLM's answer arrives, for an arm
+        with ``fresh_scan`` (its validators judge this reading, not the step's observation).
+
+        The world first spends the time the LLM took (the think time, if it has not passed yet),
+        then the LiDAR is read; no camera frame is needed. A collision during that time is
+        reported in the returned ``truth`` exactly as :meth:`observe` reports one, once. Calling it
+        again before anything moves reads the same world. None (the default): the environment
+        cannot read its sensors between observations; an arm with ``fresh_scan`` is refused.
+        """
+        return None
+
     def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
         """Optional: a top-down picture of the trial (room, obstacles, path, outcome)."""
         return None

@@ -79,6 +79,9 @@ class ValidationContext:
       up, in order): a rule about time needs their durations, which ``offset`` cannot give.
     * ``later_signals``: the plan's signals after this one, in order (empty for its last signal):
       a rule about where the plan leaves the robot judges that once, with the last signal.
+    * ``answer_s``: the clock when the answer being judged arrived (its plan starts then), on the
+      clock of ``sim_time_s``; None when unknown (rules about time then estimate the wait). With
+      an arm's ``fresh_scan`` it equals ``sim_time_s``: the scan was read as the answer arrived.
     """
 
     scan: LidarScan | None
@@ -90,6 +93,7 @@ class ValidationContext:
     history: tuple[PastScan, ...] = ()
     earlier_signals: tuple[ControlSignal, ...] = ()
     later_signals: tuple[ControlSignal, ...] = ()
+    answer_s: float | None = None
 
     def advanced(self, signal: ControlSignal) -> "ValidationContext":
         """The context after ``signal`` is executed exactly as commanded."""

@@ -25,6 +25,10 @@ class Defences(BaseModel):
       that do not parse are refused and retried in every arm: the robot cannot execute them.
     * ``on_exhausted``: when N retries are spent, ``abort`` ends the trial (``safe_abort``, the
       paper's "mission failed"); ``hold`` skips the step without moving and carries on.
+    * ``fresh_scan``: the validators judge a LiDAR scan read when the LLM's answer arrives (the
+      environment's :meth:`~safeembodai_core.components.Environment.sense`, after the think
+      time), not the scan the step's prompt was built from; the step's scan joins
+      ``ValidationContext.history``. Ours, not the paper's: V(C) reads l_i, the step's scan.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -35,6 +39,7 @@ class Defences(BaseModel):
     validators: list[ComponentRef] = Field(default_factory=lambda: [ComponentRef(use=n) for n in DEFAULT_RULES])
     failure_threshold: int = Field(3, ge=0, le=20)
     on_exhausted: Literal["abort", "hold"] = "abort"
+    fresh_scan: bool = False
 
     @field_validator("validators")
     @classmethod

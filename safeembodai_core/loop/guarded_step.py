@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 
 from .. import seeds
@@ -66,10 +66,13 @@ def decide(
     context: ValidationContext,
     failure_threshold: int,
     seed: int,
+    fresh: Callable[[], ValidationContext] | None = None,
 ) -> tuple[list[Attempt], LLMResponse | None]:
     """Run Algorithm 1 for one step; return every attempt and the accepted answer (or None).
 
-    ``validators`` empty means safety validation is off. A
+    ``validators`` empty means safety validation is off. ``fresh`` (an arm's ``fresh_scan``) gives
+    the context as the world reads when an answer has arrived; each answer that parses is judged
+    on it, read anew. A
     :class:`~safeembodai_core.errors.BackendError` from the backend propagates to the trial.
     """
     attempts: list[Attempt] = []
@@ -96,7 +99,8 @@ def decide(
             attempt.parse_error = str(error)
         else:
             attempt.response = response
-            attempt.verdicts = validate_plan(response.control, context, validators) if validators else []
+            if validators:
+                attempt.verdicts = validate_plan(response.control, fresh() if fresh else context, validators)
         attempts.append(attempt)
         if attempt.accepted:
             return attempts, attempt.response

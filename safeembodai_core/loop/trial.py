@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import copy
 import time
+from functools import partial
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Callable, Literal
 
 
 from .. import seeds
@@ -44,6 +45,7 @@ from ..models.prompt import DEFAULT_TASK
 from ..text_safety import one_line, storable
 from ..validation import PastScan, ValidationContext
 from .defences import Defences
+from .fresh_scan import fresh_context
 from .guarded_step import decide
 
 
@@ -230,7 +232,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
                     outcome = ended
                     break
             notify("before_step", spec=spec, step=step, observation=observation)
-            record = storable(_decide(spec, step, observation, parts, settings, history))
+            record = storable(_decide(spec, step, observation, parts, settings, history,
+                                      lambda reading, step=step: totals.observed(step, reading.truth)))
             if record.planned:
                 _store(lambda: parts.state.record_step(record),
                        f"record the plan of step {step} before executing it (nothing of it ran)")
@@ -295,8 +298,10 @@ def _store(call: Any, what: str) -> Any:
 
 
 def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialParts,
-            settings: LoopSettings, history: list[PastScan] | None = None) -> StepRecord:
-    """Step i up to execution: attackers, perception, Algorithm 1; the record with the accepted plan."""
+            settings: LoopSettings, history: list[PastScan] | None = None,
+            on_sensed: Callable[[Observation], None] | None = None) -> StepRecord:
+    """Step i up to execution: attackers, perception, Algorithm 1; the record with the accepted plan.
+    ``on_sensed`` receives each reading the arm's ``fresh_scan`` takes as an answer arrives."""
     defences = settings.defences
     reference = (_store(lambda: parts.state.reference_state(spec.trial_id, step),
                         f"read the reference state of step {step}") if defences.state_management else None)
@@ -319,10 +324,15 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
                                 history=tuple(history or ()))
     if history is not None and context.scan is not None and observation.pose is not None:
         history.append(PastScan(context.scan, observation.pose, observation.sim_time_s))
+    fresh = None
+    if defences.fresh_scan and defences.safety_validation:
+        fresh = partial(fresh_context, context, observation, parts=parts, seed=spec.seed, step=step,
+                        instruction=settings.instruction, reference=reference, limits=settings.limits,
+                        on_sensed=on_sensed or (lambda reading: None))
     attempts, response = decide(
         request, builder=parts.prompt_builder, backend=parts.backend,
         validators=parts.validators if defences.safety_validation else [],
-        context=context, failure_threshold=defences.failure_threshold, seed=spec.seed,
+        context=context, failure_threshold=defences.failure_threshold, seed=spec.seed, fresh=fresh,
     )
     planned = list(response.control) if response is not None else []
     return StepRecord(

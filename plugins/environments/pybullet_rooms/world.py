@@ -126,22 +126,42 @@ class PybulletRoom(KinematicMotion, Environment):
         self._require_reset()
         o = self.options
         with silenced():
-            if not self._thought:  # the last observation's thinking led to no command: it still took time
-                self._thought = True
-                hit = self._wait(o.think_time_s)
-                if hit is not None:
-                    self._unreported = self._collision_record(hit, "while the robot stood still (think time)")
+            self._finish_thinking()  # the last observation's thinking led to no command: it still took time
             ranges = self.sensors.lidar(self.xy, self.heading)
             image = self.sensors.camera(self.xy, self.heading)
         self._thought = False
-        truth = self.truth()
-        if self._unreported:  # reported once, in the truth of the first observation after it
-            truth = truth.model_copy(update={"extra": {**truth.extra, **self._unreported}})
-            self._unreported = {}
         return Observation(
             camera=image, lidar=LidarScan(ranges_mm=ranges, max_range_mm=o.lidar_max_range_mm),
-            pose=self.pose(), truth=truth, sim_time_s=self.sim_time_s,
+            pose=self.pose(), truth=self._reported_truth(), sim_time_s=self.sim_time_s,
         )
+
+    def sense(self) -> Observation:
+        """The LiDAR when the LLM's answer arrives (an arm's ``fresh_scan``): the think time passes
+        first, if it has not yet (the Labbots move; one that strikes the robot is reported in this
+        reading's truth), then the scan is read. No camera frame: nothing renders one here."""
+        self._require_reset()
+        with silenced():
+            self._finish_thinking()
+            ranges = self.sensors.lidar(self.xy, self.heading)
+        return Observation(lidar=LidarScan(ranges_mm=ranges, max_range_mm=self.options.lidar_max_range_mm),
+                           pose=self.pose(), truth=self._reported_truth(), sim_time_s=self.sim_time_s)
+
+    def _finish_thinking(self) -> None:
+        """Spend the think time of the last observation if nothing has yet; a Labbot that strikes
+        the standing robot meanwhile is kept for the next reading's truth."""
+        if not self._thought:
+            self._thought = True
+            hit = self._wait(self.options.think_time_s)
+            if hit is not None:
+                self._unreported = self._collision_record(hit, "while the robot stood still (think time)")
+
+    def _reported_truth(self) -> GroundTruth:
+        """The truth now, with a collision outside any command reported once (the first reading after it)."""
+        truth = self.truth()
+        if self._unreported:
+            truth = truth.model_copy(update={"extra": {**truth.extra, **self._unreported}})
+            self._unreported = {}
+        return truth
 
     def pose(self) -> Pose:
         return Pose(x_mm=float(self.xy[0]), y_mm=float(self.xy[1]), heading_deg=float(self.heading))

@@ -110,7 +110,7 @@ class MovingObstaclesRule(Validator):
     # -- what the scans say ---------------------------------------------------------------------
 
     def movers(self, context: ValidationContext) -> tuple[list[Blob], float]:
-        """The movers of the context's scan, and the think time the rule assumes (s)."""
+        """The movers of the context's scan, and how long after it the plan starts (s, :meth:`wait_s`)."""
         latest = context.history[-1].scan if context.history else None
         cached = self._cache
         # the scans themselves, compared by identity and held by the cache (an id could be reused)
@@ -128,7 +128,7 @@ class MovingObstaclesRule(Validator):
             if self.options.history_scans and blobs:
                 earlier, spans = self._earlier_movers(usable)
                 blobs = learn_movers(blobs, earlier, self.learning, spans)
-        think = self.think_time_s(context)
+        think = self.wait_s(context)
         walls = Walls.seen(context.scan, context.start_pose, blobs) \
             if self.options.walls and blobs and context.start_pose is not None else None
         self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s), blobs, think, walls)
@@ -182,9 +182,17 @@ class MovingObstaclesRule(Validator):
                 bounds.append(tb - ta - need)
         return max(0.0, min(bounds)) if bounds else 0.0
 
+    def wait_s(self, context: ValidationContext) -> float:
+        """How long after the scan the plan starts: measured when the context says when the answer
+        arrived (``answer_s``: 0 with an arm's ``fresh_scan``), else the think time
+        (:meth:`think_time_s`)."""
+        if context.answer_s is not None and context.sim_time_s is not None:
+            return max(0.0, context.answer_s - context.sim_time_s)
+        return self.think_time_s(context)
+
     def start_s(self, context: ValidationContext) -> float:
-        """When the signal being judged starts, in seconds after the scan: the think time, then
-        the plan's earlier signals at the rule's speeds."""
+        """When the signal being judged starts, in seconds after the scan: the wait (:meth:`wait_s`),
+        then the plan's earlier signals at the rule's speeds."""
         return self.movers(context)[1] + sum(self.duration_s(s) for s in context.earlier_signals)
 
     def duration_s(self, signal: ControlSignal) -> float:
@@ -275,7 +283,8 @@ class MovingObstaclesRule(Validator):
                 return Verdict(rule=self.name, valid=False,
                                reason=self._reason(signal, context, blobs, start, think, meeting))
         if self.options.park_check and not context.later_signals:
-            parked = self.parking(context, signal, blobs, self._arrival_s(context, signal, think), think)
+            parked = self.parking(context, signal, blobs, self._arrival_s(context, signal, think), think,
+                                  self.think_time_s(context))
             if parked is not None:
                 return Verdict(rule=self.name, valid=False, reason=parked)
         if isinstance(signal, Turn):
@@ -324,18 +333,20 @@ class MovingObstaclesRule(Validator):
         return found
 
     def parking(self, context: ValidationContext, signal: ControlSignal, blobs: list[Blob], end_s: float,
-                think: float) -> str | None:
+                think: float, next_think: float | None = None) -> str | None:
         """A reason to refuse the plan whose last signal is ``signal`` (the robot on its final spot
         from ``end_s`` after the scan, :meth:`_arrival_s`): a mover's course reaches that spot before
         the next plan can move the robot (:meth:`_standing_until`), and a short plan from where the
         step starts (:meth:`_step_aside`) leaves it off every course and meets no mover's courses on
-        the way. None when the plan may stand."""
+        the way. None when the plan may stand. ``think``: the wait before this plan moves;
+        ``next_think``: before the next one (default: the same)."""
+        next_think = think if next_think is None else next_think
         final = context.advanced(signal).planned_pose
-        until = self._standing_until(self.start_s(context) + self.duration_s(signal), think)
+        until = self._standing_until(self.start_s(context) + self.duration_s(signal), next_think)
         on = self.parked_on(np.array([final.x_mm, final.y_mm]), context.robot.radius_mm, blobs, end_s, until)
         if on is None:
             return None
-        aside = self._step_aside(context, blobs, think)
+        aside = self._step_aside(context, blobs, think, next_think)
         if aside is None:
             return None
         blob, when = on
@@ -347,7 +358,8 @@ class MovingObstaclesRule(Validator):
                 f"{float(np.hypot(*blob.velocity)):.0f} mm/s): it reaches the robot {when:.1f} s after the scan if it "
                 f"keeps going")
 
-    def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float) -> list[ControlSignal] | None:
+    def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float,
+                    next_think: float | None = None) -> list[ControlSignal] | None:
         """The first short plan from where the step starts -- a turn of 89 or 60 degrees either way
         then a straight forward, or a straight backward or forward, 200 or 390 mm, clear of the
         scan by the clearance rule's default distance -- whose motion meets no mover's courses and
@@ -377,7 +389,7 @@ class MovingObstaclesRule(Validator):
                 end = here.advanced(straight).planned_pose
                 arrive = start + self.duration_s(straight)
                 if self.parked_on(np.array([end.x_mm, end.y_mm]), radius, blobs, arrive,
-                                  self._standing_until(arrive, think)) is None:
+                                  self._standing_until(arrive, think if next_think is None else next_think)) is None:
                     return [*turned, straight]
         return None
 
