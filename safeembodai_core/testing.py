@@ -216,6 +216,9 @@ class StagedWorld(Environment):
     def observe(self) -> Observation:
         return self.room.observe()
 
+    def sense(self) -> Observation | None:
+        return self.room.sense()
+
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         return self.room.execute(signal)
 
