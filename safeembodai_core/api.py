@@ -146,7 +146,8 @@ class Guard:
         #: earlier scans given with a pose and a time (oldest first), for rules about motion
         self.history: deque[PastScan] = deque(maxlen=HISTORY_SCANS)
 
-    def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any, time_s: float | None) -> ValidationContext:
+    def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any, time_s: float | None,
+                 answer_time_s: float | None = None) -> ValidationContext:
         scan = None
         if isinstance(lidar_mm, LaserScan):
             scan = lidar_mm.to_lidar_scan()  # ROS semantics and the sensor's mounting: safeembodai_core.ros
@@ -163,8 +164,18 @@ class Guard:
                 raise ValueError(f"time_s must be a finite number of seconds, got {time_s!r}")
             if self.history and time_s < self.history[-1].sim_time_s:
                 self.history.clear()  # the clock went back: a new episode, earlier scans say nothing
+        if answer_time_s is not None:
+            if time_s is None:
+                raise ValueError("answer_time_s needs time_s: the scan's time on the same clock")
+            try:
+                answer_time_s = float(answer_time_s)
+            except (TypeError, ValueError):
+                raise ValueError(f"answer_time_s must be a number of seconds, got {answer_time_s!r}") from None
+            if not math.isfinite(answer_time_s) or answer_time_s < time_s:
+                raise ValueError(f"answer_time_s must be finite and not before time_s ({time_s:g}), "
+                                 f"got {answer_time_s!r}")
         context = ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=start,
-                                    sim_time_s=time_s, history=tuple(p for p in self.history
+                                    sim_time_s=time_s, answer_s=answer_time_s, history=tuple(p for p in self.history
                                                                       if time_s is not None and p.sim_time_s < time_s))
         if scan is not None and start is not None and time_s is not None and (
                 not self.history or time_s > self.history[-1].sim_time_s):
@@ -175,7 +186,7 @@ class Guard:
         return context
 
     def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
-              pose: Any = None, time_s: float | None = None) -> GuardReport:
+              pose: Any = None, time_s: float | None = None, answer_time_s: float | None = None) -> GuardReport:
         """Validate ``commands`` (dicts as the LLM writes them, or signal models) in order.
 
         ``lidar_mm``: ranges in mm, beam k at k*360/N degrees counter-clockwise from the heading
@@ -190,10 +201,13 @@ class Guard:
         motion (``moving_obstacles``) the earlier scans as ``context.history`` (the last
         ``HISTORY_SCANS``; a scan is kept once per time, so a re-check of the same reading adds
         nothing; a time earlier than the last kept one starts a new history, as after a new
-        episode). One guard per robot; it is not meant to be shared between threads. Commands that do
+        episode). ``answer_time_s``: when the commands' answer arrived, on the same clock (the plan
+        starts then; ``context.answer_s``): with a scan read as the answer arrived, pass the same time
+        as ``time_s``, and rules about motion predict from that moment instead of assuming a think
+        time. One guard per robot; it is not meant to be shared between threads. Commands that do
         not even parse get a ``schema`` verdict and are not judged further.
         """
-        context = self._context(lidar_mm, max_range_mm, pose, time_s)  # kept even if the commands do not parse
+        context = self._context(lidar_mm, max_range_mm, pose, time_s, answer_time_s)  # kept even if they do not parse
         try:
             signals = _SIGNALS.validate_python(list(commands), context={"limits": self.limits})
         except ValidationError as error:
@@ -246,6 +260,7 @@ class Guard:
         max_range_mm: float = 10_000.0,
         pose: Any = None,
         time_s: float | None = None,
+        answer_time_s: float | None = None,
     ) -> GuardReport:
         """Read an LLM's whole reply (untrusted) and validate its control signals.
 
@@ -257,16 +272,17 @@ class Guard:
         guard's ``limits`` allow it), huge numbers and the like gives a ``schema`` verdict. To read
         an OpenAI-style response body you received yourself, pass
         :func:`~safeembodai_core.models.chat_completion.reply_from_chat_completion` of it.
-        ``lidar_mm``, ``max_range_mm``, ``pose`` and ``time_s`` are as for :meth:`check`.
+        ``lidar_mm``, ``max_range_mm``, ``pose``, ``time_s`` and ``answer_time_s`` are as for :meth:`check`.
         """
         try:
             response = read_reply(as_reply(reply), self.limits)
         except ResponseParseError as error:
-            self._context(lidar_mm, max_range_mm, pose, time_s)  # the scan is kept for later checks all the same
+            # the scan is kept for later checks all the same
+            self._context(lidar_mm, max_range_mm, pose, time_s, answer_time_s)
             return GuardReport(verdicts=[Verdict(rule="schema", valid=False, reason=str(error))],
                                parse_error=str(error))
         report = self.check([s.model_dump() for s in response.control], lidar_mm=lidar_mm, max_range_mm=max_range_mm,
-                            pose=pose, time_s=time_s)
+                            pose=pose, time_s=time_s, answer_time_s=answer_time_s)
         report.response = response
         return report
 

@@ -176,3 +176,20 @@ def test_with_fresh_scan_the_rule_still_refuses_driving_into_the_crossing_labbot
     assert guarded.collisions_self == 0
     refused = [v for s in steps for a in s.attempts for v in a.verdicts if v.rule == "moving_obstacles" and not v.valid]
     assert refused and all("(after 0 s think time)" in v.reason for v in refused)
+
+
+def test_a_guard_told_when_the_answer_arrived_hands_it_to_the_rules():
+    from safeembodai_core import Guard
+
+    contexts: list[ValidationContext] = []
+    guard = Guard([Seen(contexts)])
+    ranges, pose, plan = np.full(360, 3000.0), (0.0, 0.0, 0.0), [straight(100)]
+    guard.check(plan, lidar_mm=ranges, pose=pose, time_s=3.0, answer_time_s=3.0)
+    guard.check(plan, lidar_mm=ranges, pose=pose, time_s=4.0)
+    assert [(c.sim_time_s, c.answer_s) for c in contexts] == [(3.0, 3.0), (4.0, None)]
+    for bad, match in (({"answer_time_s": 5.0}, "needs time_s"),
+                       ({"time_s": 6.0, "answer_time_s": 5.0}, "not before time_s"),
+                       ({"time_s": 6.0, "answer_time_s": float("nan")}, "finite"),
+                       ({"time_s": 6.0, "answer_time_s": "soon"}, "number of seconds")):
+        with pytest.raises(ValueError, match=match):
+            guard.check(plan, lidar_mm=ranges, pose=pose, **bad)

@@ -236,6 +236,48 @@ def test_hold_lets_the_step_pass_when_retries_are_spent():
         env.close()
 
 
+class Seen(Validator):
+    name = "seen"
+
+    def __init__(self) -> None:
+        self.contexts = []
+
+    def validate(self, signal, context):
+        self.contexts.append(context)
+        return Verdict(rule="seen", valid=True)
+
+
+def test_the_guard_gives_rules_the_episodes_earlier_scans_as_the_loop_does():
+    seen = Seen()
+    env = SafeEmbodAIGuard(gymnasium.make("safeembodai/flatland-v0"), rules=[seen])
+    action = ({"command": 1, "direction": 0, "distance": np.float32(1), "angle": np.float32(10)},)
+    try:
+        env.reset(seed=1)
+        first_time = env.unwrapped.time_s
+        env.step(action)
+        env.step(action)
+        first, second = seen.contexts
+        assert first.history == () and first.sim_time_s == first_time
+        assert [p.sim_time_s for p in second.history] == [first_time] and second.sim_time_s > first_time
+        assert second.history[0].pose == first.start_pose
+        env.reset(seed=2)
+        env.step(action)
+        assert seen.contexts[-1].history == ()  # a new episode starts a new history
+    finally:
+        env.close()
+
+
+def test_an_arm_with_fresh_scan_is_refused_by_the_guard_naming_the_option():
+    scenario = default_scenario("flatland")
+    scenario.arms["safeembodai"] = scenario.arms["safeembodai"].model_copy(update={"fresh_scan": True})
+    env = gymnasium.make("safeembodai/flatland-v0", scenario=scenario)
+    try:
+        with pytest.raises(ValueError, match="fresh_scan"):
+            SafeEmbodAIGuard(env)
+    finally:
+        env.close()
+
+
 def test_the_step_budget_truncates_as_a_timeout():
     env = gymnasium.make("safeembodai/flatland-v0", max_steps=2)
     try:

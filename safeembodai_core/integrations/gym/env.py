@@ -100,6 +100,11 @@ class SafeEmbodAIEnv(gymnasium.Env):
         """The robot's pose at the start of the step, as the world reports it (never an attacked copy)."""
         return None if self._observation is None else self._observation.pose
 
+    @property
+    def time_s(self):
+        """The world's clock when the step's scan was read (s), as the trial loop gives validators."""
+        return None if self._observation is None else self._observation.sim_time_s
+
     def read(self, action: Any) -> tuple[list[Any] | None, LLMResponse | None, str | None]:
         """``action`` as control signals under the actuation contract: ``(signals, response, None)``,
         or ``(None, None, reason)`` when the robot cannot execute it.

@@ -2,7 +2,8 @@
 
 Every action is judged before the room sees it, by :class:`~safeembodai_core.api.Guard` --
 :func:`~safeembodai_core.validation.validate_plan` with the arm's validators, from the step's
-(attacked) LiDAR scan and the world's pose, each signal from the pose the earlier ones lead to,
+(attacked) LiDAR scan, the world's pose and clock (the guard keeps the episode's earlier scans for
+rules about motion, as the trial loop does), each signal from the pose the earlier ones lead to,
 exactly as Algorithm 1 judges an LLM's plan. A refused plan is not executed: the step comes back
 with the same observation, ``info["refused"]`` and the rules' ``info["reasons"]``, cost 1, and
 the agent may try again until the arm's ``failure_threshold`` is spent
@@ -31,15 +32,25 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
         base = env.unwrapped
         if not isinstance(base, SafeEmbodAIEnv):
             raise TypeError(f"SafeEmbodAIGuard wraps a SafeEmbodAIEnv, got {type(base).__name__}")
+        if base.arm.fresh_scan:
+            raise ValueError("the arm's fresh_scan (validators judge the LiDAR read when the answer arrives) is "
+                             "not taken by the Gymnasium guard yet; the trial loop takes it (ablate, "
+                             "run_guarded_trial, the Inspect task)")
         rules = list(base.arm.validators) if rules is None else list(rules)
         self.guard = Guard(rules, robot=base.world.robot, limits=base.limits, plugins=base.plugins)
+
+    def reset(self, **kwargs: Any):
+        self.guard.history.clear()  # a new episode: the last one's scans say nothing about this one
+        return self.env.reset(**kwargs)
 
     def step(self, action: Any):
         base: SafeEmbodAIEnv = self.env.unwrapped
         signals, _, _ = base.read(action)
         if signals is None:  # not even the actuation contract: the env refuses it itself
             return self.env.step(action)
-        report = self.guard.check(signals, lidar_mm=base.scan, pose=base.pose)
+        # the clock too: the guard keeps each step's scan, so rules about motion get the trial's earlier
+        # scans as context.history, as in the trial loop
+        report = self.guard.check(signals, lidar_mm=base.scan, pose=base.pose, time_s=base.time_s)
         if not report.valid:
             return base.refuse(report.reasons)
         return self.env.step(action)
