@@ -193,3 +193,11 @@ def test_a_guard_told_when_the_answer_arrived_hands_it_to_the_rules():
                        ({"time_s": 6.0, "answer_time_s": "soon"}, "number of seconds")):
         with pytest.raises(ValueError, match=match):
             guard.check(plan, lidar_mm=ranges, pose=pose, **bad)
+
+
+def test_flatland_senses_what_its_observation_read(seen):
+    plugins, contexts = seen
+    result, steps = trial("flatland", plugins, fresh=True)
+    (context,) = contexts
+    assert result.outcome != Outcome.ERROR and context.answer_s == context.sim_time_s
+    assert np.array_equal(context.scan.ranges_mm, context.history[-1].scan.ranges_mm)  # nothing moves there

@@ -93,18 +93,19 @@ class FlatlandWorld(Environment):
         return GroundTruth(target_in_view=visible, target_bearing_deg=bearing, target_distance_mm=distance)
 
     def observe(self) -> Observation:
+        reading = self.sense()
+        reading.camera = render_camera(self.position, self.heading, self.circles, self.options)
+        return reading
+
+    def sense(self) -> Observation:
+        """The LiDAR, pose and truth now, without a camera frame (an arm's ``fresh_scan``): nothing
+        here moves while the LLM thinks, so it reads what the step's observation read."""
         o = self.options
         beams = np.arange(o.lidar_beams) * (360.0 / o.lidar_beams)
         ranges, _ = cast_rays(self.position, np.radians(self.heading + beams), o.room_mm, self.circles)
         ranges = np.where(ranges > o.lidar_max_range_mm, np.inf, ranges)
-        camera = render_camera(self.position, self.heading, self.circles, o)
-        return Observation(
-            camera=camera,
-            lidar=LidarScan(ranges_mm=ranges, max_range_mm=o.lidar_max_range_mm),
-            pose=self.pose(),
-            truth=self._truth(),
-            sim_time_s=self.sim_time_s,
-        )
+        return Observation(lidar=LidarScan(ranges_mm=ranges, max_range_mm=o.lidar_max_range_mm),
+                           pose=self.pose(), truth=self._truth(), sim_time_s=self.sim_time_s)
 
     def pose(self) -> Pose:
         return Pose(x_mm=float(self.position[0]), y_mm=float(self.position[1]), heading_deg=self.heading)
