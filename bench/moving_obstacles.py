@@ -77,6 +77,12 @@ def micro(repeats: int, scenario_name: str = "dynamic", arm: str = "moving", sca
         seen = [env.reset(3)]
         for _ in range(max(2, scans) - 1):
             seen.append(env.observe())  # no command came: the think time passed, the Labbots moved
+        env.sense()  # the think time passes once; the reads timed below are the LiDAR alone
+        sensed = []
+        for _ in range(repeats):
+            started = time.perf_counter()
+            env.sense()
+            sensed.append((time.perf_counter() - started) * 1e6)
     finally:
         env.close()
     second = seen[-1]
@@ -102,6 +108,9 @@ def micro(repeats: int, scenario_name: str = "dynamic", arm: str = "moving", sca
              ("moving_obstacles, later signal (check only)", mover, later, go, False),
              ("moving_obstacles, an accepted straight (check only)", mover, context, short, False),
              ("moving_obstacles, synthetic crossing (check + advice)", mover, crossing, go, False)]
+    sensed.sort()
+    print(f"  {'DO sense(): the reading an arm with fresh_scan takes':55s} {statistics.median(sensed):8.0f} "
+          f"{sensed[int(0.9 * len(sensed))]:8.0f}  (per answer, on top of the rules)")
     for label, rule, ctx, signal, fresh in cases:
         times = []
         for _ in range(repeats):
