@@ -46,6 +46,7 @@ offline mock: not a measurement of an LLM.
 from __future__ import annotations
 
 import argparse
+import re
 import json
 import sqlite3
 import statistics
@@ -449,26 +450,27 @@ def struck(runs: list[Path]) -> None:
     """Where the ``struck`` collisions (a Labbot driving into the robot) of the runs happen, per room and
     arm, for every world and for worlds of blind movers: on step 1 (no earlier scan: no rule could know a
     velocity), or later; while the robot stood still (think time), turned or drove; and whether any plan
-    of that step was refused by ``moving_obstacles`` for where it would leave the robot."""
+    of that step was refused by ``moving_obstacles`` for where it would leave the robot. Read from each
+    trial's result (its collision note), so a strike during a think time that no command followed, or
+    that an arm's ``fresh_scan`` reading found, counts as one that an executed command reported."""
     rows = _query(
-        runs, "SELECT t.environment, t.arm, json_extract(t.result, '$.world'), s.step, s.record, "
-        "EXISTS (SELECT 1 FROM verdicts v WHERE v.trial_id = s.trial_id AND v.step = s.step AND v.valid = 0 "
-        "AND v.rule = 'moving_obstacles' AND v.reason LIKE '%step out of%') "
-        "FROM steps s JOIN trials t ON t.trial_id = s.trial_id WHERE s.record LIKE '%struck%'")
+        runs, "SELECT t.environment, t.arm, json_extract(t.result, '$.world'), json_extract(t.result, '$.detail'), "
+        "t.trial_id FROM trials t WHERE json_extract(t.result, '$.collisions_struck') > 0")
+    refused = {(trial, step) for trial, step in _query(
+        runs, "SELECT DISTINCT v.trial_id, v.step FROM verdicts v WHERE v.valid = 0 "
+        "AND v.rule = 'moving_obstacles' AND v.reason LIKE '%step out of%'")}
     tally: dict[tuple, Counter] = {}
-    for room, arm, world, step, record, parked in rows:
-        data = json.loads(record)
-        hit = next((e for e in data["executed"] if e["result"].get("collision") == "struck"), None)
-        if hit is None:
-            continue
-        detail = hit["result"].get("detail", "")
-        doing = "stood (think time)" if "stood still" in detail else "turned" if "turned" in detail else "drove"
+    for room, arm, world, detail, trial in rows:
+        found = re.search(r"struck collision at step (\d+)", detail or "")
+        step = int(found.group(1)) if found else None
+        doing = ("stood (think time)" if "stood still" in (detail or "") else "turned" if "turned" in (detail or "")
+                 else "drove" if "drove" in (detail or "") else "unknown")
         for key in ((room, arm, "all"), (room, arm, "blind")) if world == "blind" else ((room, arm, "all"),):
             counts = tally.setdefault(key, Counter())
             counts["struck"] += 1
             counts["step 1" if step == 1 else "later"] += 1
             counts[doing] += 1
-            counts["parking refused that step"] += bool(parked)
+            counts["parking refused that step"] += (trial, step) in refused
     print("struck collisions: where they happen (backend mock: simulated pilot, not a measurement of an LLM)")
     for (room, arm, worlds), counts in sorted(tally.items()):
         print(f"  {room} {arm:10s} {worlds:5s} " + ", ".join(f"{k} {v}" for k, v in counts.items()))
