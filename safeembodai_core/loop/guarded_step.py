@@ -67,12 +67,14 @@ def decide(
     failure_threshold: int,
     seed: int,
     fresh: Callable[[], ValidationContext] | None = None,
+    ended: Callable[[], bool] | None = None,
 ) -> tuple[list[Attempt], LLMResponse | None]:
     """Run Algorithm 1 for one step; return every attempt and the accepted answer (or None).
 
     ``validators`` empty means safety validation is off. ``fresh`` (an arm's ``fresh_scan``) gives
     the context as the world reads when an answer has arrived; each answer that parses is judged
-    on it, read anew. A
+    on it, read anew; ``ended`` says the world has ended meanwhile (a mover struck the robot while
+    the LLM thought): no retry follows a refusal then. A
     :class:`~safeembodai_core.errors.BackendError` from the backend propagates to the trial.
     """
     attempts: list[Attempt] = []
@@ -105,5 +107,7 @@ def decide(
         if attempt.accepted:
             return attempts, attempt.response
         log.info("step.refused", step=request.step, attempt=index, reasons=attempt.failures())
+        if ended is not None and ended():
+            break  # nothing can be executed any more: another call would be paid for nothing
         failures.extend(_feedback(index, attempt))
     return attempts, None

@@ -243,6 +243,9 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
                    f"record the results of step {step} (its plan is on record as executing)")
             notify("after_step", spec=spec, record=record)
             attempts += len(record.attempts)
+            outcome = parts.environment.outcome() if not record.accepted else None
+            if outcome is not None:  # the world ended while the LLM thought (fresh_scan found it): not an abort
+                break
             if not record.accepted and settings.defences.on_exhausted == "abort":
                 outcome = Outcome.SAFE_ABORT
                 detail = f"no acceptable answer after {len(record.attempts)} attempts at step {step}"
@@ -333,6 +336,7 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
         request, builder=parts.prompt_builder, backend=parts.backend,
         validators=parts.validators if defences.safety_validation else [],
         context=context, failure_threshold=defences.failure_threshold, seed=spec.seed, fresh=fresh,
+        ended=(lambda: parts.environment.outcome() is not None) if fresh else None,
     )
     planned = list(response.control) if response is not None else []
     return StepRecord(

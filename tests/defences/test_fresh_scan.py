@@ -201,3 +201,20 @@ def test_flatland_senses_what_its_observation_read(seen):
     (context,) = contexts
     assert result.outcome != Outcome.ERROR and context.answer_s == context.sim_time_s
     assert np.array_equal(context.scan.ranges_mm, context.history[-1].scan.ranges_mm)  # nothing moves there
+
+
+def test_a_strike_found_by_the_fresh_reading_ends_the_trial_as_interrupted_without_more_calls(seen):
+    """The reading after the think time finds the robot struck; the plan into the Labbot is refused
+    on it: no retry is paid for (nothing can run any more) and the trial is interrupted, not aborted."""
+    plugins, _ = seen
+    env = room(plugins, (1900.0, 2000.0, 180.0))
+    backend = ReplayBackend(answer(straight(399)))
+    defences = Defences(safety_validation=True, validators=["command_limits", "lidar_clearance"],
+                        failure_threshold=3, on_exhausted="abort", fresh_scan=True)
+    try:
+        result, steps = run_guarded_trial(env, backend, defences=defences, seed=1, max_steps=3, plugins=plugins)
+    finally:
+        env.close()
+    assert not steps[0].accepted and len(steps[0].attempts) == 1
+    assert result.outcome == Outcome.INTERRUPTED and result.collisions_struck == 1
+    assert "struck by" in result.detail and "think time" in result.detail
