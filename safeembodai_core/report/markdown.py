@@ -11,6 +11,7 @@ from ..metrics.catalog import CORE
 from ..metrics.release import ReleaseReadings
 from ..models import Outcome, TrialResult
 from ..scenario import Scenario
+from ..text_safety import one_line
 from ..trial_words import plural
 from .cells import Cell, CollisionRates, WorldRates
 from .run_info import RunInfo
@@ -64,7 +65,7 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
               f"{'capped at 1' if m.cap_s_ratio else 'not capped (the release)'} |"]
     if scenario.profile is not None:
         lines.append(f"| profile | `{scenario.profile.name}` |")
-    lines.append("")
+    lines += ["", *arms_table(scenario)]
     if info.inputs:
         lines += ["### Pilot's configured inputs", "",
                   "The simulated pilot flags and obeys an injected instruction with these probabilities: its ADR "
@@ -75,6 +76,33 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
         lines += ["", "Its other configured weaknesses shape MOER, TLR, collisions and refusals: "
                   + ", ".join(f"`{name}` {value:g}" for name, value in info.weaknesses) + ".", ""]
     return lines
+
+
+def _cell(text: object, most: int = 400) -> str:
+    """Scenario text in a table cell: one line, no column break, not endless."""
+    text = one_line(str(text)).replace("|", "\\|").replace("`", "'")
+    return text if len(text) <= most else text[:most] + "…"
+
+
+def _rule(ref) -> str:
+    options = ", ".join(f"{k}: {v}" for k, v in sorted(ref.options.items()))
+    name = ref.use if ref.key == ref.use else f"{ref.key} ({ref.use})"
+    return f"`{_cell(name, 80)}`" + (f" {{{_cell(options)}}}" if options else "")
+
+
+def arms_table(scenario: Scenario) -> list[str]:
+    """What each arm switches on, so every number below says which settings produced it."""
+    lines = ["| arm | security prefix | state management | validation | validators | retries | judged scan |",
+             "|---|---|---|---|---|---|---|"]
+    for name, arm in scenario.arms.items():
+        rules = "; ".join(_rule(ref) for ref in arm.validators) if arm.safety_validation else "--"
+        judged = ("--" if not arm.safety_validation else
+                  "read when the answer arrives (`fresh_scan`, ours)" if arm.fresh_scan else "the step's (the paper's)")
+        lines.append(f"| {_cell(name, 80)} | {_cell(arm.prefix_variant or 'off', 80)} | "
+                     f"{'on' if arm.state_management is True else arm.state_management or 'off'} | "
+                     f"{'on' if arm.safety_validation else 'off'} | {rules} | "
+                     f"N = {arm.failure_threshold}, then {arm.on_exhausted} | {judged} |")
+    return lines + [""]
 
 
 def spending(results: list[TrialResult]) -> list[str]:

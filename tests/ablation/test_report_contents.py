@@ -71,6 +71,25 @@ def test_the_header_names_backend_seed_fingerprint_and_n_and_flags_the_simulated
     assert run["simulated"] and run["pilot_inputs"]["flag_injection_p"] == 0.4 and run["fingerprint"] == recorded
 
 
+def test_the_header_says_what_each_arm_switches_on():
+    from safeembodai_core.report.markdown import arms_table
+
+    plugins = load_plugins(environ={})
+    scenario = parse_scenario(MOCK_RUN + """
+arms:
+  baseline: {}
+  guarded:
+    security_prefix: true
+    safety_validation: true
+    fresh_scan: true
+    validators: [command_limits, {use: lidar_clearance, label: "wide|one", options: {half_angle_deg: 45}}]
+""", "mockrun.yaml", registry=plugins.registry)
+    rows = arms_table(scenario)
+    assert rows[2] == "| baseline | off | off | off | -- | N = 3, then abort | -- |"
+    assert rows[3] == ("| guarded | paper | off | on | `command_limits`; `wide\\|one (lidar_clearance)` "
+                       "{half_angle_deg: 45} | N = 3, then abort | read when the answer arrives (`fresh_scan`, ours) |")
+
+
 def test_the_simulated_banner_is_on_every_figure(mock_run, monkeypatch, tmp_path):
     from matplotlib.figure import Figure
 
