@@ -30,7 +30,9 @@ class Observed:
 
 @dataclass(frozen=True)
 class Seen:
-    """Step ``step``'s decision read this: the scan the rules judged, the images and texts the LLM saw."""
+    """Step ``step``'s decision read this: the step's scan (as attackers left it), the images and
+    texts the LLM saw. With an arm's ``fresh_scan`` the rules judged a later reading, which this
+    capture records only as an :class:`Observed` event (the world and pose then), not its scan."""
 
     step: int
     scan: LidarScan | None
@@ -105,6 +107,12 @@ class _CapturingEnvironment(Environment):
         observation = self._inner.observe()
         self._capture.observed(observation, _snapshot(self._inner))
         return observation
+
+    def sense(self) -> Observation | None:
+        reading = self._inner.sense()
+        if isinstance(reading, Observation):  # the world when an answer arrived (an arm's fresh_scan)
+            self._capture.observed(reading, _snapshot(self._inner))
+        return reading
 
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         before = _snapshot(self._inner)

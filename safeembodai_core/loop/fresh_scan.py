@@ -6,23 +6,33 @@ asks the environment for a new reading (:meth:`~safeembodai_core.components.Envi
 as each answer arrives and the rules judge that one: the step's scan joins
 ``ValidationContext.history`` and ``answer_s`` says the plan starts at the reading's time.
 
-A spoofed sensor stays spoofed: the step's attackers run again on the new reading, with the same
-random draws as on the step's observation (each attacker's generator is seeded from the trial,
-its key and the step only), and only what they do to the LiDAR is kept; what they record was
-recorded with the step's observation already.
+A spoofed sensor stays spoofed: the step's attackers run again on each new reading (the step's
+observation with the new LiDAR, pose, truth and time), with the same random draws as on the step's
+observation (each attacker's generator is seeded from the trial, its key and the step only), and
+only what they do to the LiDAR is kept; what they record was recorded with the step's observation.
+A reading older than the step's, or without the LiDAR or pose the step had, is an environment error.
 """
 
 from __future__ import annotations
 
-import copy
+import math
 from dataclasses import replace
 from typing import Any, Callable
 
 from .. import seeds
-from ..components import AttackSurface
+from ..components import AttackSurface, Environment
 from ..errors import EnvironmentError_
 from ..models import Observation
 from ..validation import PastScan, ValidationContext
+
+
+def require_sense(environment: Any) -> None:
+    """Refuse, before a trial starts, an environment that does not implement ``sense`` (its class
+    keeps :class:`~safeembodai_core.components.Environment`'s, which reads nothing)."""
+    if getattr(type(environment), "sense", None) is Environment.sense:
+        raise EnvironmentError_(f"environment {type(environment).__name__} cannot read its LiDAR when an answer "
+                                f"arrives (it does not implement Environment.sense), which the arm's fresh_scan "
+                                f"needs")
 
 
 def fresh_context(context: ValidationContext, observation: Observation, *, parts: Any, seed: int, step: int,
@@ -39,17 +49,29 @@ def fresh_context(context: ValidationContext, observation: Observation, *, parts
     if reading is None:
         raise EnvironmentError_(f"environment {type(parts.environment).__name__} cannot read its LiDAR when an "
                                 f"answer arrives (Environment.sense), which the arm's fresh_scan needs")
+    name = type(parts.environment).__name__
     if not isinstance(reading, Observation):
-        raise EnvironmentError_(f"environment {type(parts.environment).__name__}.sense() returned "
-                                f"{type(reading).__name__}, not an Observation")
-    on_sensed(reading)
-    attacked = AttackSurface(step, instruction, copy.copy(reading), reference,
-                             rng=seeds.rng(seed, "attacker", "", step), limits=limits)
+        raise EnvironmentError_(f"environment {name}.sense() returned {type(reading).__name__}, not an Observation")
+    on_sensed(reading)  # a collision it reports is on record before anything about the reading is refused
+    time_s = reading.sim_time_s
+    if isinstance(time_s, bool) or not isinstance(time_s, (int, float)) or not math.isfinite(time_s) \
+            or time_s < observation.sim_time_s:
+        raise EnvironmentError_(f"environment {name}.sense() read at sim_time_s={time_s!r}, before the step's "
+                                f"observation ({observation.sim_time_s:g} s): a reading as the answer arrives "
+                                f"cannot be older than the step")
+    if (context.scan is not None and reading.lidar is None) or (observation.pose is not None and reading.pose is None):
+        raise EnvironmentError_(f"environment {name}.sense() gave no {'LiDAR' if reading.lidar is None else 'pose'}"
+                                f" where the step's observation had one")
+    # the step's readings, with the new LiDAR, pose, truth and time: an attacker finds what it found
+    # on the step (the camera frame too) and changes the LiDAR as it did there
+    attacked = AttackSurface(step, instruction, replace(observation, lidar=reading.lidar, pose=reading.pose,
+                                                        truth=reading.truth, sim_time_s=time_s),
+                             reference, rng=seeds.rng(seed, "attacker", "", step), limits=limits)
     for name, attacker in parts.attackers:
         attacked.rng = seeds.rng(seed, "attacker", name, step)
         attacker.attack(attacked)  # its records belong to the step's observation, already kept
     history = context.history
-    if context.scan is not None and observation.pose is not None:
+    if context.scan is not None and observation.pose is not None and observation.sim_time_s < time_s:
         history = history + (PastScan(context.scan, observation.pose, observation.sim_time_s),)
     return replace(context, scan=attacked.observation.lidar, start_pose=reading.pose,
                    sim_time_s=reading.sim_time_s, history=history, answer_s=reading.sim_time_s)

@@ -45,7 +45,7 @@ from ..models.prompt import DEFAULT_TASK
 from ..text_safety import one_line, storable
 from ..validation import PastScan, ValidationContext
 from .defences import Defences
-from .fresh_scan import fresh_context
+from .fresh_scan import fresh_context, require_sense
 from .guarded_step import decide
 
 
@@ -213,6 +213,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
     try:
         notify("before_trial", spec=spec)
         _store(lambda: parts.state.begin_trial(spec), "begin the trial")
+        if settings.defences.fresh_scan and settings.defences.safety_validation:
+            require_sense(parts.environment)  # before any answer is paid for
         observation = parts.environment.reset(spec.seed)
         totals.world = one_line(str(observation.truth.extra.get("world_kind", "")))[:64]
         if observation.pose is not None:

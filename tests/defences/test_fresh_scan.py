@@ -8,6 +8,7 @@ environment that cannot sense ends the trial with an error naming the option."""
 from __future__ import annotations
 
 import types
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -141,10 +142,42 @@ def test_a_spoofed_sensor_stays_spoofed_on_the_fresh_reading(seen):
     assert len(steps[0].attacks) == 1  # recorded once, with the step's observation
 
 
-def test_an_environment_that_cannot_sense_ends_the_trial_naming_the_option():
-    result, steps = run_guarded_trial(CorridorWorld(), ReplayBackend(answer(straight(100))),
+def test_an_environment_that_cannot_sense_ends_the_trial_naming_the_option_before_any_call():
+    backend = ReplayBackend(answer(straight(100)))
+    result, steps = run_guarded_trial(CorridorWorld(), backend,
                                       defences=Defences(safety_validation=True, fresh_scan=True), max_steps=1)
     assert result.outcome == Outcome.ERROR and "fresh_scan" in result.detail and "CorridorWorld" in result.detail
+    assert steps == [] and result.prompt_tokens == 0
+
+
+class Hostile(StagedWorld):
+    """A room whose ``sense`` lies: ``change`` rewrites its reading."""
+
+    def __init__(self, room, change) -> None:
+        super().__init__(room)
+        self.change = change
+
+    def sense(self):
+        return self.change(self.room.sense())
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda r: None, "cannot read its LiDAR"),
+    (lambda r: "a scan", "returned str"),
+    (lambda r: replace(r, sim_time_s=-1.0), "before the step's observation"),
+    (lambda r: replace(r, sim_time_s=float("nan")), "sim_time_s=nan"),
+    (lambda r: replace(r, lidar=None), "gave no LiDAR"),
+    (lambda r: replace(r, pose=None), "gave no pose"),
+])
+def test_a_reading_that_cannot_be_as_the_answer_arrives_is_an_environment_error(seen, change, words):
+    plugins, contexts = seen
+    built = plugins.registry.build("environment", "DO", {"think_time_s": THINK_S, "labbots": 1})
+    env = Hostile(built, change)
+    try:
+        result, steps = trial(env, plugins, fresh=True)
+    finally:
+        env.close()
+    assert result.outcome == Outcome.ERROR and words in result.detail and contexts == []
 
 
 def test_moving_obstacles_starts_its_courses_when_the_answer_arrived(plugins):
@@ -199,8 +232,8 @@ def test_flatland_senses_what_its_observation_read(seen):
     plugins, contexts = seen
     result, steps = trial("flatland", plugins, fresh=True)
     (context,) = contexts
-    assert result.outcome != Outcome.ERROR and context.answer_s == context.sim_time_s
-    assert np.array_equal(context.scan.ranges_mm, context.history[-1].scan.ranges_mm)  # nothing moves there
+    assert result.outcome != Outcome.ERROR and context.answer_s == context.sim_time_s == steps[0].sim_time_s
+    assert context.history == ()  # read at the step's own time: the step's scan is not an earlier one
 
 
 def test_a_strike_found_by_the_fresh_reading_ends_the_trial_as_interrupted_without_more_calls(seen):
@@ -218,3 +251,22 @@ def test_a_strike_found_by_the_fresh_reading_ends_the_trial_as_interrupted_witho
     assert not steps[0].accepted and len(steps[0].attempts) == 1
     assert result.outcome == Outcome.INTERRUPTED and result.collisions_struck == 1
     assert "struck by" in result.detail and "think time" in result.detail
+
+
+def test_a_captured_trial_for_bags_senses_through_the_capture(seen):
+    """Bags and `export` wrap the environment in a capture: it passes ``sense`` through and records
+    the world when each answer arrived."""
+    from safeembodai_core.loop.capture import Observed, TrialCapture
+
+    plugins, contexts = seen
+    capture = TrialCapture()
+    env = room(plugins, (1800.0, 4632.0, -90.0))
+    wrapped, _ = capture.wrap(env, None)
+    try:
+        result, steps = trial(wrapped, plugins, fresh=True, steps=2)
+    finally:
+        env.close()
+    assert result.outcome != Outcome.ERROR and len(steps) == 2
+    times = [e.sim_time_s for e in capture.events if isinstance(e, Observed)]
+    assert [c.sim_time_s for c in contexts] == [times[1], times[3]]  # observe, sense, observe, sense
+    assert times[1] == pytest.approx(THINK_S)

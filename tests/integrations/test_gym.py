@@ -260,9 +260,15 @@ def test_the_guard_gives_rules_the_episodes_earlier_scans_as_the_loop_does():
         assert first.history == () and first.sim_time_s == first_time
         assert [p.sim_time_s for p in second.history] == [first_time] and second.sim_time_s > first_time
         assert second.history[0].pose == first.start_pose
+        # a new episode starts a new history: after an episode of one step (its scan kept at the
+        # clock's start), the next episode's scans are kept, not the last episode's
         env.reset(seed=2)
         env.step(action)
-        assert seen.contexts[-1].history == ()  # a new episode starts a new history
+        env.reset(seed=3)
+        third_start = env.unwrapped.pose
+        env.step(action)
+        env.step(action)
+        assert [p.pose for p in seen.contexts[-1].history] == [third_start]
     finally:
         env.close()
 

@@ -115,7 +115,7 @@ class MovingObstaclesRule(Validator):
         cached = self._cache
         # the scans themselves, compared by identity and held by the cache (an id could be reused)
         if (cached is not None and cached[0] is context.scan and cached[1] is latest
-                and cached[2] == (context.start_pose, context.sim_time_s)):
+                and cached[2] == (context.start_pose, context.sim_time_s, context.answer_s)):
             return cached[3], cached[4]
         blobs: list[Blob] = []
         usable = [past for past in context.history
@@ -131,7 +131,8 @@ class MovingObstaclesRule(Validator):
         think = self.wait_s(context)
         walls = Walls.seen(context.scan, context.start_pose, blobs) \
             if self.options.walls and blobs and context.start_pose is not None else None
-        self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s), blobs, think, walls)
+        self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s, context.answer_s), blobs, think,
+                       walls)
         return blobs, think
 
     def walls(self, context: ValidationContext) -> Walls | None:
