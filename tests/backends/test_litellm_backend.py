@@ -67,11 +67,13 @@ def test_a_429_storm_slows_the_call_down_without_spending_its_retries(built_plug
     assert _backend(built_plugins, fake_server, max_retries=0).complete(_prompt(), _rng()).text == GOOD
     assert len(fake_server.requests) == 13
     fake_server.default = Status(429, retry_after=0.3)
-    with pytest.raises(BackendError, match=r"gave up: still rate limited \(HTTP 429\) after 4 answers and 1 s "
-                                           r"\(rate_limit_wait_s 1\)"):
+    with pytest.raises(BackendError, match=r"gave up: still rate limited \(HTTP 429\) after (\d) answers and 1 s "
+                                           r"\(rate_limit_wait_s 1\)") as gave_up:
         _backend(built_plugins, fake_server, max_retries=0, backoff_max_s=5.0,
                  rate_limit_wait_s=1.0).complete(_prompt(), _rng())
-    assert len(fake_server.requests) == 13 + 4  # 0.3 s each: the fourth wait would pass the second
+    answers = int(re.search(r"after (\d) answers", str(gave_up.value)).group(1))
+    # 0.3 s each: the fourth wait would pass the second (4 answers); a loaded machine answers slower (3)
+    assert answers in (3, 4) and len(fake_server.requests) == 13 + answers
     fake_server.requests.clear()
     with pytest.raises(BackendError, match="gave up: still rate limited"):  # backoff_max_s 0: still 0.1 s apart
         _backend(built_plugins, fake_server, max_retries=0, rate_limit_wait_s=0.5).complete(_prompt(), _rng())
