@@ -124,6 +124,17 @@ def _components(plugins: Plugins, kind: str, items: Iterable[Any], seed: int = 0
     return built
 
 
+def _seconds(value: Any, name: str) -> float:
+    """A caller's clock reading as finite seconds, or a ``ValueError`` naming the argument."""
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number of seconds, got {value!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be a finite number of seconds, got {value!r}")
+    return value
+
+
 #: how many earlier scans a :class:`Guard` keeps for rules about motion
 HISTORY_SCANS = 16
 
@@ -156,22 +167,14 @@ class Guard:
                     else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm))
         start = _pose(pose)
         if time_s is not None:
-            try:
-                time_s = float(time_s)
-            except (TypeError, ValueError):
-                raise ValueError(f"time_s must be a number of seconds, got {time_s!r}") from None
-            if not math.isfinite(time_s):
-                raise ValueError(f"time_s must be a finite number of seconds, got {time_s!r}")
+            time_s = _seconds(time_s, "time_s")
             if self.history and time_s < self.history[-1].sim_time_s:
                 self.history.clear()  # the clock went back: a new episode, earlier scans say nothing
         if answer_time_s is not None:
             if time_s is None:
                 raise ValueError("answer_time_s needs time_s: the scan's time on the same clock")
-            try:
-                answer_time_s = float(answer_time_s)
-            except (TypeError, ValueError):
-                raise ValueError(f"answer_time_s must be a number of seconds, got {answer_time_s!r}") from None
-            if not math.isfinite(answer_time_s) or answer_time_s < time_s:
+            answer_time_s = _seconds(answer_time_s, "answer_time_s")
+            if answer_time_s < time_s:
                 raise ValueError(f"answer_time_s must be finite and not before time_s ({time_s:g}), "
                                  f"got {answer_time_s!r}")
         context = ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=start,

@@ -140,7 +140,7 @@ def test_no_step_aside_is_advised_against_a_mover_that_arrives_during_the_think_
     blobs, think = parking.movers(context)
     spot = np.array([ROBOT.x_mm, ROBOT.y_mm])
     assert parking.parked_on(spot, context.robot.radius_mm, blobs, 0.0, think) is not None
-    assert parking._step_aside(context, blobs, think) is None
+    assert parking._step_aside(context, blobs, think, think) is None
     assert not refused([rotate(10)], context, parking)
 
 

@@ -360,12 +360,13 @@ class MovingObstaclesRule(Validator):
                 f"keeps going")
 
     def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float,
-                    next_think: float | None = None) -> list[ControlSignal] | None:
+                    next_think: float) -> list[ControlSignal] | None:
         """The first short plan from where the step starts -- a turn of 89 or 60 degrees either way
         then a straight forward, or a straight backward or forward, 200 or 390 mm, clear of the
         scan by the clearance rule's default distance -- whose motion meets no mover's courses and
         whose end lies on no mover's course (:meth:`parked_on`); None if there is none, or if a mover
-        reaches the step's spot during the think time (every plan stands there then: none is safer)."""
+        reaches the step's spot during the think time (every plan stands there then: none is safer).
+        ``think``: the wait before the step aside can move; ``next_think``: before the plan after it."""
         base = replace(context, offset=(0.0, 0.0, 0.0), earlier_signals=(), later_signals=())
         spot = np.array([base.planned_pose.x_mm, base.planned_pose.y_mm])
         radius = context.robot.radius_mm
@@ -390,7 +391,7 @@ class MovingObstaclesRule(Validator):
                 end = here.advanced(straight).planned_pose
                 arrive = start + self.duration_s(straight)
                 if self.parked_on(np.array([end.x_mm, end.y_mm]), radius, blobs, arrive,
-                                  self._standing_until(arrive, think if next_think is None else next_think)) is None:
+                                  self._standing_until(arrive, next_think)) is None:
                     return [*turned, straight]
         return None
 
