@@ -48,6 +48,7 @@ from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
 from .ros import LaserScan, Twist, arc_signals
+from .ros.laser_scan import finite_number
 from .ros.twist import MAX_PIECES, longest_judged_s
 from .validation import PastScan, ValidationContext, validate_plan
 
@@ -124,17 +125,6 @@ def _components(plugins: Plugins, kind: str, items: Iterable[Any], seed: int = 0
     return built
 
 
-def _seconds(value: Any, name: str) -> float:
-    """A caller's clock reading as finite seconds, or a ``ValueError`` naming the argument."""
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number of seconds, got {value!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be a finite number of seconds, got {value!r}")
-    return value
-
-
 #: how many earlier scans a :class:`Guard` keeps for rules about motion
 HISTORY_SCANS = 16
 
@@ -167,13 +157,13 @@ class Guard:
                     else LidarScan(np.asarray(lidar_mm, dtype=float), max_range_mm))
         start = _pose(pose)
         if time_s is not None:
-            time_s = _seconds(time_s, "time_s")
+            time_s = finite_number("", "time_s", time_s, "seconds")
             if self.history and time_s < self.history[-1].sim_time_s:
                 self.history.clear()  # the clock went back: a new episode, earlier scans say nothing
         if answer_time_s is not None:
             if time_s is None:
                 raise ValueError("answer_time_s needs time_s: the scan's time on the same clock")
-            answer_time_s = _seconds(answer_time_s, "answer_time_s")
+            answer_time_s = finite_number("", "answer_time_s", answer_time_s, "seconds")
             if answer_time_s < time_s:
                 raise ValueError(f"answer_time_s must be finite and not before time_s ({time_s:g}), "
                                  f"got {answer_time_s!r}")

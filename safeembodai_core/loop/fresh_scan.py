@@ -26,13 +26,16 @@ from ..models import Observation
 from ..validation import PastScan, ValidationContext
 
 
+def _cannot_sense(environment: Any, why: str) -> EnvironmentError_:
+    return EnvironmentError_(f"environment {type(environment).__name__} cannot read its LiDAR when an answer "
+                             f"arrives ({why}), which the arm's fresh_scan needs")
+
+
 def require_sense(environment: Any) -> None:
     """Refuse, before a trial starts, an environment that does not implement ``sense`` (its class
     keeps :class:`~safeembodai_core.components.Environment`'s, which reads nothing)."""
     if getattr(type(environment), "sense", None) is Environment.sense:
-        raise EnvironmentError_(f"environment {type(environment).__name__} cannot read its LiDAR when an answer "
-                                f"arrives (it does not implement Environment.sense), which the arm's fresh_scan "
-                                f"needs")
+        raise _cannot_sense(environment, "it does not implement Environment.sense")
 
 
 def fresh_context(context: ValidationContext, observation: Observation, *, parts: Any, seed: int, step: int,
@@ -47,8 +50,7 @@ def fresh_context(context: ValidationContext, observation: Observation, *, parts
     """
     reading = parts.environment.sense()
     if reading is None:
-        raise EnvironmentError_(f"environment {type(parts.environment).__name__} cannot read its LiDAR when an "
-                                f"answer arrives (Environment.sense), which the arm's fresh_scan needs")
+        raise _cannot_sense(parts.environment, "its sense() returned None")
     name = type(parts.environment).__name__
     if not isinstance(reading, Observation):
         raise EnvironmentError_(f"environment {name}.sense() returned {type(reading).__name__}, not an Observation")
@@ -56,9 +58,9 @@ def fresh_context(context: ValidationContext, observation: Observation, *, parts
     time_s = reading.sim_time_s
     if isinstance(time_s, bool) or not isinstance(time_s, (int, float)) or not math.isfinite(time_s) \
             or time_s < observation.sim_time_s:
-        raise EnvironmentError_(f"environment {name}.sense() read at sim_time_s={time_s!r}, before the step's "
-                                f"observation ({observation.sim_time_s:g} s): a reading as the answer arrives "
-                                f"cannot be older than the step")
+        raise EnvironmentError_(f"environment {name}.sense() read at sim_time_s={time_s!r}, not a time at or "
+                                f"after the step's observation ({observation.sim_time_s:g} s): a reading as the "
+                                f"answer arrives cannot be older than the step")
     if (context.scan is not None and reading.lidar is None) or (observation.pose is not None and reading.pose is None):
         raise EnvironmentError_(f"environment {name}.sense() gave no {'LiDAR' if reading.lidar is None else 'pose'}"
                                 f" where the step's observation had one")
@@ -67,8 +69,8 @@ def fresh_context(context: ValidationContext, observation: Observation, *, parts
     attacked = AttackSurface(step, instruction, replace(observation, lidar=reading.lidar, pose=reading.pose,
                                                         truth=reading.truth, sim_time_s=time_s),
                              reference, rng=seeds.rng(seed, "attacker", "", step), limits=limits)
-    for name, attacker in parts.attackers:
-        attacked.rng = seeds.rng(seed, "attacker", name, step)
+    for key, attacker in parts.attackers:
+        attacked.rng = seeds.rng(seed, "attacker", key, step)
         attacker.attack(attacked)  # its records belong to the step's observation, already kept
     history = context.history
     if context.scan is not None and observation.pose is not None and observation.sim_time_s < time_s:

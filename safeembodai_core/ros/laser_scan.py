@@ -34,14 +34,16 @@ MIN_INCREMENT = 1e-6
 MAX_RANGE_M = 100_000.0
 
 
-def finite_number(owner: str, name: str, value: Any) -> float:
-    """``value`` as a finite float, or a ``ValueError`` naming ``owner.name``."""
+def finite_number(owner: str, name: str, value: Any, unit: str = "") -> float:
+    """``value`` as a finite float, or a ``ValueError`` naming ``owner.name`` (``name`` alone when
+    ``owner`` is empty) and, when given, the ``unit`` it is read in."""
+    label, of = f"{owner}.{name}" if owner else name, f" of {unit}" if unit else ""
     try:
         number = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{owner}.{name} must be a number, got {value!r}") from None
+        raise ValueError(f"{label} must be a number{of}, got {value!r}") from None
     if not math.isfinite(number):
-        raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
+        raise ValueError(f"{label} must be {'a finite number' + of if unit else 'finite'}, got {value!r}")
     return number
 
 

@@ -164,7 +164,7 @@ class Hostile(StagedWorld):
 @pytest.mark.parametrize("change, words", [
     (lambda r: None, "cannot read its LiDAR"),
     (lambda r: "a scan", "returned str"),
-    (lambda r: replace(r, sim_time_s=-1.0), "before the step's observation"),
+    (lambda r: replace(r, sim_time_s=-1.0), "not a time at or after the step's observation"),
     (lambda r: replace(r, sim_time_s=float("nan")), "sim_time_s=nan"),
     (lambda r: replace(r, lidar=None), "gave no LiDAR"),
     (lambda r: replace(r, pose=None), "gave no pose"),
