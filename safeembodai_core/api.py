@@ -21,13 +21,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
 from typing import Any, Iterable, Sequence
 
 import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
 from .components import BuildContext, Environment, LLMBackend, RobotSpec
+from .guard_reports import GuardReport, LimitReport, TwistReport
 from .loop import Defences, LoopSettings, TrialParts, run_trial
 from .models import (
     DEFAULT_LIMITS,
@@ -47,57 +47,12 @@ from .models.reply import as_reply
 from .models.response import describe_schema_error
 from .plugins import Plugins, load_plugins
 from .refs import ComponentRef, ref
-from .ros import LaserScan, Twist, arc_signals
+from .ros import LaserScan, Twist
 from .ros.laser_scan import finite_number
-from .ros.twist import MAX_PIECES, longest_judged_s
+from .twist_judging import SlowdownZone, judge_twist, limit_twist
 from .validation import PastScan, ValidationContext, validate_plan
 
 _SIGNALS = TypeAdapter(list[ControlSignal])
-
-
-@dataclass
-class GuardReport:
-    """The outcome of :meth:`Guard.check`: every verdict, and the parsed signals if they parsed."""
-
-    signals: list[Any] = field(default_factory=list)
-    verdicts: list[Verdict] = field(default_factory=list)
-    response: LLMResponse | None = None
-    #: why the reply could not be read (it then has one ``schema`` verdict saying the same); None when it was read
-    parse_error: str | None = None
-
-    @property
-    def valid(self) -> bool:
-        return all(v.valid for v in self.verdicts)
-
-    @property
-    def reasons(self) -> list[str]:
-        """Each refusal as the trial loop writes it (``Attempt.failures()``): the reading's refusal, or
-        ``rule (signal K): reason`` per refused signal."""
-        if self.parse_error is not None:
-            return [self.parse_error]
-        return [v.line() for v in self.verdicts if not v.valid]
-
-
-@dataclass
-class TwistReport(GuardReport):
-    """:meth:`Guard.check_twist`'s outcome: the verdicts on the arc's pieces (``signals``), and the
-    longest time the command can be held safely (``safe_duration_s``, the asked duration when it
-    passes; 0 when not even the first piece passes)."""
-
-    twist: Twist | None = None
-    duration_s: float = 0.0
-    safe_duration_s: float = 0.0
-
-    @property
-    def reasons(self) -> list[str]:
-        """The refusal said for the command as a whole first, then each piece's, as in :meth:`GuardReport.reasons`."""
-        lines = GuardReport.reasons.fget(self)  # type: ignore[attr-defined]
-        if not lines or self.twist is None:
-            return lines
-        head = (f"twist linear.x {self.twist.linear_x:g} m/s, angular.z {self.twist.angular_z:g} rad/s for "
-                f"{self.duration_s:g} s: refused; at most {self.safe_duration_s:.2f} s is safe "
-                f"(the arc judged as {len(self.signals)} pieces)")
-        return [head, *lines]
 
 
 def _pose(pose: Any) -> Pose | None:
@@ -127,6 +82,9 @@ def _components(plugins: Plugins, kind: str, items: Iterable[Any], seed: int = 0
 
 #: how many earlier scans a :class:`Guard` keeps for rules about motion
 HISTORY_SCANS = 16
+#: the rules a :class:`Guard` judges with unless told: the contract's limits, and the exact region the
+#: robot's body sweeps (a robot's default; the paper's scenarios keep its V(C), ``lidar_clearance``)
+ROBOT_RULES = ("command_limits", "swept_body")
 
 
 class Guard:
@@ -134,7 +92,7 @@ class Guard:
 
     def __init__(
         self,
-        rules: Sequence[Any] = ("command_limits", "lidar_clearance"),
+        rules: Sequence[Any] = ROBOT_RULES,
         *,
         robot: RobotSpec = RobotSpec(),
         limits: ControlLimits = DEFAULT_LIMITS,
@@ -209,41 +167,41 @@ class Guard:
         verdicts = validate_plan(signals, context, self.rules)
         return GuardReport(signals=signals, verdicts=verdicts)
 
+    def _twist(self, twist: Any) -> Twist:
+        if not isinstance(twist, Twist):
+            twist = (Twist(*twist) if isinstance(twist, (tuple, list))
+                     else Twist.from_ros(twist, holonomic=self.robot.holonomic))
+        if twist.linear_y != 0.0 and not self.robot.holonomic:
+            raise ValueError(f"Twist linear_y = {twist.linear_y!r}: this robot cannot drive sideways; a holonomic "
+                             "base says so with Guard(robot=RobotSpec(holonomic=True))")
+        return twist
+
     def check_twist(self, twist: Any, duration_s: float, *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
                     pose: Any = None, time_s: float | None = None, resolution_s: float = 0.05) -> TwistReport:
-        """Judge a velocity command held for ``duration_s`` seconds: the arc it sweeps, as the
-        contract's signals (:func:`~safeembodai_core.ros.arc_signals`), through the same rules as a
-        plan. ``twist``: a :class:`~safeembodai_core.ros.Twist`, a decoded ``geometry_msgs/Twist``
-        or a ``(linear_x m/s, angular_z rad/s)`` pair. A refusal says the longest duration, to
-        ``resolution_s``, whose arc every rule accepts (``safe_duration_s``). ``lidar_mm`` and the
-        rest are as for :meth:`check`. A non-finite or non-planar command raises ``ValueError``."""
-        if not isinstance(twist, Twist):
-            twist = Twist(*twist) if isinstance(twist, (tuple, list)) else Twist.from_ros(twist)
-        duration_s = float(duration_s)
-        longest = longest_judged_s(twist)
-        signals = arc_signals(twist, min(duration_s, longest))  # raises ValueError for a bad duration
+        """Judge a velocity command held for ``duration_s`` seconds (:mod:`~safeembodai_core.twist_judging`).
+        ``twist``: a :class:`~safeembodai_core.ros.Twist`, a decoded ``geometry_msgs/Twist`` or a
+        ``(linear_x m/s, angular_z rad/s[, linear_y m/s])`` tuple; ``linear_y`` only for a holonomic
+        robot (``RobotSpec(holonomic=True)``). The report says the time before collision
+        (``collision_time_s``, from rules that judge held motions, such as the default
+        ``swept_body``) and the longest safe hold (``safe_duration_s``; other rules' to
+        ``resolution_s``). ``lidar_mm`` and the rest are as for :meth:`check`. A non-finite
+        command, a negative duration or a sideways command to a robot that cannot drive sideways
+        raises ``ValueError`` naming it."""
+        twist = self._twist(twist)
         context = self._context(lidar_mm, max_range_mm, pose, time_s)
+        return judge_twist(twist, duration_s, context, self.rules, resolution_s)
 
-        def judged(parts: list[Any]) -> list[Verdict]:
-            return validate_plan(parts, context, self.rules) if parts else []
-
-        verdicts = judged(signals)
-        if duration_s > longest:  # too long an arc to judge piece by piece: refused, whatever the rest says
-            verdicts.append(Verdict(rule="twist", valid=False, reason=(
-                f"held {duration_s:g} s the command sweeps more than {MAX_PIECES} pieces of arc; only the first "
-                f"{longest:.2f} s were judged")))
-        report = TwistReport(signals=signals, verdicts=verdicts, twist=twist, duration_s=duration_s,
-                             safe_duration_s=duration_s)
-        if not report.valid:
-            low, high = 0.0, min(duration_s, longest)  # the longest safe duration, by bisection on the same arc
-            while high - low > resolution_s:
-                middle = (low + high) / 2
-                if all(v.valid for v in judged(arc_signals(twist, middle))):
-                    low = middle
-                else:
-                    high = middle
-            report.safe_duration_s = low
-        return report
+    def limit_twist(self, twist: Any, horizon_s: float, *, slowdown: Sequence[SlowdownZone] = (), lidar_mm: Any = None,
+                    max_range_mm: float = 10_000.0, pose: Any = None, time_s: float | None = None,
+                    resolution_s: float = 0.05) -> LimitReport:
+        """The fastest command along ``twist``'s path whose swept body stays clear for ``horizon_s``
+        seconds -- Nav2's approach scaling, ``speed x collision_time / horizon`` -- and, with
+        ``slowdown`` zones (:class:`~safeembodai_core.SlowdownZone`), their factor while a return lies
+        in one. The report's ``twist`` is the command to send (a stop when nothing is safe),
+        ``reasons`` why it was limited. Arguments as for :meth:`check_twist`; ``horizon_s`` must be > 0."""
+        twist = self._twist(twist)
+        context = self._context(lidar_mm, max_range_mm, pose, time_s)
+        return limit_twist(twist, horizon_s, context, self.rules, slowdown, resolution_s)
 
     def check_reply(
         self,

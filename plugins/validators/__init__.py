@@ -13,6 +13,10 @@
 * ``footprint_sweep`` -- stronger than the paper: the rectangle the robot's body sweeps along a
   ``straight`` (its width plus a margin) must hold no LiDAR point, so an obstacle just outside
   ±r but inside the robot's width is caught; a ``turn`` must not sweep the body's circle over one.
+* ``swept_body`` -- the robot default (``Guard``, ``guard-bag``): the exact region the body (its
+  disc or ``RobotSpec.footprint_mm``, plus a margin) sweeps along a straight, a turn in place or a
+  held velocity must hold no return and no space the scan did not see; it also says when the body
+  would first touch something (``validate_motion``), for the time before collision and speed limits.
 * ``moving_obstacles`` -- beyond the paper: returns that moved between the trial's last two scans
   (both in the room frame) are movers with a velocity; each gets possible courses wandering
   around it, and a ``straight`` whose body comes within a margin of at least ``max_risk`` of one
@@ -35,10 +39,11 @@ from .options import (
     FootprintSweepOptions,
     LidarClearanceOptions,
     MovingObstaclesOptions,
+    SweptBodyOptions,
 )
 
 __all__ = ["DEFAULT_SAFETY_DISTANCE_MM", "CommandLimitsOptions", "FootprintSweepOptions", "LidarClearanceOptions",
-           "MovingObstaclesOptions", "register_validators"]
+           "MovingObstaclesOptions", "SweptBodyOptions", "register_validators"]
 
 
 @hookimpl
@@ -49,6 +54,9 @@ def register_validators(register):
              description="the paper's V(C): l(θ) - |d| >= dist for θ in [-r, r]")
     register("footprint_sweep", lazy(f"{__name__}.sweep", "FootprintSweepRule"), options=FootprintSweepOptions,
              description="the rectangle the body sweeps (width + margin) holds no LiDAR point")
+    register("swept_body", lazy(f"{__name__}.swept_body", "SweptBodyRule"), options=SweptBodyOptions,
+             description="the exact region the body (disc or footprint + margin) sweeps holds no return or "
+                         "unseen space (straights, turns, held twists)")
     register("moving_obstacles", lazy(f"{__name__}.moving", "MovingObstaclesRule"), options=MovingObstaclesOptions,
              description="refuses straights that drive into enough of a mover's possible courses "
                          "(from the last two scans)")

@@ -84,6 +84,20 @@ class FootprintSweepOptions(BaseModel):
     expected_beams: int | None = Field(None, ge=4, description="refuse scans with another number of beams")
 
 
+class SweptBodyOptions(BaseModel):
+    """Options of ``swept_body``; the body (a disc, or ``RobotSpec.footprint_mm``) comes from the robot."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    margin_mm: float = Field(0.0, ge=0, le=2000, allow_inf_nan=False, description=(
+        "the body grown by this much all round (every point within it of the body; 0: the body as given)"))
+    min_points: int = Field(1, ge=1, le=1000, description=(
+        "returns the swept body must touch for a collision (Nav2's min_points; 1: any one return)"))
+    unseen_step_mm: float = Field(20.0, ge=5, le=200, allow_inf_nan=False, description=(
+        "spacing of the samples along space the scan did not see (no reading, behind a return, past its range)"))
+    expected_beams: int | None = Field(None, ge=4, description="refuse scans with another number of beams")
+
+
 class MovingObstaclesOptions(BaseModel):
     """Options of ``moving_obstacles``; timing defaults are the pybullet rooms' (``docs/defences.md``)."""
 

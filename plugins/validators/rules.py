@@ -7,8 +7,11 @@ import math
 import numpy as np
 
 from safeembodai_core.components import Validator
+from safeembodai_core.geometry import Motion
+from safeembodai_core.held_motion import MotionValidator, MotionVerdict
 from safeembodai_core.models import ControlSignal, LidarScan, Straight, Turn, Verdict
 from safeembodai_core.models.control import HARD_MAX_ANGLE_DEG, HARD_MAX_DISTANCE_MM
+from safeembodai_core.ros.twist import STEP_DEG, STEP_MM
 from safeembodai_core.validation import ValidationContext
 
 from .options import DEFAULT_SAFETY_DISTANCE_MM
@@ -40,11 +43,13 @@ def direction_words(signal: Straight) -> tuple[str, str]:
     return ("forward", "ahead") if signal.direction == "forward" else ("backward", "behind")
 
 
-class CommandLimitsRule(Validator):
+class CommandLimitsRule(MotionValidator):
     """Distance and angle finite and strictly within (min, max), in millimetres and degrees.
 
     Unset maxima follow the scenario's ``limits``; with ``limits.enforce: false`` (bounds as prompt
-    text only) they are the hard caps, which hold inclusively: 10 m and 360 degrees.
+    text only) they are the hard caps, which hold inclusively: 10 m and 360 degrees. A held
+    velocity is judged as the pieces :func:`~safeembodai_core.ros.arc_signals` cuts it into (at
+    most 50 mm and 5 degrees each), sideways ones too; it never says a time of contact.
     """
 
     name = "command_limits"
@@ -74,6 +79,21 @@ class CommandLimitsRule(Validator):
                            reason=f"{signal.describe()}: {what} must be a number with {low:g} < {what} < {high:g} "
                                   f"({unit}); use several signals for a longer motion")
         return Verdict(rule=self.name, valid=True)
+
+    def validate_motion(self, motion: Motion, context: ValidationContext) -> MotionVerdict:
+        distance = motion.centre_travel_mm
+        angle = math.degrees(abs(motion.w_rad_s) * motion.duration_s)
+        pieces = max(1, math.ceil(distance / STEP_MM), math.ceil(angle / STEP_DEG))
+        signals = []
+        if distance / pieces > 1e-9:
+            signals.append(Straight(command="straight", direction="forward", distance=distance / pieces))
+        if angle / pieces > 1e-9:
+            signals.append(Turn(command="turn", direction="left", angle=angle / pieces))
+        for signal in signals:
+            verdict = self.validate(signal, context)
+            if not verdict.valid:
+                return MotionVerdict(verdict.model_copy(update={"reason": f"each piece of the held command: {verdict.reason}"}))
+        return MotionVerdict(Verdict(rule=self.name, valid=True))
 
 
 class LidarClearanceRule(Validator):

@@ -38,20 +38,27 @@ def _finite(name: str, value: Any) -> float:
 
 @dataclass(frozen=True)
 class Twist:
-    """A planar velocity command: forward speed (m/s, negative backwards) and turn rate (rad/s,
-    counter-clockwise), as ``geometry_msgs/Twist``'s ``linear.x`` and ``angular.z``."""
+    """A planar velocity command: forward speed (m/s, negative backwards), turn rate (rad/s,
+    counter-clockwise) and, for a holonomic base, sideways speed (m/s, positive to the left), as
+    ``geometry_msgs/Twist``'s ``linear.x``, ``angular.z`` and ``linear.y``."""
 
     linear_x: float
     angular_z: float
+    linear_y: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "linear_x", _finite("linear_x", self.linear_x))
-        object.__setattr__(self, "angular_z", _finite("angular_z", self.angular_z))
+        for name in ("linear_x", "angular_z", "linear_y"):
+            object.__setattr__(self, name, _finite(name, getattr(self, name)))
+
+    def scaled(self, factor: float) -> Twist:
+        """The same path at ``factor`` times the speed (every part scaled: the curvature is kept)."""
+        return Twist(self.linear_x * factor + 0.0, self.angular_z * factor + 0.0, self.linear_y * factor + 0.0)  # no -0.0
 
     @classmethod
-    def from_ros(cls, message: Any) -> Twist:
+    def from_ros(cls, message: Any, holonomic: bool = False) -> Twist:
         """A decoded ``geometry_msgs/msg/Twist`` (or a ``TwistStamped``'s ``twist``). A command with
-        sideways, vertical or roll/pitch parts is not a differential drive's: refused, not dropped."""
+        vertical or roll/pitch parts, or sideways without ``holonomic``, is not the base's: refused,
+        not dropped."""
         message = getattr(message, "twist", message)
         try:
             linear, angular = message.linear, message.angular
@@ -62,10 +69,11 @@ class Twist:
                              "x, y, z") from None
         parts = {name: _finite(name, value) for name, value in parts.items()}  # named as ROS names them
         for name in ("linear.y", "linear.z", "angular.x", "angular.y"):
-            if parts[name] != 0.0:
-                raise ValueError(f"Twist {name} = {parts[name]!r}: only a planar command (linear.x, angular.z) can "
-                                 "be judged")
-        return cls(parts["linear.x"], parts["angular.z"])
+            if parts[name] != 0.0 and not (holonomic and name == "linear.y"):
+                sideways = " (a holonomic base: RobotSpec(holonomic=True))" if name == "linear.y" else ""
+                raise ValueError(f"Twist {name} = {parts[name]!r}: only a planar command (linear.x, angular.z{sideways}) "
+                                 "can be judged")
+        return cls(parts["linear.x"], parts["angular.z"], parts["linear.y"])
 
 
 def arc_signals(twist: Twist, duration_s: float, step_mm: float = STEP_MM,
@@ -75,6 +83,9 @@ def arc_signals(twist: Twist, duration_s: float, step_mm: float = STEP_MM,
     duration_s = float(duration_s)
     if not math.isfinite(duration_s) or duration_s < 0:
         raise ValueError(f"duration_s must be a finite number of seconds >= 0, got {duration_s!r}")
+    if twist.linear_y != 0.0:
+        raise ValueError(f"Twist linear_y = {twist.linear_y!r}: a sideways command has no straights and turns; "
+                         "only rules that judge the held motion (swept_body) can judge it")
     distance = abs(twist.linear_x) * 1000.0 * duration_s
     angle = math.degrees(twist.angular_z * duration_s)
     pieces = max(1, math.ceil(distance / step_mm), math.ceil(abs(angle) / step_deg))

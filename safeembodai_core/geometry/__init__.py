@@ -1,0 +1,7 @@
+"""Plane geometry of the robot's body: its footprint (:mod:`.footprint`) and the exact time a held
+velocity first brings it onto a point (:mod:`.sweep`). No numpy-free fallback, no simulator."""
+
+from .footprint import MAX_VERTICES, Body, read_polygon
+from .sweep import Motion, contact_times
+
+__all__ = ["MAX_VERTICES", "Body", "Motion", "contact_times", "read_polygon"]
