@@ -25,6 +25,9 @@ import numpy as np
 from .footprint import Body
 
 _TWO_PI = 2.0 * math.pi
+#: a turn that moves no point of the swept region by more than this (mm) is driven as a straight: its
+#: centre of rotation would lie so far away that the arc's arithmetic loses more than it gains
+_STRAIGHT_ENOUGH_MM = 1e-2
 
 
 @dataclass(frozen=True)
@@ -82,7 +85,8 @@ def contact_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
         return times
     segments, circles = body.boundary()
     p = points[rest]
-    if motion.w_rad_s == 0.0:
+    sweep_mm = (motion.centre_travel_mm + body.reach_mm + float(np.max(np.abs(p)))) * abs(motion.w_rad_s) * motion.duration_s
+    if sweep_mm <= _STRAIGHT_ENOUGH_MM:
         found = _line_contacts(p, np.array([motion.vx_mm_s, motion.vy_mm_s]), segments, circles)
     else:
         found = _arc_contacts(p, motion, segments, circles)
@@ -97,7 +101,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _line_contacts(p: np.ndarray, v: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
     """First t >= 0 at which p - v t meets a segment or a circle (inf: never)."""
     best = np.full(len(p), np.inf)
-    if not v.any():
+    if float(v @ v) == 0.0:  # no speed (or too little to square): the point never moves
         return best
     if len(segments):
         a, e = segments[None, :, 0, :], segments[None, :, 1, :] - segments[None, :, 0, :]

@@ -70,12 +70,17 @@ def test_lidar_scan_rejects_bad_shapes_and_negative_ranges():
 
 
 def test_guard_checks_commands_against_a_scan_without_a_simulator():
-    guard = Guard()
+    guard = Guard(["command_limits", "lidar_clearance"])  # the paper's rules
     wall_ahead = scan_with({k: 600 for k in range(-30, 31)}, default=5000)
     report = guard.check([straight(399)], lidar_mm=wall_ahead.ranges_mm, max_range_mm=8000)
     assert not report.valid and any("lidar_clearance" in r for r in report.reasons)
     assert guard.check([straight(300)], lidar_mm=wall_ahead.ranges_mm).valid
     assert guard.check([turn(80), straight(399)], lidar_mm=wall_ahead.ranges_mm).valid
+    robot = Guard()  # the robot defaults: the 170 mm disc's sweep touches a wall at 500 mm after 330 mm
+    nearer = scan_with({k: 500 for k in range(-30, 31)}, default=5000)
+    assert robot.check([straight(329)], lidar_mm=nearer.ranges_mm, max_range_mm=8000).valid
+    report = robot.check([straight(331)], lidar_mm=nearer.ranges_mm, max_range_mm=8000)
+    assert not report.valid and "swept_body" in report.reasons[0] and "at most 329 mm is safe" in report.reasons[0]
 
 
 def test_guard_reports_unparseable_commands_as_schema_failures():
