@@ -167,7 +167,9 @@ class Guard:
         verdicts = validate_plan(signals, context, self.rules)
         return GuardReport(signals=signals, verdicts=verdicts)
 
-    def _twist(self, twist: Any) -> Twist:
+    def read_twist(self, twist: Any) -> Twist:
+        """``twist`` (a :class:`~safeembodai_core.ros.Twist`, a decoded ``geometry_msgs/Twist`` or a
+        tuple) as this robot can drive it, or ``ValueError`` naming the part it cannot."""
         if not isinstance(twist, Twist):
             twist = (Twist(*twist) if isinstance(twist, (tuple, list))
                      else Twist.from_ros(twist, holonomic=self.robot.holonomic))
@@ -187,7 +189,7 @@ class Guard:
         ``resolution_s``). ``lidar_mm`` and the rest are as for :meth:`check`. A non-finite
         command, a negative duration or a sideways command to a robot that cannot drive sideways
         raises ``ValueError`` naming it."""
-        twist = self._twist(twist)
+        twist = self.read_twist(twist)
         context = self._context(lidar_mm, max_range_mm, pose, time_s)
         return judge_twist(twist, duration_s, context, self.rules, resolution_s)
 
@@ -199,7 +201,7 @@ class Guard:
         ``slowdown`` zones (:class:`~safeembodai_core.SlowdownZone`), their factor while a return lies
         in one. The report's ``twist`` is the command to send (a stop when nothing is safe),
         ``reasons`` why it was limited. Arguments as for :meth:`check_twist`; ``horizon_s`` must be > 0."""
-        twist = self._twist(twist)
+        twist = self.read_twist(twist)
         context = self._context(lidar_mm, max_range_mm, pose, time_s)
         return limit_twist(twist, horizon_s, context, self.rules, slowdown, resolution_s)
 

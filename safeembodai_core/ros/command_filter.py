@@ -1,0 +1,112 @@
+"""The guard as a live node between a planner and the base, with no ROS dependency.
+
+A :class:`CommandFilter` is the loop of ``docs/robots.md``'s guard node: it keeps the latest scan
+(:meth:`~CommandFilter.on_scan`) and pose (:meth:`~CommandFilter.on_pose`), and for each incoming
+velocity command (:meth:`~CommandFilter.on_command`) decides what reaches the base:
+
+* ``mode="limit"`` (the default): the command along the same path at the fastest speed whose swept
+  body stays clear for ``horizon_s`` (:meth:`Guard.limit_twist <safeembodai_core.Guard.limit_twist>`:
+  Nav2's approach scaling, plus any slow-down zones) -- forwarded unchanged, slowed, or a stop;
+* ``mode="refuse"``: the command unchanged when the guard accepts it held for ``horizon_s``, else a stop.
+
+A stop also goes out, with its reason, when there is no scan yet or the latest is older than
+``scan_timeout_s`` (Nav2's ``source_timeout``: a sensor that stops arriving stops the robot), or a
+command's time is earlier than the scan's. When the robot has moved since the scan (a pose newer
+than the scan's), the scan is judged as seen from where the robot now is
+(:func:`~safeembodai_core.ros.bag_guard.seen_from`: what the scan never saw stays unknown). Every
+:class:`Decision` says why, for the planner. Wire the three methods to your subscriptions (rclpy,
+rosbridge, a bag) and publish ``decision.twist``; one filter per robot, not shared between threads.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal, Sequence
+
+from .bag_guard import seen_from
+from .laser_scan import LaserScan, SensorMount, finite_number
+from .twist import Twist
+
+STOP = Twist(0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What the filter sends for one command: ``action`` (``forward``, ``limit`` or ``stop``), the
+    ``twist`` to publish, why (``reasons``, empty when forwarded), the scan's age and the time
+    before collision the guard found (None: none within the horizon, or not judged)."""
+
+    action: Literal["forward", "limit", "stop"]
+    twist: Twist
+    requested: Twist
+    time_s: float
+    reasons: list[str] = field(default_factory=list)
+    scan_age_s: float | None = None
+    collision_time_s: float | None = None
+
+
+class CommandFilter:
+    """Per command: limit or refuse by the guard on the latest scan and pose (module docstring)."""
+
+    def __init__(self, guard: Any, *, horizon_s: float = 1.0, scan_timeout_s: float = 0.5,
+                 mode: Literal["limit", "refuse"] = "limit", slowdown: Sequence[Any] = (),
+                 mount: SensorMount | None = None) -> None:
+        self.guard = guard
+        self.horizon_s = finite_number("CommandFilter", "horizon_s", horizon_s, "seconds")
+        self.scan_timeout_s = finite_number("CommandFilter", "scan_timeout_s", scan_timeout_s, "seconds")
+        if self.horizon_s <= 0 or self.scan_timeout_s <= 0:
+            raise ValueError(f"CommandFilter needs horizon_s and scan_timeout_s > 0, got {horizon_s!r} and "
+                             f"{scan_timeout_s!r}")
+        if mode not in ("limit", "refuse"):
+            raise ValueError(f"CommandFilter.mode must be 'limit' or 'refuse', got {mode!r}")
+        self.mode = mode
+        self.slowdown = tuple(slowdown)
+        self.mount = mount or SensorMount()
+        self._scan: LaserScan | None = None
+        self._scan_time: float | None = None
+        self._scan_pose: tuple[float, float, float] | None = None
+        self._pose: tuple[float, float, float] | None = None
+
+    def on_scan(self, scan: Any, time_s: float) -> None:
+        """A new scan: a :class:`LaserScan` or a decoded ``sensor_msgs/LaserScan`` (read with ``mount``),
+        taken at ``time_s``; the pose known then is where it was taken. A malformed scan raises
+        ``ValueError`` and the last good one stays (and ages towards the timeout)."""
+        scan = scan if isinstance(scan, LaserScan) else LaserScan.from_ros(scan, self.mount)
+        time_s = finite_number("CommandFilter.on_scan", "time_s", time_s, "seconds")
+        self._scan, self._scan_time, self._scan_pose = scan, time_s, self._pose
+
+    def on_pose(self, pose: Sequence[float], time_s: float) -> None:
+        """The robot's pose ``(x_mm, y_mm, heading_deg)`` in one map frame at ``time_s``."""
+        finite_number("CommandFilter.on_pose", "time_s", time_s, "seconds")
+        x, y, heading = (finite_number("CommandFilter.on_pose", name, value)
+                         for name, value in zip(("x_mm", "y_mm", "heading_deg"), pose, strict=True))
+        self._pose = (x, y, heading)
+
+    def on_command(self, twist: Any, time_s: float) -> Decision:
+        """What to send for ``twist`` (a :class:`Twist`, a decoded ``geometry_msgs/Twist`` or a tuple)
+        arriving at ``time_s``. A command that cannot be read is stopped, with the reason."""
+        time_s = finite_number("CommandFilter.on_command", "time_s", time_s, "seconds")
+        try:
+            requested = self.guard.read_twist(twist)
+        except ValueError as error:
+            return Decision("stop", STOP, STOP, time_s, [f"command refused unread: {error}"])
+        if self._scan is None or self._scan_time is None:
+            return Decision("stop", STOP, requested, time_s, ["no scan yet: stop until one arrives"])
+        age = time_s - self._scan_time
+        if age > self.scan_timeout_s or age < 0:
+            why = (f"the latest scan is {age:.3f} s old (timeout {self.scan_timeout_s:g} s): stop until a new one "
+                   "arrives" if age >= 0 else f"the command's time is {-age:.3f} s before the latest scan's")
+            return Decision("stop", STOP, requested, time_s, [why], scan_age_s=age)
+        scan, _ = seen_from(self._scan, self._scan_pose, self._pose)
+        if self.mode == "refuse":
+            report = self.guard.check_twist(requested, self.horizon_s, lidar_mm=scan)
+            if report.valid:
+                return Decision("forward", requested, requested, time_s, scan_age_s=age)
+            return Decision("stop", STOP, requested, time_s, report.reasons, age, report.collision_time_s)
+        limited = self.guard.limit_twist(requested, self.horizon_s, slowdown=self.slowdown, lidar_mm=scan)
+        action = "forward" if not limited.limited else ("stop" if limited.stopped else "limit")
+        return Decision(action, limited.twist if action != "stop" else STOP, requested, time_s, limited.reasons, age,
+                        limited.collision_time_s)
+
+
+__all__ = ["CommandFilter", "Decision"]
