@@ -34,7 +34,6 @@ from .models import (
     ControlLimits,
     ControlSignal,
     LidarScan,
-    LLMResponse,
     Pose,
     ResponseParseError,
     StepRecord,

@@ -92,7 +92,8 @@ class CommandLimitsRule(MotionValidator):
         for signal in signals:
             verdict = self.validate(signal, context)
             if not verdict.valid:
-                return MotionVerdict(verdict.model_copy(update={"reason": f"each piece of the held command: {verdict.reason}"}))
+                reason = f"each piece of the held command: {verdict.reason}"
+                return MotionVerdict(verdict.model_copy(update={"reason": reason}))
         return MotionVerdict(Verdict(rule=self.name, valid=True))
 
 

@@ -25,7 +25,8 @@ import math
 
 import numpy as np
 
-from safeembodai_core.geometry import Body, Motion, contact_times
+from safeembodai_core.geometry import Motion, contact_times
+from safeembodai_core.geometry.sweep import near_path
 from safeembodai_core.held_motion import MotionValidator, MotionVerdict
 from safeembodai_core.models import ControlSignal, LidarScan, Straight, Verdict
 from safeembodai_core.validation import ValidationContext
@@ -36,19 +37,28 @@ _UNSEEN = ("no reading", "behind a return", "beyond the sensor's range")
 _JUMP_STEPS = 2.0  # a neighbour this many sample steps farther leaves a shadow edge worth sampling
 
 
-def _rays(angles: np.ndarray, starts: np.ndarray, stops: np.ndarray, step: float) -> np.ndarray:
-    """Samples every ``step`` mm along each beam from ``starts`` to ``stops`` (scan frame)."""
+def _rays(angles: np.ndarray, starts: np.ndarray, stops: np.ndarray, step: float,
+          thin_rad: float | None = None) -> np.ndarray:
+    """Samples every ``step`` mm along each beam from ``starts`` to ``stops`` (scan frame). With
+    ``thin_rad`` (the beams' spacing, for neighbouring beams that are all unread) a ring of radius r
+    keeps only every k-th beam, k = step / (r * thin_rad): samples about ``step`` apart across too."""
     counts = np.maximum(np.floor((stops - starts) / step).astype(int) + 1, 0)
     if not counts.sum():
         return np.empty((0, 2))
     beam = np.repeat(np.arange(len(angles)), counts)
     radii = starts[beam] + step * (np.arange(beam.size) - np.repeat(np.cumsum(counts) - counts, counts))
+    if thin_rad is not None:
+        every = np.maximum(1, np.floor(step / np.maximum(radii * thin_rad, 1e-9))).astype(int)
+        index = np.rint(angles[beam] / thin_rad).astype(int)
+        keep = index % every == 0
+        beam, radii = beam[keep], radii[keep]
     return np.column_stack((radii * np.cos(angles[beam]), radii * np.sin(angles[beam])))
 
 
-def scene(scan: LidarScan, body: Body, reach_mm: float, step_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def scene(scan: LidarScan, reach_mm: float, step_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The returns within ``reach_mm`` of the scan's origin, and the unseen samples with their kind
-    (an index into ``_UNSEEN``), in the frame the scan was taken in (module docstring)."""
+    (an index into ``_UNSEEN``), in the frame the scan was taken in (module docstring); samples inside
+    the body where the scan was taken are still among them."""
     ranges = scan.ranges_mm
     angles = np.radians(scan.angles_deg)
     read = ~np.isnan(ranges)
@@ -59,7 +69,16 @@ def scene(scan: LidarScan, body: Body, reach_mm: float, step_mm: float) -> tuple
     unread = ~read
     if unread.any():
         stop = min(scan.max_range_mm, reach_mm)
-        parts.append(_rays(angles[unread], np.zeros(int(unread.sum())), np.full(int(unread.sum()), stop), step_mm))
+        count = int(unread.sum())
+        # every beam's ray where its neighbours are unread too (the inside of an unread wedge is
+        # sampled about step_mm apart across); a wedge's edge rays in full
+        inner = unread & np.roll(unread, 1) & np.roll(unread, -1)
+        edges = unread & ~inner
+        parts.append(np.concatenate([
+            _rays(angles[inner], np.zeros(int(inner.sum())), np.full(int(inner.sum()), stop), step_mm,
+                  math.radians(scan.increment_deg)),
+            _rays(angles[edges], np.zeros(int(edges.sum())), np.full(int(edges.sum()), stop), step_mm)]) if count
+            else np.empty((0, 2)))
         kinds.append(0)
     for neighbour in (np.roll(depth, -1), np.roll(depth, 1)):
         edge = read & ~np.isnan(neighbour) & (neighbour > depth + _JUMP_STEPS * step_mm) & (depth < reach_mm)
@@ -75,9 +94,7 @@ def scene(scan: LidarScan, body: Body, reach_mm: float, step_mm: float) -> tuple
     if not parts:
         return returns, np.empty((0, 2)), np.empty(0, dtype=int)
     labels = np.concatenate([np.full(len(p), k) for p, k in zip(parts, kinds)])
-    unseen = np.concatenate(parts)
-    keep = ~body.inside(unseen)  # where the robot stood when it scanned
-    return returns, unseen[keep], labels[keep]
+    return returns, np.concatenate(parts), labels
 
 
 def _where(point: np.ndarray) -> str:
@@ -107,7 +124,7 @@ class SweptBodyRule(MotionValidator):
         body = context.robot.body(o.margin_mm)
         x, y, _ = context.offset
         reach = math.hypot(x, y) + motion.centre_travel_mm + body.reach_mm + o.unseen_step_mm
-        returns, unseen, labels = scene(scan, body, reach, o.unseen_step_mm)
+        returns, unseen, labels = scene(scan, reach, o.unseen_step_mm)
         touched: tuple[float, str, np.ndarray] | None = None
         hidden: tuple[float, str, np.ndarray] | None = None
         if len(returns):
@@ -119,6 +136,10 @@ class SweptBodyRule(MotionValidator):
                 touched = (float(times[k]), "a return of the scan", planned[order[0]])
         if len(unseen):
             planned = context.to_planned_frame(unseen)
+            keep = np.flatnonzero(near_path(planned, motion, body.reach_mm))
+            keep = keep[~body.inside(unseen[keep])]  # where the robot stood when it scanned
+            planned, labels = planned[keep], labels[keep]
+        if len(unseen) and len(planned):
             times = contact_times(planned, motion, body)
             k = int(np.argmin(times))
             if np.isfinite(times[k]):

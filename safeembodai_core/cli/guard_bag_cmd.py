@@ -4,7 +4,8 @@ Reads a ROS 2 bag (MCAP or SQLite) with ``rosbags`` -- no ROS install -- and jud
 ``--cmd`` with the latest ``--scan`` before it (:func:`~safeembodai_core.ros.bag_guard.guard_bag`).
 Rules: ``--rules`` (names, or JSON ``{"use": ..., "options": {...}}``), else -- with
 ``--rules-from-bag`` -- the rules a bag written by ``safeembodai`` recorded for its trial
-(``/safeembodai/trial``), else the Guard's defaults. The
+(``/safeembodai/trial``), else the Guard's robot defaults (``command_limits``, ``swept_body``).
+``--limit`` adds, per Twist, the speed the guard would have allowed (``Guard.limit_twist``). The
 report (a table, or ``--json``) is printed only once the whole bag has been judged.
 """
 
@@ -106,9 +107,11 @@ def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None, from
 @click.option("--rules-from-bag", is_flag=True,
               help="Judge by the rules, robot size and limits the bag recorded (/safeembodai/trial of an exported "
                    "trial) when --rules is not given; without it a bag never chooses its own rules.")
+@click.option("--limit", is_flag=True,
+              help="Also report, per Twist, the fastest command along its path the guard would have allowed.")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document: a record per command and its verdict.")
 def guard_bag(bag, scan_topic, cmd_topic, pose_topic, rules, mount, robot_radius_mm, hold_s, max_hold_s, min_hold_s,
-              rules_from_bag, as_json) -> None:
+              rules_from_bag, limit, as_json) -> None:
     """Judge every command recorded in BAG with the guard: which would it have refused, when, and why."""
     from ..ros.bag_guard import guard_bag as judge
     from ..ros.laser_scan import SensorMount
@@ -122,14 +125,14 @@ def guard_bag(bag, scan_topic, cmd_topic, pose_topic, rules, mount, robot_radius
             raise click.BadParameter(f"{mount!r}: {error} (expected X_MM,Y_MM,YAW_DEG)", param_hint="--mount") from None
     guard, source = _guard(rules, bag, robot_radius_mm, rules_from_bag)
     report = judge(bag, guard, scan_topic=scan_topic, cmd_topic=cmd_topic, pose_topic=pose_topic, mount=sensor,
-                   hold_s=hold_s, max_hold_s=max_hold_s, min_hold_s=min(min_hold_s, max_hold_s))
+                   hold_s=hold_s, max_hold_s=max_hold_s, min_hold_s=min(min_hold_s, max_hold_s), limit=limit)
     if as_json:
         click.echo(json.dumps({**report.as_dict(), "rules_from": source}, indent=1, allow_nan=False))
         return
-    _print_table(report, source)
+    _print_table(report, source, limit)
 
 
-def _print_table(report: Any, source: str) -> None:
+def _print_table(report: Any, source: str, limit: bool = False) -> None:
     from rich.console import Console
     from rich.table import Table
 
@@ -137,7 +140,7 @@ def _print_table(report: Any, source: str) -> None:
 
     console = Console(emoji=False)
     table = Table(title=f"{terminal_text(report.cmd_topic)} in {terminal_text(report.bag)}")
-    for column in ("#", "time s", "command", "scan s", "verdict"):
+    for column in ("#", "time s", "command", "scan s", "verdict") + (("allowed",) if limit else ()):
         table.add_column(column)
     for v in report.verdicts:
         if v.kind == "twist":
@@ -150,7 +153,11 @@ def _print_table(report: Any, source: str) -> None:
         if not v.valid and v.safe_duration_s is not None:
             verdict += f" (safe for {v.safe_duration_s:.2f} s)"
         scan = "-" if v.scan_time_s is None else f"{v.scan_time_s:.2f}"
-        table.add_row(str(v.index), f"{v.time_s:.2f}", what, scan, terminal_text(verdict))
+        if not v.valid and v.collision_time_s is not None:
+            verdict += f" (touch after {v.collision_time_s:.2f} s)"
+        allowed = () if not limit else ("-" if v.allowed is None else (
+            f"v {v.allowed['linear_x']:+.2f} m/s, w {v.allowed['angular_z']:+.2f} rad/s (x{v.allowed['factor']:.2f})"),)
+        table.add_row(str(v.index), f"{v.time_s:.2f}", what, scan, terminal_text(verdict), *allowed)
     console.print(table)
     console.print(f"{len(report.refused)} of {len(report.verdicts)} commands refused; rules ({source}): "
                   f"{terminal_text(', '.join(report.rules))}")

@@ -137,14 +137,14 @@ class Body:
 
 
 def _in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd rule, with points on an edge counted inside."""
+    """Even-odd rule. A point exactly on an edge may read either way; a moving point on the
+    outline touches it at time 0 all the same (``sweep.contact_times`` crosses the edge at once)."""
     x, y = points[:, 0:1], points[:, 1:2]
     a, b = polygon[None, :, :], np.roll(polygon, -1, axis=0)[None, :, :]
     straddles = (a[..., 1] > y) != (b[..., 1] > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         x_cross = a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
-    inside = (np.count_nonzero(straddles & (x < x_cross), axis=1) % 2) == 1
-    return inside | (_distance_to_edges(points, polygon) <= 1e-9)
+    return (np.count_nonzero(straddles & (x < x_cross), axis=1) % 2) == 1
 
 
 def _distance_to_edges(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:

@@ -78,20 +78,48 @@ def contact_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
     times = np.full(len(points), np.inf)
     if not len(points):
         return times
-    start = body.inside(points)
-    times[start] = 0.0
-    rest = np.flatnonzero(~start)
+    near = np.flatnonzero(near_path(points, motion, body.reach_mm))
+    start = body.inside(points[near])
+    times[near[start]] = 0.0
+    rest = near[~start]
     if rest.size == 0 or motion.duration_s == 0.0:
         return times
     segments, circles = body.boundary()
     p = points[rest]
-    sweep_mm = (motion.centre_travel_mm + body.reach_mm + float(np.max(np.abs(p)))) * abs(motion.w_rad_s) * motion.duration_s
+    sweep_mm = ((motion.centre_travel_mm + body.reach_mm + float(np.max(np.abs(p))))
+                * abs(motion.w_rad_s) * motion.duration_s)
     if sweep_mm <= _STRAIGHT_ENOUGH_MM:
         found = _line_contacts(p, np.array([motion.vx_mm_s, motion.vy_mm_s]), segments, circles)
     else:
         found = _arc_contacts(p, motion, segments, circles)
     times[rest] = np.where(found <= motion.duration_s, found, np.inf)
     return times
+
+
+def near_path(points: np.ndarray, motion: Motion, reach_mm: float) -> np.ndarray:
+    """Per point: whether it lies within ``reach_mm`` of the path the body's centre drives (only
+    such a point can be touched by a body that reaches no farther than that from its centre)."""
+    w, travel = motion.w_rad_s, motion.centre_travel_mm
+    if travel <= 1e-9:  # the centre stays put (to a nanometre): a turn in place, or no motion
+        return np.hypot(points[:, 0], points[:, 1]) <= reach_mm + travel
+    turned = w * motion.duration_s
+    if abs(turned) * (travel / max(abs(turned), 1e-300) + reach_mm) <= _STRAIGHT_ENOUGH_MM or w == 0.0:
+        end = np.array(motion.pose_at(motion.duration_s)[:2])
+        length2 = float(end @ end)
+        t = np.clip(points @ end / length2, 0.0, 1.0)
+        return np.hypot(*(points - t[:, None] * end).T) <= reach_mm
+    centre = np.array([-motion.vy_mm_s / w, motion.vx_mm_s / w])
+    radius = math.hypot(*centre)
+    rel = points - centre
+    if abs(turned) >= _TWO_PI:
+        return np.abs(np.hypot(rel[:, 0], rel[:, 1]) - radius) <= reach_mm
+    start = math.atan2(-centre[1], -centre[0])  # the robot's centre, seen from the centre of rotation, at t = 0
+    along = np.mod((np.arctan2(rel[:, 1], rel[:, 0]) - start) * math.copysign(1.0, turned), _TWO_PI)
+    on_arc = along <= abs(turned)
+    to_circle = np.abs(np.hypot(rel[:, 0], rel[:, 1]) - radius)
+    end = np.array(motion.pose_at(motion.duration_s)[:2])
+    to_ends = np.minimum(np.hypot(points[:, 0], points[:, 1]), np.hypot(*(points - end).T))
+    return np.where(on_arc, to_circle, to_ends) <= reach_mm + 1e-9
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -163,4 +191,4 @@ def _arc_contacts(p: np.ndarray, motion: Motion, segments: np.ndarray, circles: 
     return np.min(t, axis=1)
 
 
-__all__ = ["Motion", "contact_times"]
+__all__ = ["Motion", "contact_times", "near_path"]

@@ -61,6 +61,8 @@ class CommandVerdict:
     reasons: list[str] = field(default_factory=list)
     scan_time_s: float | None = None  # the scan it was judged with (None: no scan logged before it)
     safe_duration_s: float | None = None  # twists: the longest duration every rule accepts
+    collision_time_s: float | None = None  # twists: when the swept body would first touch something in the hold
+    allowed: dict[str, float] | None = None  # twists, with ``limit``: the fastest command along its path kept clear
     recorded: dict[str, Any] | None = None  # plans exported by safeembodai: the verdict recorded in the trial
 
     def as_dict(self) -> dict[str, Any]:
@@ -189,10 +191,12 @@ def _messages(reader: Any, bag: Path, connections: list[Any]) -> Iterator[tuple[
 
 def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_topic: str = "/cmd_vel",
               pose_topic: str | None = None, mount: SensorMount | None = None, hold_s: float | None = None,
-              max_hold_s: float = 1.0, min_hold_s: float = 0.1) -> BagReport:
+              max_hold_s: float = 1.0, min_hold_s: float = 0.1, limit: bool = False) -> BagReport:
     """Judge every command on ``cmd_topic`` of the bag at ``path`` with ``guard`` (module docstring).
     A Twist counts as held until the next command, at least ``min_hold_s`` (a command replaced at
-    once still moves the robot for a control period) and at most ``max_hold_s``; ``hold_s`` fixes it."""
+    once still moves the robot for a control period) and at most ``max_hold_s``; ``hold_s`` fixes it.
+    With ``limit`` each Twist also gets the speed the guard would have allowed for its hold
+    (:meth:`Guard.limit_twist <safeembodai_core.Guard.limit_twist>`: ``allowed``)."""
     if min_hold_s is not None and max_hold_s is not None and min_hold_s > max_hold_s:
         raise BagInputError(f"min_hold_s {min_hold_s!r} is more than max_hold_s {max_hold_s!r}")
     for name, value in (("hold_s", hold_s), ("max_hold_s", max_hold_s), ("min_hold_s", min_hold_s)):
@@ -205,7 +209,7 @@ def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_to
         commands = _connection(reader, bag, cmd_topic, TWIST_TYPES + PLAN_TYPES, "command")
         poses = _connection(reader, bag, pose_topic, POSE_TYPES, "pose") if pose_topic else []
         verdicts = list(_judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, pose_topic,
-                               mount, hold_s, max_hold_s, min_hold_s))
+                               mount, hold_s, max_hold_s, min_hold_s, limit))
     finally:
         reader.close()
     rules = [name for name, _ in guard.rules]
@@ -213,7 +217,7 @@ def guard_bag(path: str | Path, guard: Any, *, scan_topic: str = "/scan", cmd_to
 
 
 def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, pose_topic, mount, hold_s,
-           max_hold_s, min_hold_s) -> Iterator[CommandVerdict]:
+           max_hold_s, min_hold_s, limit=False) -> Iterator[CommandVerdict]:
     scan: LaserScan | None = None
     scan_time: float | None = None
     scan_pose: tuple[float, float, float] | None = None
@@ -230,13 +234,21 @@ def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, po
         duration = hold_s if hold_s is not None else max(min_hold_s, min(max_hold_s, until - time_s)) \
             if until is not None else max_hold_s
         # history for motion rules only from a scan taken where the robot stands (module docstring)
-        report = guard.check_twist(twist, max(duration, 0.0), lidar_mm=seen, pose=where,
-                                   time_s=seen_time if where is not None and still else None)
+        judged_at = {"lidar_mm": seen, "pose": where, "time_s": seen_time if where is not None and still else None}
+        allowed = None
+        if limit and duration > 0:
+            limited = guard.limit_twist(twist, duration, **judged_at)
+            report = limited.report
+            allowed = {"linear_x": limited.twist.linear_x, "angular_z": limited.twist.angular_z,
+                       "factor": limited.factor}
+        else:
+            report = guard.check_twist(twist, max(duration, 0.0), **judged_at)
         return CommandVerdict(index=index, time_s=time_s, kind="twist",
                               command={"linear_x": twist.linear_x, "angular_z": twist.angular_z,
                                        "duration_s": report.duration_s},
                               valid=report.valid, reasons=report.reasons, scan_time_s=seen_time,
-                              safe_duration_s=report.safe_duration_s)
+                              safe_duration_s=report.safe_duration_s, collision_time_s=report.collision_time_s,
+                              allowed=allowed)
 
     for connection, ns, message in _messages(reader, bag, scans + commands + poses):
         topic, time_s = connection.topic, ns / 1e9

@@ -52,7 +52,8 @@ class Twist:
 
     def scaled(self, factor: float) -> Twist:
         """The same path at ``factor`` times the speed (every part scaled: the curvature is kept)."""
-        return Twist(self.linear_x * factor + 0.0, self.angular_z * factor + 0.0, self.linear_y * factor + 0.0)  # no -0.0
+        # + 0.0: a stop is 0.0, never -0.0
+        return Twist(self.linear_x * factor + 0.0, self.angular_z * factor + 0.0, self.linear_y * factor + 0.0)
 
     @classmethod
     def from_ros(cls, message: Any, holonomic: bool = False) -> Twist:
@@ -71,8 +72,8 @@ class Twist:
         for name in ("linear.y", "linear.z", "angular.x", "angular.y"):
             if parts[name] != 0.0 and not (holonomic and name == "linear.y"):
                 sideways = " (a holonomic base: RobotSpec(holonomic=True))" if name == "linear.y" else ""
-                raise ValueError(f"Twist {name} = {parts[name]!r}: only a planar command (linear.x, angular.z{sideways}) "
-                                 "can be judged")
+                raise ValueError(f"Twist {name} = {parts[name]!r}: only a planar command (linear.x, "
+                                 f"angular.z{sideways}) can be judged")
         return cls(parts["linear.x"], parts["angular.z"], parts["linear.y"])
 
 

@@ -30,7 +30,8 @@ from safeembodai_core.ros import LaserScan, Twist
 from . import nav2_reference as nav2
 
 SQUARE_05 = [(0.5, 0.5), (0.5, -0.5), (-0.5, -0.5), (-0.5, 0.5)]  # polygons_test.cpp:48-49
-DT, T = 0.01, 1.0  # SIMULATION_TIME_STEP, TIME_BEFORE_COLLISION: polygons_test.cpp:70-71, collision_monitor_node_test.cpp:63-64
+# SIMULATION_TIME_STEP, TIME_BEFORE_COLLISION: polygons_test.cpp:70-71, collision_monitor_node_test.cpp:63-64
+DT, T = 0.01, 1.0
 
 
 def _mm(points_m):
@@ -78,7 +79,8 @@ COLLISION_TIME_CASES = [  # polygons_test.cpp:907-992 (testPolygonGetCollisionTi
 ]
 
 
-@pytest.mark.parametrize("name, vel, points, expected, tolerance", COLLISION_TIME_CASES, ids=[c[0] for c in COLLISION_TIME_CASES])
+@pytest.mark.parametrize("name, vel, points, expected, tolerance", COLLISION_TIME_CASES,
+                         ids=[c[0] for c in COLLISION_TIME_CASES])
 def test_the_reference_reproduces_nav2s_collision_times(name, vel, points, expected, tolerance):
     shape = nav2.Shape(polygon=SQUARE_05, time_before_collision=T, simulation_time_step=DT, min_points=2)
     got = nav2.collision_time(shape, points, vel)
@@ -94,7 +96,8 @@ def test_the_reference_reproduces_nav2s_approach_and_rotation_cases():
     points = nav2.scan_points(0.0, math.pi / 180, [1.2] * 360, 0.1, 2.2)
     out = nav2.approach(circle, points, nav2.Velocity(0.5, 0.2, 0.0))
     ratio = (0.2 / 0.538516481) / T  # :1080-1082
-    assert out.x == pytest.approx(0.5 * ratio, abs=0.5 * DT / T) and out.y == pytest.approx(0.2 * ratio, abs=0.2 * DT / T)
+    assert out.x == pytest.approx(0.5 * ratio, abs=0.5 * DT / T)
+    assert out.y == pytest.approx(0.2 * ratio, abs=0.2 * DT / T)
     assert nav2.approach(circle, nav2.scan_points(0.0, math.pi / 180, [3.0] * 360, 0.1, 4.0),
                          nav2.Velocity(0.5, 0.2, 0.0)) is None  # :1067-1074
     assert nav2.collision_time(circle, nav2.scan_points(0.0, math.pi / 180, [0.5] * 360, 0.1, 1.5),
@@ -102,7 +105,8 @@ def test_the_reference_reproduces_nav2s_approach_and_rotation_cases():
     # :1117-1186 (testProcessApproachRotation): 1 m square footprint, a range sensor (fov pi/10,
     # obstacles_angle pi/200 at :465) at 1.4 m, turning at pi/4 rad/s -> pi/5
     square = nav2.Shape(polygon=[(1.0, 1.0), (1.0, -1.0), (-1.0, -1.0), (-1.0, 1.0)], min_points=2)
-    out = nav2.approach(square, nav2.range_points(1.4, math.pi / 10, math.pi / 200), nav2.Velocity(0.0, 0.0, math.pi / 4))
+    reading = nav2.range_points(1.4, math.pi / 10, math.pi / 200)
+    out = nav2.approach(square, reading, nav2.Velocity(0.0, 0.0, math.pi / 4))
     assert out.tw == pytest.approx(math.pi / 5, abs=(math.pi / 4) * (DT / T))  # :1150-1153
     # :1188-1254 (testCrossOver), stage 1: two cloud points at 2.5 m, circle of 1 m, 3 m/s -> 1.5 m/s
     out = nav2.approach(circle, [(2.5, 0.01), (2.5, -0.01)], nav2.Velocity(3.0, 0.0, 0.0))
@@ -111,7 +115,8 @@ def test_the_reference_reproduces_nav2s_approach_and_rotation_cases():
 
 # --- the guard on Nav2's cases -----------------------------------------------------------------------
 
-@pytest.mark.parametrize("name, vel, points, expected, tolerance", COLLISION_TIME_CASES, ids=[c[0] for c in COLLISION_TIME_CASES])
+@pytest.mark.parametrize("name, vel, points, expected, tolerance", COLLISION_TIME_CASES,
+                         ids=[c[0] for c in COLLISION_TIME_CASES])
 def test_guard_time_before_collision_on_nav2s_cases(name, vel, points, expected, tolerance):
     guard = Guard(robot=RobotSpec(radius_mm=707.1, footprint_mm=_mm(SQUARE_05), holonomic=True))
     report = guard.check_twist(Twist(vel.x, vel.tw, vel.y), T, lidar_mm=scan_of(points))
@@ -189,7 +194,8 @@ def test_guard_cross_over_of_approach_and_slowdown():
     cloud = [(2.5, 0.01), (2.5, -0.01)]
     first = guard.limit_twist(Twist(3.0, 0.0), T, slowdown=zone,
                               lidar_mm=scan_of(cloud + nav2.range_points(2.5, math.pi / 10, math.pi / 200)))
-    assert first.twist.linear_x == pytest.approx(3.0 * (1.5 / 3.0) / T, abs=3.0 * DT / T) and not first.zones  # :1206-1219
+    assert first.twist.linear_x == pytest.approx(3.0 * (1.5 / 3.0) / T, abs=3.0 * DT / T)  # :1206-1219
+    assert not first.zones
     scene = scan_of(cloud + nav2.range_points(1.5, math.pi / 10, math.pi / 200))
     slow = guard.limit_twist(Twist(0.1, 0.0), T, slowdown=zone, lidar_mm=scene)  # :1222-1232
     assert slow.twist.linear_x == pytest.approx(0.1 * 0.7) and slow.zones == ["SlowDown"] and slow.report.valid
@@ -255,8 +261,10 @@ def _fine(shape: nav2.Shape, points, vel) -> float:
 def _on_outline(shape: nav2.Shape, points) -> bool:
     """A point on the outline of a shape that is star-shaped about its centre: moved a hair inwards it
     is inside, a hair outwards it is not."""
-    return any(shape.points_inside([(x * (1 - 1e-7), y * (1 - 1e-7))]) != shape.points_inside([(x * (1 + 1e-7), y * (1 + 1e-7))])
-               for x, y in points)
+    def inside(x: float, y: float, k: float) -> int:
+        return shape.points_inside([(x * k, y * k)])
+
+    return any(inside(x, y, 1 - 1e-7) != inside(x, y, 1 + 1e-7) for x, y in points)
 
 
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -280,7 +288,7 @@ def test_guard_agrees_with_nav2_on_generated_scenes(scene):
         assert obstacle is not None and t_nav2 - 1e-9 <= obstacle + drift_s
         assert obstacle <= t_nav2 + DT + drift_s + 2 * DT  # Nav2 reports the step before the touched pose
     elif obstacle == 0.0 and _on_outline(shape, points):
-        pass  # a return exactly on the body's outline: the guard counts the outline as the body, Nav2's ray test may not
+        pass  # a return exactly on the outline: the guard counts it as touched, Nav2's ray test may not
     elif obstacle is not None:
         fine = _fine(shape, points, vel)
         assert fine >= 0.0 and abs(fine - obstacle) <= DT + drift_s, (fine, obstacle)
