@@ -17,7 +17,7 @@ __version__ = "0.1.0"
 #: public name -> module that defines it (imported on first use, PEP 562)
 _EXPORTS = {
     "Guard": "api", "GuardReport": "api", "run_guarded_trial": "api", "AttackSchedule": "attacks",
-    "LimitReport": "guard_reports", "TwistReport": "guard_reports", "MotionValidator": "held_motion",
+    "LimitReport": "guard_reports", "TwistReport": "guard_reports", "MotionValidator": "held_motion", "MotionVerdict": "held_motion",
     "SlowdownZone": "twist_judging",
     "Attacker": "components", "AttackSurface": "components", "BackendReply": "components",
     "BuildContext": "components", "Environment": "components", "LLMBackend": "components",
@@ -49,7 +49,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .api import Guard, GuardReport, run_guarded_trial  # noqa: F401
     from .attacks import AttackSchedule  # noqa: F401
     from .guard_reports import LimitReport, TwistReport  # noqa: F401
-    from .held_motion import MotionValidator  # noqa: F401
+    from .held_motion import MotionValidator, MotionVerdict  # noqa: F401
     from .twist_judging import SlowdownZone  # noqa: F401
     from .components import (  # noqa: F401
         Attacker, AttackSurface, BackendReply, BuildContext, Environment, LLMBackend, Perception,

@@ -152,7 +152,8 @@ def limit_twist(twist: Twist, horizon_s: Any, context: ValidationContext, rules:
     factor, reasons, held = 1.0, [], []
     if not report.valid:
         factor = max(0.0, min(1.0, report.safe_duration_s / horizon_s))
-        when = (f"touches {report.contact} after {report.collision_time_s:.2f} s" if report.collision_time_s is not None
+        what = "a return" if report.contact == "return" else "unseen space"
+        when = (f"touches {what} after {report.collision_time_s:.2f} s" if report.collision_time_s is not None
                 else f"is safe for {report.safe_duration_s:.2f} s")
         reasons.append(f"approach: held {horizon_s:g} s the command {when}; "
                        + ("stop" if factor == 0 else f"speed x{factor:.3f} keeps the path clear for the horizon"))

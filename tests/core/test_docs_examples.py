@@ -59,7 +59,8 @@ def test_python_examples_run(doc, repo, capsys, example_plugin_installed, tmp_pa
         exec(compile(block, doc, "exec"), namespace)
     out = capsys.readouterr().out
     if doc == "README.md":
-        assert out.startswith("False ['lidar_clearance (signal 1): straight forward 350 mm")
+        assert out.startswith("False ['swept_body (signal 1): straight forward 350 mm")  # the robot defaults
+        assert "at most 229 mm is safe" in out  # the 170 mm disc meets the return 400 mm ahead after 230 mm
     if doc == "docs/library.md":
         assert "lidar_clearance (signal 1): straight forward 390 mm" in out
         assert "completed" in out and "refused by lidar_clearance" in out

@@ -21,13 +21,14 @@ def blocks(text: str, language: str) -> list[str]:
 
 def test_the_python_examples_run(page, capsys):
     examples = blocks(page, "python")
-    assert len(examples) == 2
+    assert len(examples) == 3
     for example in examples:
         exec(compile(example, "docs/robots.md", "exec"), {"__name__": "docs_example"})
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith("False ") and 0.0 < float(out[0].split()[1]) < 2.0
-    assert out[1].startswith("twist linear.x 0.3 m/s") and "refused; at most" in out[1]
-    assert out[2].startswith("1 of 1 refused: ")
+    assert out[0] == "False 1.57"  # the footprint's front (250 mm) meets the return 720 mm ahead at 0.3 m/s
+    assert out[1].startswith("0.235 approach: ") and "speed x0.783" in out[1]
+    assert out[2:5] == ["forward", "limit 0.53", "stop"]  # the node: clear, slowed, the scan too old
+    assert out[5].startswith("1 of 1 refused: ")
 
 
 def test_the_commands_run_in_order(page, repo, tmp_path, monkeypatch, cli_runner):
