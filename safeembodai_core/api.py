@@ -2,8 +2,9 @@
 
 Two entry points for agent projects that ``import safeembodai_core``:
 
-* :class:`Guard` validates control signals (or a raw LLM answer) against a LiDAR reading with the
-  registered rules -- no simulator, no LLM::
+* :class:`Guard` validates control signals (or a raw LLM answer, or a held velocity) against a
+  LiDAR reading with the registered rules -- no simulator, no LLM; by default the robot's
+  (:data:`ROBOT_RULES`: the swept body), or the paper's V(C) when asked::
 
       guard = Guard(rules=["command_limits", "lidar_clearance"])
       report = guard.check([{"command": "straight", "direction": "forward", "distance": 300}],

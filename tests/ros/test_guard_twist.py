@@ -1,0 +1,140 @@
+"""Held commands through the robot defaults: no accepted hold drives the body through a return
+(check_twist, limit_twist, guard-bag), holonomic commands, and guard-bag ``--limit``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from safeembodai_core import Guard, RobotSpec
+from safeembodai_core.cli import cli
+from safeembodai_core.geometry import Motion
+from safeembodai_core.models import LidarScan
+from safeembodai_core.ros import Twist
+from safeembodai_core.ros import messages as m
+from safeembodai_core.ros.bag_export import write_bag
+from safeembodai_core.ros.bag_guard import guard_bag
+
+from . import nav2_reference as nav2
+
+LONG = [(400.0, 150.0), (-400.0, 150.0), (-400.0, -150.0), (400.0, -150.0)]
+
+
+def strictly_inside_during(robot: RobotSpec, scan: LidarScan, twist: Twist, duration_s: float, until: float = 1.0,
+                           steps: int = 800) -> bool:
+    """Independent of the guard: Nav2's own point-in-polygon test (and a disc's distance) at densely
+    sampled poses of the exact arc, over ``[0, until * duration_s)``; the body shrunk by 0.5 mm, so a
+    return it only grazes does not count."""
+    points = scan.points()
+    motion = Motion(twist.linear_x * 1000, twist.linear_y * 1000, twist.angular_z, duration_s)
+    if robot.footprint_mm is None:
+        shape = nav2.Shape(radius=(robot.radius_mm - 0.5) / 1000.0, min_points=1)
+    else:
+        polygon = np.array(robot.footprint_mm)
+        polygon = polygon * (1 - 0.5 / np.hypot(polygon[:, 0], polygon[:, 1]))[:, None]
+        shape = nav2.Shape(polygon=[(x / 1000, y / 1000) for x, y in polygon], min_points=1)
+    for t in np.linspace(0.0, duration_s * until, steps, endpoint=until < 1.0):
+        x, y, th = motion.pose_at(float(t))
+        local = nav2.transform_points(nav2.Pose(x / 1000, y / 1000, th), [(px / 1000, py / 1000) for px, py in points])
+        if shape.points_inside(local):
+            return True
+    return False
+
+
+@st.composite
+def holds(draw):
+    robot = draw(st.sampled_from([RobotSpec(holonomic=True), RobotSpec(radius_mm=428, footprint_mm=LONG,
+                                                                         holonomic=True)]))
+    ranges = np.full(360, np.inf)
+    beams = draw(st.lists(st.integers(0, 359), min_size=1, max_size=12, unique=True))
+    ranges[beams] = draw(st.lists(st.floats(180.0, 1500.0), min_size=len(beams), max_size=len(beams)))
+    twist = Twist(draw(st.floats(-0.6, 0.6)), draw(st.floats(-1.5, 1.5)), draw(st.floats(-0.3, 0.3)))
+    return robot, LidarScan(ranges, 20_000.0), twist, draw(st.floats(0.2, 2.0))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(holds())
+def test_no_accepted_or_limited_hold_drives_the_body_through_a_return(hold):
+    robot, scan, twist, duration = hold
+    guard = Guard(robot=robot)
+    if strictly_inside_during(robot, scan, twist, duration):
+        assert not guard.check_twist(twist, duration, lidar_mm=scan).valid
+    limited = guard.limit_twist(twist, duration, lidar_mm=scan)
+    if strictly_inside_during(robot, scan, Twist(0.0, 0.0), duration, steps=1):
+        assert limited.stopped  # the body holds a return already: nothing may move
+    else:  # the limited command may reach a return at the very end of the horizon, never before it
+        assert not strictly_inside_during(robot, scan, limited.twist, duration, until=0.999)
+
+
+def bag_of(tmp_path, ranges_m, twist_v, twist_w, name="bag"):
+    scan = m.build("sensor_msgs/msg/LaserScan", header=m.header(0, "laser"), angle_min=0.0,
+                   angle_max=math.radians(359), angle_increment=math.radians(1.0), range_min=0.05, range_max=8.0,
+                   ranges=np.asarray(ranges_m, dtype=np.float32))
+    drive = m.build("geometry_msgs/msg/Twist", linear=m.vector(twist_v), angular=m.vector(0.0, 0.0, twist_w))
+    return write_bag(tmp_path / name, [("/scan", 0, scan), ("/cmd_vel", 1, drive)], storage="sqlite3")
+
+
+def test_guard_bag_defaults_refuse_a_drive_past_a_return_off_the_heading(tmp_path, cli_runner):
+    """The issue's case: a return 40 degrees off the heading, inside the disc's path, outside V(C)'s
+    sector. guard-bag's defaults (the robot's) refuse the drive; the paper's rule accepted it."""
+    ranges = np.full(360, np.inf)
+    ranges[40] = 0.25
+    bag = bag_of(tmp_path, ranges, 0.3, 0.0)
+    assert guard_bag(bag, Guard()).verdicts[0].valid is False
+    assert guard_bag(bag, Guard(["command_limits", "lidar_clearance"])).verdicts[0].valid is True
+    done = cli_runner.invoke(cli, ["guard-bag", str(bag), "--json", "--limit"])
+    assert done.exit_code == 0, done.output
+    import json
+
+    report = json.loads(done.output)
+    verdict = report["verdicts"][0]
+    assert report["rules"] == ["command_limits", "swept_body"] and not verdict["valid"]
+    assert verdict["collision_time_s"] == pytest.approx(verdict["safe_duration_s"])
+    allowed = verdict["allowed"]
+    held = verdict["command"]["duration_s"]
+    assert allowed["factor"] == pytest.approx(verdict["collision_time_s"] / held)
+    assert allowed["linear_x"] == pytest.approx(0.3 * allowed["factor"]) and allowed["angular_z"] == 0.0
+    table = cli_runner.invoke(cli, ["guard-bag", str(bag), "--limit"])
+    assert table.exit_code == 0 and "allowed" in table.output and "x0.4" in table.output.replace("\n", " ")
+
+
+def test_holonomic_commands():
+    free = LidarScan(np.full(360, 3000.0), 8000.0)
+    with pytest.raises(ValueError, match=r"linear_y = 0.2: this robot cannot drive sideways.*holonomic=True"):
+        Guard().check_twist(Twist(0.0, 0.0, 0.2), 1.0, lidar_mm=free)
+    with pytest.raises(ValueError, match=r"linear.y = 0.2.*holonomic"):
+        Twist.from_ros(m.build("geometry_msgs/msg/Twist", linear=m.vector(0.0, 0.2), angular=m.vector(0.0, 0.0, 0.0)))
+    sideways = Twist.from_ros(m.build("geometry_msgs/msg/Twist", linear=m.vector(0.0, 0.2),
+                                      angular=m.vector(0.0, 0.0, 0.0)), holonomic=True)
+    holonomic = Guard(robot=RobotSpec(holonomic=True))
+    assert holonomic.check_twist(sideways, 1.0, lidar_mm=free).valid
+    left = free.ranges_mm.copy()
+    left[90] = 300.0
+    report = holonomic.check_twist(sideways, 1.0, lidar_mm=LidarScan(left, 8000.0))
+    assert not report.valid and report.collision_time_s == pytest.approx((300 - 170) / 200)
+    # a rule that judges only the contract's signals cannot judge a sideways command: it refuses
+    paper = Guard(["lidar_clearance"], robot=RobotSpec(holonomic=True)).check_twist(sideways, 1.0, lidar_mm=free)
+    assert not paper.valid and "sideways" in paper.reasons[1]
+
+
+def test_bad_holds_are_clear_errors():
+    guard = Guard()
+    free = LidarScan(np.full(360, 3000.0), 8000.0)
+    for call, match in ((lambda: guard.check_twist((0.1, 0.0), -1.0, lidar_mm=free), "duration_s must be >= 0"),
+                        (lambda: guard.limit_twist((0.1, 0.0), 0.0, lidar_mm=free), "horizon_s must be > 0"),
+                        (lambda: guard.limit_twist((0.1, 0.0), math.inf, lidar_mm=free), "horizon_s must be"),
+                        (lambda: guard.check_twist((math.nan, 0.0), 1.0, lidar_mm=free), "linear_x must be finite")):
+        with pytest.raises(ValueError, match=match):
+            call()
+    from safeembodai_core import SlowdownZone
+
+    for kwargs, match in (({"factor": 1.5, "band_mm": 10.0}, "factor must be in"),
+                          ({"factor": 0.5}, "exactly one of"),
+                          ({"factor": 0.5, "band_mm": -1.0}, "band_mm must be > 0"),
+                          ({"factor": 0.5, "polygon_mm": [(0, 0), (1, 0)]}, "SlowdownZone.polygon_mm")):
+        with pytest.raises(ValueError, match=match):
+            SlowdownZone(**kwargs)
