@@ -17,7 +17,8 @@ __version__ = "0.1.0"
 #: public name -> module that defines it (imported on first use, PEP 562)
 _EXPORTS = {
     "Guard": "api", "GuardReport": "api", "run_guarded_trial": "api", "AttackSchedule": "attacks",
-    "LimitReport": "guard_reports", "TwistReport": "guard_reports", "MotionValidator": "held_motion", "MotionVerdict": "held_motion",
+    "LimitReport": "guard_reports", "TwistReport": "guard_reports",
+    "MotionValidator": "held_motion", "MotionVerdict": "held_motion",
     "SlowdownZone": "twist_judging",
     "Attacker": "components", "AttackSurface": "components", "BackendReply": "components",
     "BuildContext": "components", "Environment": "components", "LLMBackend": "components",

@@ -58,13 +58,17 @@ class Motion:
         return self.speed_mm_s * self.duration_s
 
     def pose_at(self, t: float) -> tuple[float, float, float]:
-        """The body's pose ``(x_mm, y_mm, heading_rad)`` after ``t`` seconds, in the start frame."""
-        w = self.w_rad_s
+        """The body's pose ``(x_mm, y_mm, heading_rad)`` after ``t`` seconds, in the start frame.
+
+        Written as v * sin(wt) / w and v * 2 sin(wt/2)^2 / w, which stay exact as w goes to 0 (the
+        centre-of-rotation form c - R(wt) c cancels catastrophically there)."""
+        w, wt = self.w_rad_s, self.w_rad_s * t
         if w == 0.0:
-            return self.vx_mm_s * t, self.vy_mm_s * t, 0.0
-        cx, cy = -self.vy_mm_s / w, self.vx_mm_s / w
-        c, s = math.cos(w * t), math.sin(w * t)
-        return cx - (c * cx - s * cy), cy - (s * cx + c * cy), w * t
+            along, across = t, 0.0
+        else:
+            along, across = math.sin(wt) / w, 2.0 * math.sin(wt / 2.0) ** 2 / w
+        vx, vy = self.vx_mm_s, self.vy_mm_s
+        return vx * along - vy * across, vx * across + vy * along, wt
 
     def scaled(self, factor: float) -> "Motion":
         """The same path driven ``factor`` times as fast, for the same duration."""
@@ -78,7 +82,9 @@ def contact_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
     times = np.full(len(points), np.inf)
     if not len(points):
         return times
-    near = np.flatnonzero(near_path(points, motion, body.reach_mm))
+    # a point within reach of where the body starts is always looked at, whatever the path's arithmetic says
+    near = np.flatnonzero(near_path(points, motion, body.reach_mm)
+                          | (np.hypot(points[:, 0], points[:, 1]) <= body.reach_mm))
     start = body.inside(points[near])
     times[near[start]] = 0.0
     rest = near[~start]
@@ -98,16 +104,19 @@ def contact_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
 
 def near_path(points: np.ndarray, motion: Motion, reach_mm: float) -> np.ndarray:
     """Per point: whether it lies within ``reach_mm`` of the path the body's centre drives (only
-    such a point can be touched by a body that reaches no farther than that from its centre)."""
+    such a point can be touched by a body that reaches no farther than that from its centre). A
+    distance that cannot be computed (NaN) keeps the point: the filter only ever drops."""
     w, travel = motion.w_rad_s, motion.centre_travel_mm
     if travel <= 1e-9:  # the centre stays put (to a nanometre): a turn in place, or no motion
-        return np.hypot(points[:, 0], points[:, 1]) <= reach_mm + travel
+        return ~(np.hypot(points[:, 0], points[:, 1]) > reach_mm + travel)
     turned = w * motion.duration_s
     if abs(turned) * (travel / max(abs(turned), 1e-300) + reach_mm) <= _STRAIGHT_ENOUGH_MM or w == 0.0:
         end = np.array(motion.pose_at(motion.duration_s)[:2])
         length2 = float(end @ end)
+        if not length2 > 0.0:
+            return ~(np.hypot(points[:, 0], points[:, 1]) > reach_mm + travel)
         t = np.clip(points @ end / length2, 0.0, 1.0)
-        return np.hypot(*(points - t[:, None] * end).T) <= reach_mm
+        return ~(np.hypot(*(points - t[:, None] * end).T) > reach_mm + 1e-9)
     centre = np.array([-motion.vy_mm_s / w, motion.vx_mm_s / w])
     radius = math.hypot(*centre)
     rel = points - centre
@@ -119,7 +128,7 @@ def near_path(points: np.ndarray, motion: Motion, reach_mm: float) -> np.ndarray
     to_circle = np.abs(np.hypot(rel[:, 0], rel[:, 1]) - radius)
     end = np.array(motion.pose_at(motion.duration_s)[:2])
     to_ends = np.minimum(np.hypot(points[:, 0], points[:, 1]), np.hypot(*(points - end).T))
-    return np.where(on_arc, to_circle, to_ends) <= reach_mm + 1e-9
+    return ~(np.where(on_arc, to_circle, to_ends) > reach_mm + 1e-9)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

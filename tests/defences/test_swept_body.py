@@ -143,3 +143,17 @@ def test_contact_times_match_densely_sampled_poses(which, vx, vy, w, duration, s
     assert np.all(sampled[both] - exact[both] <= step + 1e-9) and np.all(exact[both] <= sampled[both] + 1e-9)
     # a touch the samples miss lasts less than a step; the samples never see one the exact sweep misses
     assert not np.any(np.isinf(exact) & np.isfinite(sampled))
+
+
+@pytest.mark.parametrize("vx, vy, w", [(1e-12, 1e-12, 1.4e-90), (1e-300, 0.0, 1e-300), (0.0, 0.0, 1e-200),
+                                       (1e9, 0.0, 1e-15), (0.3, 0.0, -1e-30)])
+def test_a_return_inside_the_body_is_a_touch_at_0_whatever_the_numbers(vx, vy, w):
+    """Tiny or huge speeds and turn rates (a centre of rotation 10^80 mm away) must not lose a return
+    the body already holds: the path filter and the pose are exact as w goes to 0."""
+    ranges = np.full(720, np.inf)
+    ranges[0] = 50.0
+    robot = RobotSpec(radius_mm=500, width_mm=1000, length_mm=1000, holonomic=True)
+    report = Guard(robot=robot).check_twist((vx, w, vy), 1.01, lidar_mm=LidarScan(ranges, 30_000.0))
+    assert not report.valid and report.collision_time_s == 0.0
+    motion = Motion(vx * 1000, vy * 1000, w, 1.0)
+    assert np.all(np.isfinite(motion.pose_at(0.5)))
