@@ -21,6 +21,7 @@ Components may be given as objects or as registered names (with options). See ``
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from collections import deque
 from typing import Any, Iterable, Sequence
 
@@ -106,7 +107,7 @@ class Guard:
         self.history: deque[PastScan] = deque(maxlen=HISTORY_SCANS)
 
     def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any, time_s: float | None,
-                 answer_time_s: float | None = None) -> ValidationContext:
+                 answer_time_s: float | None = None, since_scan: Any = None) -> ValidationContext:
         scan = None
         if isinstance(lidar_mm, LaserScan):
             scan = lidar_mm.to_lidar_scan()  # ROS semantics and the sensor's mounting: safeembodai_core.ros
@@ -128,6 +129,9 @@ class Guard:
         context = ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=start,
                                     sim_time_s=time_s, answer_s=answer_time_s, history=tuple(p for p in self.history
                                                                       if time_s is not None and p.sim_time_s < time_s))
+        if since_scan is not None:  # the robot has moved on from where the scan was taken: judge from there
+            moved = _pose(since_scan)
+            context = replace(context, offset=(moved.x_mm, moved.y_mm, moved.heading_deg))
         if scan is not None and start is not None and time_s is not None and (
                 not self.history or time_s > self.history[-1].sim_time_s):
             # a copy: a caller that refills one buffer must not rewrite the scans kept
@@ -137,7 +141,8 @@ class Guard:
         return context
 
     def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
-              pose: Any = None, time_s: float | None = None, answer_time_s: float | None = None) -> GuardReport:
+              pose: Any = None, time_s: float | None = None, answer_time_s: float | None = None,
+              since_scan: Any = None) -> GuardReport:
         """Validate ``commands`` (dicts as the LLM writes them, or signal models) in order.
 
         ``lidar_mm``: ranges in mm, beam k at k*360/N degrees counter-clockwise from the heading
@@ -155,10 +160,13 @@ class Guard:
         episode). ``answer_time_s``: when the commands' answer arrived, on the same clock (the plan
         starts then; ``context.answer_s``): with a scan read as the answer arrived, pass the same time
         as ``time_s``, and rules about motion predict from that moment instead of assuming a think
-        time. One guard per robot; it is not meant to be shared between threads. Commands that do
-        not even parse get a ``schema`` verdict and are not judged further.
+        time. ``since_scan``: where the robot is now, ``(x_mm, y_mm, heading_deg)`` in the frame the
+        scan was taken in, when it has moved on since (``pose`` is then where it took the scan); the
+        plan is judged from there. One guard per robot; it is not meant to be shared between threads.
+        Commands that do not even parse get a ``schema`` verdict and are not judged further.
         """
-        context = self._context(lidar_mm, max_range_mm, pose, time_s, answer_time_s)  # kept even if they do not parse
+        context = self._context(lidar_mm, max_range_mm, pose, time_s, answer_time_s,  # kept even if they do not parse
+                                since_scan=since_scan)
         try:
             signals = _SIGNALS.validate_python(list(commands), context={"limits": self.limits})
         except ValidationError as error:
@@ -170,39 +178,46 @@ class Guard:
     def read_twist(self, twist: Any) -> Twist:
         """``twist`` (a :class:`~safeembodai_core.ros.Twist`, a decoded ``geometry_msgs/Twist`` or a
         tuple) as this robot can drive it, or ``ValueError`` naming the part it cannot."""
-        if not isinstance(twist, Twist):
-            twist = (Twist(*twist) if isinstance(twist, (tuple, list))
-                     else Twist.from_ros(twist, holonomic=self.robot.holonomic))
+        if isinstance(twist, (tuple, list)):
+            if not 2 <= len(twist) <= 3:
+                raise ValueError(f"a twist tuple is (linear_x m/s, angular_z rad/s[, linear_y m/s]), got {len(twist)} "
+                                 "values")
+            twist = Twist(*twist)
+        elif not isinstance(twist, Twist):
+            twist = Twist.from_ros(twist, holonomic=self.robot.holonomic)
         if twist.linear_y != 0.0 and not self.robot.holonomic:
             raise ValueError(f"Twist linear_y = {twist.linear_y!r}: this robot cannot drive sideways; a holonomic "
                              "base says so with Guard(robot=RobotSpec(holonomic=True))")
         return twist
 
     def check_twist(self, twist: Any, duration_s: float, *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
-                    pose: Any = None, time_s: float | None = None, resolution_s: float = 0.05) -> TwistReport:
+                    pose: Any = None, time_s: float | None = None, resolution_s: float = 0.05,
+                    since_scan: Any = None) -> TwistReport:
         """Judge a velocity command held for ``duration_s`` seconds (:mod:`~safeembodai_core.twist_judging`).
         ``twist``: a :class:`~safeembodai_core.ros.Twist`, a decoded ``geometry_msgs/Twist`` or a
         ``(linear_x m/s, angular_z rad/s[, linear_y m/s])`` tuple; ``linear_y`` only for a holonomic
         robot (``RobotSpec(holonomic=True)``). The report says the time before collision
         (``collision_time_s``, from rules that judge held motions, such as the default
         ``swept_body``) and the longest safe hold (``safe_duration_s``; other rules' to
-        ``resolution_s``). ``lidar_mm`` and the rest are as for :meth:`check`. A non-finite
-        command, a negative duration or a sideways command to a robot that cannot drive sideways
-        raises ``ValueError`` naming it."""
+        ``resolution_s``). ``lidar_mm`` and the rest are as for :meth:`check`. ``since_scan``: where
+        the robot is now, ``(x_mm, y_mm, heading_deg)`` in the frame the scan was taken in, when it
+        has moved on since (the rules judge from there, with the scan's own shadows: what it never
+        saw stays unseen). A non-finite command, a negative duration or a sideways command to a
+        robot that cannot drive sideways raises ``ValueError`` naming it."""
         twist = self.read_twist(twist)
-        context = self._context(lidar_mm, max_range_mm, pose, time_s)
+        context = self._context(lidar_mm, max_range_mm, pose, time_s, since_scan=since_scan)
         return judge_twist(twist, duration_s, context, self.rules, resolution_s)
 
     def limit_twist(self, twist: Any, horizon_s: float, *, slowdown: Sequence[SlowdownZone] = (), lidar_mm: Any = None,
                     max_range_mm: float = 10_000.0, pose: Any = None, time_s: float | None = None,
-                    resolution_s: float = 0.05) -> LimitReport:
+                    resolution_s: float = 0.05, since_scan: Any = None) -> LimitReport:
         """The fastest command along ``twist``'s path whose swept body stays clear for ``horizon_s``
         seconds -- Nav2's approach scaling, ``speed x collision_time / horizon`` -- and, with
         ``slowdown`` zones (:class:`~safeembodai_core.SlowdownZone`), their factor while a return lies
         in one. The report's ``twist`` is the command to send (a stop when nothing is safe),
         ``reasons`` why it was limited. Arguments as for :meth:`check_twist`; ``horizon_s`` must be > 0."""
         twist = self.read_twist(twist)
-        context = self._context(lidar_mm, max_range_mm, pose, time_s)
+        context = self._context(lidar_mm, max_range_mm, pose, time_s, since_scan=since_scan)
         return limit_twist(twist, horizon_s, context, self.rules, slowdown, resolution_s)
 
     def check_reply(

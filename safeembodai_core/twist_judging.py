@@ -61,7 +61,7 @@ class SlowdownZone:
             if band <= 0:
                 raise ValueError(f"SlowdownZone.band_mm must be > 0, got {self.band_mm!r}")
             object.__setattr__(self, "band_mm", band)
-        if not isinstance(self.min_points, int) or self.min_points < 1:
+        if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) or self.min_points < 1:
             raise ValueError(f"SlowdownZone.min_points must be an integer >= 1, got {self.min_points!r}")
 
     def count(self, points: np.ndarray, robot: RobotSpec) -> int:
@@ -70,7 +70,7 @@ class SlowdownZone:
             return 0
         if self.polygon_mm is not None:
             return int(np.count_nonzero(_in_polygon(points, np.array(self.polygon_mm))))
-        return int(np.count_nonzero(robot.body(self.band_mm or 0.0).inside(points)))
+        return int(np.count_nonzero(robot.body(float(self.band_mm)).inside(points)))  # type: ignore[arg-type]
 
 
 def _seconds(name: str, value: Any, positive: bool = False) -> float:

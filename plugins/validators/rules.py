@@ -11,7 +11,7 @@ from safeembodai_core.geometry import Motion
 from safeembodai_core.held_motion import MotionValidator, MotionVerdict
 from safeembodai_core.models import ControlSignal, LidarScan, Straight, Turn, Verdict
 from safeembodai_core.models.control import HARD_MAX_ANGLE_DEG, HARD_MAX_DISTANCE_MM
-from safeembodai_core.ros.twist import STEP_DEG, STEP_MM
+from safeembodai_core.ros.twist import piece_count
 from safeembodai_core.validation import ValidationContext
 
 from .options import DEFAULT_SAFETY_DISTANCE_MM
@@ -83,7 +83,10 @@ class CommandLimitsRule(MotionValidator):
     def validate_motion(self, motion: Motion, context: ValidationContext) -> MotionVerdict:
         distance = motion.centre_travel_mm
         angle = math.degrees(abs(motion.w_rad_s) * motion.duration_s)
-        pieces = max(1, math.ceil(distance / STEP_MM), math.ceil(angle / STEP_DEG))
+        try:
+            pieces = piece_count(distance, angle)
+        except ValueError as error:
+            return MotionVerdict(Verdict(rule=self.name, valid=False, reason=f"the held command: {error}"))
         signals = []
         if distance / pieces > 1e-9:
             signals.append(Straight(command="straight", direction="forward", distance=distance / pieces))

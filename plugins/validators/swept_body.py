@@ -35,6 +35,8 @@ from .rules import checked_scan
 
 _UNSEEN = ("no reading", "behind a return", "beyond the sensor's range")
 _JUMP_STEPS = 2.0  # a neighbour this many sample steps farther leaves a shadow edge worth sampling
+#: The farthest a judged motion's centre may travel (100 km); beyond it nothing is placed, so it is refused.
+MAX_TRAVEL_MM = 1e8
 
 
 def _rays(angles: np.ndarray, starts: np.ndarray, stops: np.ndarray, step: float,
@@ -69,7 +71,6 @@ def scene(scan: LidarScan, reach_mm: float, step_mm: float) -> tuple[np.ndarray,
     unread = ~read
     if unread.any():
         stop = min(scan.max_range_mm, reach_mm)
-        count = int(unread.sum())
         # every beam's ray where its neighbours are unread too (the inside of an unread wedge is
         # sampled about step_mm apart across); a wedge's edge rays in full
         inner = unread & np.roll(unread, 1) & np.roll(unread, -1)
@@ -77,8 +78,7 @@ def scene(scan: LidarScan, reach_mm: float, step_mm: float) -> tuple[np.ndarray,
         parts.append(np.concatenate([
             _rays(angles[inner], np.zeros(int(inner.sum())), np.full(int(inner.sum()), stop), step_mm,
                   math.radians(scan.increment_deg)),
-            _rays(angles[edges], np.zeros(int(edges.sum())), np.full(int(edges.sum()), stop), step_mm)]) if count
-            else np.empty((0, 2)))
+            _rays(angles[edges], np.zeros(int(edges.sum())), np.full(int(edges.sum()), stop), step_mm)]))
         kinds.append(0)
     for neighbour in (np.roll(depth, -1), np.roll(depth, 1)):
         edge = read & ~np.isnan(neighbour) & (neighbour > depth + _JUMP_STEPS * step_mm) & (depth < reach_mm)
@@ -111,39 +111,41 @@ class SweptBodyRule(MotionValidator):
     def __init__(self, options) -> None:
         self.options = options
 
-    def _contact(self, motion: Motion, context: ValidationContext) -> tuple[float, str, np.ndarray] | None:
-        """The first contact as (time, what, point in the planned frame), or None."""
-        found = self._contacts(motion, context)
-        hits = [c for c in found if c is not None]
-        return min(hits, key=lambda c: c[0]) if hits else None
-
     def _contacts(self, motion: Motion, context: ValidationContext) -> list[tuple[float, str, np.ndarray] | None]:
         """The first touch of ``min_points`` returns, and of unseen space, each as (time, what, point) or None."""
         o = self.options
         scan = checked_scan(context, self.name, o.expected_beams)
         body = context.robot.body(o.margin_mm)
         x, y, _ = context.offset
+        here = np.zeros(2)
+        if not motion.centre_travel_mm <= MAX_TRAVEL_MM:  # NaN too: a motion this rule cannot place
+            return [None, (0.0, f"nothing it can judge: the motion covers {motion.centre_travel_mm:.3g} mm, more "
+                                f"than {MAX_TRAVEL_MM:.0f}", here)]
+        if math.hypot(x, y) + body.reach_mm >= scan.max_range_mm:
+            return [None, (0.0, f"space the scan did not see (the body reaches past the sensor's range of "
+                                f"{scan.max_range_mm:g} mm)", here)]
         reach = math.hypot(x, y) + motion.centre_travel_mm + body.reach_mm + o.unseen_step_mm
         returns, unseen, labels = scene(scan, reach, o.unseen_step_mm)
-        touched: tuple[float, str, np.ndarray] | None = None
-        hidden: tuple[float, str, np.ndarray] | None = None
+        if scan.returns_mm is not None and len(scan.returns_mm):  # the unbinned returns as well
+            exact = scan.returns_mm[~(np.hypot(scan.returns_mm[:, 0], scan.returns_mm[:, 1]) > reach)]
+            returns = np.concatenate((returns, exact))
+        touched = hidden = None
         if len(returns):
             planned = context.to_planned_frame(returns)
             times = contact_times(planned, motion, body)
             if np.count_nonzero(np.isfinite(times)) >= o.min_points:
                 order = np.argsort(times, kind="stable")
-                k = order[o.min_points - 1]
-                touched = (float(times[k]), "a return of the scan", planned[order[0]])
+                touched = (float(times[order[o.min_points - 1]]), "a return of the scan", planned[order[0]])
         if len(unseen):
             planned = context.to_planned_frame(unseen)
             keep = np.flatnonzero(near_path(planned, motion, body.reach_mm))
             keep = keep[~body.inside(unseen[keep])]  # where the robot stood when it scanned
-            planned, labels = planned[keep], labels[keep]
-        if len(unseen) and len(planned):
-            times = contact_times(planned, motion, body)
-            k = int(np.argmin(times))
-            if np.isfinite(times[k]):
-                hidden = (float(times[k]), f"space the scan did not see ({_UNSEEN[labels[k]]})", planned[k])
+            if keep.size:
+                times = contact_times(planned[keep], motion, body)
+                k = int(np.argmin(times))
+                if np.isfinite(times[k]):
+                    what = f"space the scan did not see ({_UNSEEN[labels[keep[k]]]})"
+                    hidden = (float(times[k]), what, planned[keep[k]])
         return [touched, hidden]
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
@@ -151,10 +153,10 @@ class SweptBodyRule(MotionValidator):
             motion = Motion(math.copysign(1.0, signal.signed_distance_mm), 0.0, 0.0, signal.distance)
         else:
             motion = Motion(0.0, 0.0, math.copysign(1.0, signal.signed_angle_deg), math.radians(signal.angle))
-        found = self._contact(motion, context)
-        if found is None:
+        hits = [c for c in self._contacts(motion, context) if c is not None]
+        if not hits:
             return Verdict(rule=self.name, valid=True)
-        along, what, point = found
+        along, what, point = min(hits, key=lambda c: c[0])
         body = context.robot.body(self.options.margin_mm).describe()
         if isinstance(signal, Straight):
             safe = math.ceil(along) - 1  # strictly short of the touch: following the advice must pass

@@ -2,6 +2,7 @@
 velocity first brings it onto a point (:mod:`.sweep`). No numpy-free fallback, no simulator."""
 
 from .footprint import MAX_VERTICES, Body, read_polygon
+from .frames import relative_pose
 from .sweep import Motion, contact_times
 
-__all__ = ["MAX_VERTICES", "Body", "Motion", "contact_times", "read_polygon"]
+__all__ = ["MAX_VERTICES", "Body", "Motion", "contact_times", "read_polygon", "relative_pose"]

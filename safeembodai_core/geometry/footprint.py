@@ -26,6 +26,8 @@ import numpy as np
 
 #: Most vertices a footprint may have (a finer outline is no robot's, and costs every check).
 MAX_VERTICES = 64
+#: The farthest a vertex may lie from the robot's centre (100 m): no robot's, and squares stay finite.
+MAX_COORDINATE_MM = 100_000.0
 _AREA_EPS_MM2 = 1e-6
 
 
@@ -61,6 +63,10 @@ def read_polygon(vertices: Any, field: str = "footprint_mm") -> np.ndarray:
     if not np.isfinite(points).all():
         bad = int(np.flatnonzero(~np.isfinite(points).all(axis=1))[0])
         raise ValueError(f"{field}[{bad}] must be finite, got ({float(points[bad][0])}, {float(points[bad][1])})")
+    if np.abs(points).max() > MAX_COORDINATE_MM:
+        bad = int(np.flatnonzero(np.abs(points).max(axis=1) > MAX_COORDINATE_MM)[0])
+        raise ValueError(f"{field}[{bad}] lies more than {MAX_COORDINATE_MM:.0f} mm from the centre: "
+                         f"({float(points[bad][0])}, {float(points[bad][1])})")
     n = len(points)
     for i in range(n):
         a, b = points[i], points[(i + 1) % n]
@@ -137,14 +143,19 @@ class Body:
 
 
 def _in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd rule. A point exactly on an edge may read either way; a moving point on the
-    outline touches it at time 0 all the same (``sweep.contact_times`` crosses the edge at once)."""
+    """Even-odd rule, with a point on an edge (to 1e-9 mm) counted inside; the edge distance is
+    worked out only for the few points the rule left outside within the polygon's box."""
     x, y = points[:, 0:1], points[:, 1:2]
     a, b = polygon[None, :, :], np.roll(polygon, -1, axis=0)[None, :, :]
     straddles = (a[..., 1] > y) != (b[..., 1] > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         x_cross = a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
-    return (np.count_nonzero(straddles & (x < x_cross), axis=1) % 2) == 1
+    inside = (np.count_nonzero(straddles & (x < x_cross), axis=1) % 2) == 1
+    low, high = polygon.min(axis=0) - 1e-9, polygon.max(axis=0) + 1e-9
+    edge = np.flatnonzero(~inside & np.all((points >= low) & (points <= high), axis=1))
+    if edge.size:
+        inside[edge] = _distance_to_edges(points[edge], polygon) <= 1e-9
+    return inside
 
 
 def _distance_to_edges(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .footprint import Body
+from .footprint import Body, _cross
 
 _TWO_PI = 2.0 * math.pi
 #: a turn that moves no point of the swept region by more than this (mm) is driven as a straight: its
@@ -51,6 +51,11 @@ class Motion:
     @property
     def speed_mm_s(self) -> float:
         return math.hypot(self.vx_mm_s, self.vy_mm_s)
+
+    def straight_enough(self, extent_mm: float) -> bool:
+        """True when driving this as a straight moves no point within ``extent_mm`` of the path by more
+        than ``_STRAIGHT_ENOUGH_MM`` (the turn is that small): the one test every computation uses."""
+        return (self.centre_travel_mm + extent_mm) * abs(self.w_rad_s) * self.duration_s <= _STRAIGHT_ENOUGH_MM
 
     @property
     def centre_travel_mm(self) -> float:
@@ -92,9 +97,7 @@ def contact_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
         return times
     segments, circles = body.boundary()
     p = points[rest]
-    sweep_mm = ((motion.centre_travel_mm + body.reach_mm + float(np.max(np.abs(p))))
-                * abs(motion.w_rad_s) * motion.duration_s)
-    if sweep_mm <= _STRAIGHT_ENOUGH_MM:
+    if motion.straight_enough(body.reach_mm + float(np.max(np.abs(p)))):
         found = _line_contacts(p, np.array([motion.vx_mm_s, motion.vy_mm_s]), segments, circles)
     else:
         found = _arc_contacts(p, motion, segments, circles)
@@ -110,13 +113,13 @@ def near_path(points: np.ndarray, motion: Motion, reach_mm: float) -> np.ndarray
     if travel <= 1e-9:  # the centre stays put (to a nanometre): a turn in place, or no motion
         return ~(np.hypot(points[:, 0], points[:, 1]) > reach_mm + travel)
     turned = w * motion.duration_s
-    if abs(turned) * (travel / max(abs(turned), 1e-300) + reach_mm) <= _STRAIGHT_ENOUGH_MM or w == 0.0:
+    if motion.straight_enough(0.0):  # the centre's path is its chord, to within _STRAIGHT_ENOUGH_MM
         end = np.array(motion.pose_at(motion.duration_s)[:2])
         length2 = float(end @ end)
-        if not length2 > 0.0:
+        if not 0.0 < length2 < math.inf:
             return ~(np.hypot(points[:, 0], points[:, 1]) > reach_mm + travel)
         t = np.clip(points @ end / length2, 0.0, 1.0)
-        return ~(np.hypot(*(points - t[:, None] * end).T) > reach_mm + 1e-9)
+        return ~(np.hypot(*(points - t[:, None] * end).T) > reach_mm + _STRAIGHT_ENOUGH_MM)
     centre = np.array([-motion.vy_mm_s / w, motion.vx_mm_s / w])
     radius = math.hypot(*centre)
     rel = points - centre
@@ -129,10 +132,6 @@ def near_path(points: np.ndarray, motion: Motion, reach_mm: float) -> np.ndarray
     end = np.array(motion.pose_at(motion.duration_s)[:2])
     to_ends = np.minimum(np.hypot(points[:, 0], points[:, 1]), np.hypot(*(points - end).T))
     return ~(np.where(on_arc, to_circle, to_ends) > reach_mm + 1e-9)
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
 def _line_contacts(p: np.ndarray, v: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:

@@ -41,10 +41,16 @@ class GroundTruth(BaseModel):
 
 @dataclass
 class LidarScan:
-    """A 2D LiDAR scan; see the module docstring for units and conventions."""
+    """A 2D LiDAR scan; see the module docstring for units and conventions.
+
+    ``returns_mm``, when a converted sensor scan keeps them (``LaserScan.to_lidar_scan``), are its
+    returns where they really are, (M, 2) in the robot frame, before binning moved each to its bin's
+    centre: rules that judge exact geometry (``swept_body``) judge these as well as the bins.
+    """
 
     ranges_mm: np.ndarray
     max_range_mm: float
+    returns_mm: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         ranges = np.asarray(self.ranges_mm, dtype=np.float64)

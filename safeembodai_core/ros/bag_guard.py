@@ -14,10 +14,10 @@ before it, through :class:`~safeembodai_core.Guard` -- the same rules, the same 
 
 A scan is ``sensor_msgs/LaserScan`` (:class:`~safeembodai_core.ros.LaserScan`, with the sensor's
 ``mount``). A pose topic, optional (``geometry_msgs/PoseStamped``, metres, one map frame), does two
-things: a command given after the robot moved on from its latest scan is judged with that scan as
-seen from where the robot now is (:func:`seen_from`: the old scan's beams re-binned, unseen
-directions unknown), and rules about motion get the earlier scans as history -- only from a scan
-taken where the robot stands, since a re-seen scan is no new look at the movers. Without a pose
+things: a command given after the robot moved on from its latest scan is judged from where the
+robot now is, in that scan's own frame (``Guard``'s ``since_scan``: the scan's shadows and unread
+directions stay unseen), and rules about motion get the earlier scans as history -- only from a
+scan taken where the robot stands, since an old scan is no new look at the movers. Without a pose
 topic every command is judged with the latest scan as if the robot were where it took it. Bad
 input is an error naming the bag, the topic and the message -- a missing topic, a topic of
 another type, a scan with zero beams or a NaN increment, a Twist with NaN -- and nothing is
@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from ..errors import SafeEmbodAIError
+from ..geometry import relative_pose
 from .laser_scan import LaserScan, SensorMount
 from .twist import Twist
 from . import messages as m
@@ -147,18 +148,26 @@ def _pose_of(message: Any) -> tuple[float, float, float]:
 STILL_MM, STILL_DEG = 1.0, 0.1
 
 
+def _still(scan_pose: tuple[float, float, float] | None, pose: tuple[float, float, float] | None) -> bool:
+    """Whether the robot is where it took the scan (both poses unknown counts as still)."""
+    if scan_pose is None or pose is None:
+        return scan_pose is None and pose is None
+    (xs, ys, hs), (xc, yc, hc) = scan_pose, pose
+    return math.hypot(xs - xc, ys - yc) < STILL_MM and abs((hs - hc + 180.0) % 360.0 - 180.0) < STILL_DEG
+
+
 def seen_from(scan: LaserScan, scan_pose: tuple[float, float, float] | None,
               pose: tuple[float, float, float] | None) -> tuple[LaserScan, bool]:
     """``scan`` as the robot at ``pose`` sees it, when it was taken at ``scan_pose`` (both in one map
     frame): the same beams from a sensor mounted where the old scan's sensor now is relative to the
     robot (:meth:`LaserScan.to_lidar_scan` re-bins them; what it never saw stays unknown). Also
     whether the robot is still where it scanned (then the scan is returned unchanged)."""
+    if _still(scan_pose, pose):
+        return scan, True
     if scan_pose is None or pose is None:
-        return scan, scan_pose is None and pose is None
+        return scan, False
     (xs, ys, hs), (xc, yc, hc) = scan_pose, pose
     turn = (hs - hc + 180.0) % 360.0 - 180.0
-    if math.hypot(xs - xc, ys - yc) < STILL_MM and abs(turn) < STILL_DEG:
-        return scan, True
     c, s = math.cos(math.radians(-hc)), math.sin(math.radians(-hc))
     dx, dy = xs - xc, ys - yc
     mx, my = scan.mount.x_mm, scan.mount.y_mm
@@ -225,16 +234,22 @@ def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, po
     counts = {scan_topic: 0, cmd_topic: 0, pose_topic: 0}
     pending: tuple[int, float, Twist, LaserScan | None, float | None, Any, bool] | None = None
 
-    def as_seen() -> tuple[LaserScan | None, bool]:
-        """The latest scan from where the robot is now, and whether it is still where it scanned."""
-        return seen_from(scan, scan_pose, pose) if scan is not None else (None, False)
+    def as_seen() -> tuple[LaserScan | None, bool, dict[str, Any]]:
+        """The latest scan, whether the robot is still where it took it, and where to judge from:
+        with a pose, the scan's pose and (once the robot moved on) where it is now in the scan's frame."""
+        if scan is None:
+            return None, False, {"pose": pose}
+        still = _still(scan_pose, pose)
+        if still or scan_pose is None or pose is None:
+            return scan, still, {"pose": pose}
+        return scan, False, {"pose": scan_pose, "since_scan": relative_pose(scan_pose, pose)}
 
     def twist_verdict(item, until: float | None) -> CommandVerdict:
-        index, time_s, twist, seen, seen_time, where, still = item
+        index, time_s, twist, seen, seen_time, at, still = item
         duration = hold_s if hold_s is not None else max(min_hold_s, min(max_hold_s, until - time_s)) \
             if until is not None else max_hold_s
         # history for motion rules only from a scan taken where the robot stands (module docstring)
-        judged_at = {"lidar_mm": seen, "pose": where, "time_s": seen_time if where is not None and still else None}
+        judged_at = {"lidar_mm": seen, **at, "time_s": seen_time if at["pose"] is not None and still else None}
         allowed = None
         if limit and duration > 0:
             limited = guard.limit_twist(twist, duration, **judged_at)
@@ -264,12 +279,12 @@ def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, po
                 twist = Twist.from_ros(message)
                 if pending is not None:
                     yield twist_verdict(pending, time_s)  # judged now that its hold is known
-                seen, still = as_seen()
-                pending = (index, time_s, twist, seen, scan_time, pose, still)
+                seen, still, at = as_seen()
+                pending = (index, time_s, twist, seen, scan_time, at, still)
             else:
                 control, recorded = _plan(message.data)
-                seen, still = as_seen()
-                yield _plan_verdict(guard, index, time_s, control, recorded, seen, scan_time, pose, still)
+                seen, still, at = as_seen()
+                yield _plan_verdict(guard, index, time_s, control, recorded, seen, scan_time, at, still)
         except (ValueError, ArithmeticError) as error:  # a bad number, or one too large to compute with
             raise BagInputError(f"{where}: {error}") from None
     if pending is not None:
@@ -279,13 +294,13 @@ def _judge(reader, bag, guard, scans, commands, poses, scan_topic, cmd_topic, po
             raise BagInputError(f"{bag}: {cmd_topic} message {pending[0]} (at {pending[1]:.3f} s): {error}") from None
 
 
-def _plan_verdict(guard, index, time_s, control, recorded, scan, scan_time, pose, still) -> CommandVerdict:
+def _plan_verdict(guard, index, time_s, control, recorded, scan, scan_time, at, still) -> CommandVerdict:
     if control is None:  # the exported answer did not parse: nothing to judge, refused as it was
         reason = (recorded or {}).get("parse_error") or "the message holds no plan"
         return CommandVerdict(index=index, time_s=time_s, kind="plan", command={"control": None}, valid=False,
                               reasons=[f"schema: {reason}"], scan_time_s=scan_time, recorded=recorded)
     if not isinstance(control, list):
         raise ValueError(f'"control" must be a list of signals, got {type(control).__name__}')
-    report = guard.check(control, lidar_mm=scan, pose=pose, time_s=scan_time if pose is not None and still else None)
+    report = guard.check(control, lidar_mm=scan, **at, time_s=scan_time if at["pose"] is not None and still else None)
     return CommandVerdict(index=index, time_s=time_s, kind="plan", command={"control": control}, valid=report.valid,
                           reasons=report.reasons, scan_time_s=scan_time, recorded=recorded)

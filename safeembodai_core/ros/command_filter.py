@@ -11,9 +11,9 @@ velocity command (:meth:`~CommandFilter.on_command`) decides what reaches the ba
 
 A stop also goes out, with its reason, when there is no scan yet or the latest is older than
 ``scan_timeout_s`` (Nav2's ``source_timeout``: a sensor that stops arriving stops the robot), or a
-command's time is earlier than the scan's. When the robot has moved since the scan (a pose newer
-than the scan's), the scan is judged as seen from where the robot now is
-(:func:`~safeembodai_core.ros.bag_guard.seen_from`: what the scan never saw stays unknown). Every
+command's time is earlier than the scan's. When the robot has moved since the scan (a pose given
+after it), the rules judge from where the robot now is, in the scan's own frame (``Guard``'s
+``since_scan``: the scan's shadows stay where they are, what it never saw stays unseen). Every
 :class:`Decision` says why, for the planner. Wire the three methods to your subscriptions (rclpy,
 rosbridge, a bag) and publish ``decision.twist``; one filter per robot, not shared between threads.
 """
@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal, Sequence
 
-from .bag_guard import seen_from
+from ..geometry import relative_pose
 from .laser_scan import LaserScan, SensorMount, finite_number
 from .twist import Twist
 
@@ -60,7 +60,12 @@ class CommandFilter:
         if mode not in ("limit", "refuse"):
             raise ValueError(f"CommandFilter.mode must be 'limit' or 'refuse', got {mode!r}")
         self.mode = mode
+        from ..twist_judging import SlowdownZone
+
         self.slowdown = tuple(slowdown)
+        for zone in self.slowdown:
+            if not isinstance(zone, SlowdownZone):
+                raise ValueError(f"CommandFilter.slowdown holds SlowdownZone objects, got {type(zone).__name__}")
         self.mount = mount or SensorMount()
         self._scan: LaserScan | None = None
         self._scan_time: float | None = None
@@ -76,11 +81,24 @@ class CommandFilter:
         self._scan, self._scan_time, self._scan_pose = scan, time_s, self._pose
 
     def on_pose(self, pose: Sequence[float], time_s: float) -> None:
-        """The robot's pose ``(x_mm, y_mm, heading_deg)`` in one map frame at ``time_s``."""
+        """The robot's pose ``(x_mm, y_mm, heading_deg)`` in one map frame at ``time_s``; the latest
+        pose given before a scan is where that scan was taken."""
         finite_number("CommandFilter.on_pose", "time_s", time_s, "seconds")
-        x, y, heading = (finite_number("CommandFilter.on_pose", name, value)
-                         for name, value in zip(("x_mm", "y_mm", "heading_deg"), pose, strict=True))
-        self._pose = (x, y, heading)
+        try:
+            values = tuple(pose)
+        except TypeError:
+            raise ValueError(f"CommandFilter.on_pose: pose must be (x_mm, y_mm, heading_deg), got {pose!r}") from None
+        if len(values) != 3:
+            raise ValueError(f"CommandFilter.on_pose: pose must be (x_mm, y_mm, heading_deg), got {len(values)} values")
+        self._pose = tuple(finite_number("CommandFilter.on_pose", name, value)  # type: ignore[assignment]
+                           for name, value in zip(("x_mm", "y_mm", "heading_deg"), values))
+
+    def _since_scan(self) -> tuple[float, float, float] | None:
+        """Where the robot is now in the frame its latest scan was taken in; None when it has not moved
+        (or no pose was given)."""
+        if self._scan_pose is None or self._pose is None or self._pose == self._scan_pose:
+            return None
+        return relative_pose(self._scan_pose, self._pose)
 
     def on_command(self, twist: Any, time_s: float) -> Decision:
         """What to send for ``twist`` (a :class:`Twist`, a decoded ``geometry_msgs/Twist`` or a tuple)
@@ -88,7 +106,7 @@ class CommandFilter:
         time_s = finite_number("CommandFilter.on_command", "time_s", time_s, "seconds")
         try:
             requested = self.guard.read_twist(twist)
-        except ValueError as error:
+        except (TypeError, ValueError) as error:
             return Decision("stop", STOP, STOP, time_s, [f"command refused unread: {error}"])
         if self._scan is None or self._scan_time is None:
             return Decision("stop", STOP, requested, time_s, ["no scan yet: stop until one arrives"])
@@ -97,13 +115,14 @@ class CommandFilter:
             why = (f"the latest scan is {age:.3f} s old (timeout {self.scan_timeout_s:g} s): stop until a new one "
                    "arrives" if age >= 0 else f"the command's time is {-age:.3f} s before the latest scan's")
             return Decision("stop", STOP, requested, time_s, [why], scan_age_s=age)
-        scan, _ = seen_from(self._scan, self._scan_pose, self._pose)
+        scan, moved = self._scan, self._since_scan()
         if self.mode == "refuse":
-            report = self.guard.check_twist(requested, self.horizon_s, lidar_mm=scan)
+            report = self.guard.check_twist(requested, self.horizon_s, lidar_mm=scan, since_scan=moved)
             if report.valid:
                 return Decision("forward", requested, requested, time_s, scan_age_s=age)
             return Decision("stop", STOP, requested, time_s, report.reasons, age, report.collision_time_s)
-        limited = self.guard.limit_twist(requested, self.horizon_s, slowdown=self.slowdown, lidar_mm=scan)
+        limited = self.guard.limit_twist(requested, self.horizon_s, slowdown=self.slowdown, lidar_mm=scan,
+                                         since_scan=moved)
         action = "forward" if not limited.limited else ("stop" if limited.stopped else "limit")
         return Decision(action, limited.twist if action != "stop" else STOP, requested, time_s, limited.reasons, age,
                         limited.collision_time_s)

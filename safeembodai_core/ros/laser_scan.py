@@ -150,4 +150,5 @@ class LaserScan:
         looked[bins[seen]] = True
         out = np.where(looked, nearest, np.nan)  # a bin no beam saw into is unknown, never free
         max_range_mm = max(self.range_max * 1000.0 - self.mount.offset_mm, 1.0)
-        return LidarScan(out, max_range_mm)
+        exact = np.column_stack((x[obstacle], y[obstacle]))  # where the returns are, before binning
+        return LidarScan(out, max_range_mm, returns_mm=exact)

@@ -32,6 +32,14 @@ def longest_judged_s(twist: "Twist", step_mm: float = STEP_MM, step_deg: float =
     return math.inf if per_second == 0 else MAX_PIECES / per_second
 
 
+def piece_count(distance_mm: float, angle_deg: float, step_mm: float = STEP_MM, step_deg: float = STEP_DEG) -> int:
+    """How many pieces an arc of ``distance_mm`` and ``angle_deg`` is cut into (at most ``step_mm``
+    and ``step_deg`` each); ``ValueError`` for one too long to count."""
+    if not (math.isfinite(distance_mm) and math.isfinite(angle_deg)):
+        raise ValueError(f"an arc of {distance_mm!r} mm and {angle_deg!r} degrees cannot be cut into pieces")
+    return max(1, math.ceil(abs(distance_mm) / step_mm), math.ceil(abs(angle_deg) / step_deg))
+
+
 def _finite(name: str, value: Any) -> float:
     return finite_number("Twist", name, value)
 
@@ -89,7 +97,7 @@ def arc_signals(twist: Twist, duration_s: float, step_mm: float = STEP_MM,
                          "only rules that judge the held motion (swept_body) can judge it")
     distance = abs(twist.linear_x) * 1000.0 * duration_s
     angle = math.degrees(twist.angular_z * duration_s)
-    pieces = max(1, math.ceil(distance / step_mm), math.ceil(abs(angle) / step_deg))
+    pieces = piece_count(distance, angle, step_mm, step_deg)
     if pieces > MAX_PIECES:
         raise ValueError(f"the arc of {distance:.0f} mm and {abs(angle):.0f} degrees needs {pieces} pieces, more than "
                          f"{MAX_PIECES}: judge a shorter hold (longest_judged_s)")

@@ -24,6 +24,7 @@ def _ablate(repo, scenario, out, *args):
     ("quickstart.yaml", ["--set", "trials=4"]),
     ("mo.yaml", ["--set", "trials=2", "--set", "max_steps=4"]),  # pybullet rooms: a client per thread
 ])
+@pytest.mark.slow
 def test_trials_in_flight_give_the_same_metrics_as_one_at_a_time(repo, tmp_path, scenario, overrides):
     serial, _ = _ablate(repo, scenario, tmp_path / "serial", *overrides)
     threaded, said = _ablate(repo, scenario, tmp_path / "threaded", *overrides, "--concurrency", "4")

@@ -154,6 +154,7 @@ def test_a_picture_lost_to_an_interruption_is_drawn_again_on_resume(repo, plugin
     assert not list((folder.path / "trajectories").glob(".*"))  # no half-written file left over
 
 
+@pytest.mark.slow
 def test_report_draws_missing_pictures_and_counts_truthfully_those_it_cannot(repo, plugins, tmp_path, capsys,
                                                                              monkeypatch):
     from safeembodai_plugins.environments.flatland.world import FlatlandWorld as Flatland
@@ -255,6 +256,7 @@ def test_resume_adds_trials_finished_after_the_coordinator_died_to_the_ledger(re
 # -- 17: report on a running run -------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_report_refuses_a_run_in_progress(repo, plugins, tmp_path, capsys):
     scenario = quickstart(repo, plugins)
     folder = RunFolder(tmp_path / "run")
@@ -293,6 +295,7 @@ def test_crashes_are_told_from_outages_by_their_detail(detail, is_crash):
     assert crashed(error_trial(0, detail)) is is_crash
 
 
+@pytest.mark.slow
 def test_summary_and_report_count_crashes_apart_from_backend_errors(tmp_path):
     from rich.console import Console
 

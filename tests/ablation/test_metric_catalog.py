@@ -65,6 +65,7 @@ def test_a_plugin_metric_joins_the_catalog_after_the_built_ins_with_its_plugin_n
     assert metric_catalog(plugins) == catalog
 
 
+@pytest.mark.slow
 def test_a_plugin_metric_is_in_the_metrics_files_the_report_the_figures_and_the_console(plugins, tmp_path):
     from safeembodai_core.cli.summary import summary_table
 

@@ -195,6 +195,7 @@ def release_run(tmp_path_factory, ablated):
     return ablated(scenario, plugins, tmp_path_factory.mktemp("run") / "releaserun")
 
 
+@pytest.mark.slow
 def test_the_report_shows_the_release_readings_only_when_asked(release_run, run_store):
     scenario, plugins, path, results = release_run
     with run_store(scenario, plugins, path) as store:

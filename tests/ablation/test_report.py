@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 import csv
 import json
 
@@ -25,6 +26,7 @@ def test_paper_values_ship_as_data():
     assert paper_value("moer", "flatland", "baseline", "attack") is None
 
 
+@pytest.mark.slow
 def test_report_writes_metrics_figures_and_a_paper_comparison(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\n", "t.yaml")
     results = (results_for("OF", "baseline", "no_attack", [("completed", 7), ("timeout", 20), ("completed", 8)])

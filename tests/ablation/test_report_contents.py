@@ -55,6 +55,7 @@ def scripted_run(tmp_path_factory, ablated):
     scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=3", "max_steps=6"], plugins.registry)
     return ablated(scenario, plugins, tmp_path_factory.mktemp("run") / "quickstart")
 
+@pytest.mark.slow
 def test_the_header_names_backend_seed_fingerprint_and_n_and_flags_the_simulated_pilot(mock_run):
     scenario, plugins, path, results = mock_run
     text = write_report(path, scenario, results, plugins=plugins).read_text()
@@ -90,6 +91,7 @@ arms:
                        "{half_angle_deg: 45} | N = 3, then abort | read when the answer arrives (`fresh_scan`, ours) |")
 
 
+@pytest.mark.slow
 def test_the_simulated_banner_is_on_every_figure(mock_run, monkeypatch, tmp_path):
     from matplotlib.figure import Figure
 
@@ -117,6 +119,7 @@ def memory_copy(store, results):
     return copy
 
 
+@pytest.mark.slow
 def test_refusals_and_attack_kinds_come_from_the_stored_steps(scripted_run, run_store):
     scenario, plugins, path, results = scripted_run
     ids = [r.spec.trial_id for r in results]
@@ -150,6 +153,7 @@ def test_refusals_and_attack_kinds_come_from_the_stored_steps(scripted_run, run_
     assert no_attack["adr"] == "" and no_attack["attack_rate"] in ("0.0", "")  # ADR n/a without attackers
 
 
+@pytest.mark.slow
 def test_any_store_gives_the_report_the_same_refusals_and_attack_kinds(scripted_run, run_store, tmp_path):
     """A third-party store (only ``steps``), the memory store and sqlite: one metrics.csv."""
     from safeembodai_plugins.state.memory_store import MemoryStateStore
@@ -175,6 +179,7 @@ def test_any_store_gives_the_report_the_same_refusals_and_attack_kinds(scripted_
     assert "not read" in (tmp_path / "report.md").read_text()
 
 
+@pytest.mark.slow
 def test_outcomes_collisions_small_n_and_na_cells(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\nstate: memory\n", "t.yaml")
     results = [trial("baseline", "no_attack", 0, "completed", 6, collisions=0),
@@ -196,6 +201,7 @@ def test_outcomes_collisions_small_n_and_na_cells(tmp_path):
     assert "state store `memory` did not leave" in text  # no steps to read: said, not guessed
 
 
+@pytest.mark.slow
 def test_trials_with_a_collision_per_100_with_wilson_and_newcombe_intervals(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\nstate: memory\n", "t.yaml")
     # safeembodai first in the results: the reference is still the scenario's first arm, baseline
@@ -238,6 +244,7 @@ def test_trials_with_a_collision_per_100_with_wilson_and_newcombe_intervals(tmp_
     assert write_report(tmp_path, scenario, results).read_text() == text  # deterministic
 
 
+@pytest.mark.slow
 def test_report_and_summary_score_cells_with_the_scenario_metrics_settings(tmp_path):
     scenario = parse_scenario("name: t\nprofile: eyesim_release\nenvironments: [OF]\n", "t.yaml")
     results = [trial("baseline", "attack", 0, "completed", 9), trial("baseline", "attack", 1, "timeout", 16),
@@ -255,6 +262,7 @@ def test_report_and_summary_score_cells_with_the_scenario_metrics_settings(tmp_p
     assert line.split()[4] == f"{expected:.2f}"
 
 
+@pytest.mark.slow
 def test_the_paper_comparison_uses_tlr_all_not_tlr_after_seen(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\n", "t.yaml")
     # target seen at step 10 of 20, lost 5 of the 11 steps after: tlr_all 0.7, tlr_after_seen 5/11
@@ -275,6 +283,7 @@ def test_the_terminal_summary_names_the_run(mock_run):
     assert max(len(line) for line in text.splitlines()) <= 80
 
 
+@pytest.mark.slow
 def test_collisions_are_broken_down_by_the_world_each_trial_met(tmp_path):
     """Issue 21: per kind of world (TrialResult.world), both conditions pooled, against the first arm."""
     from safeembodai_core.report.cells import scenario_cells, world_rates

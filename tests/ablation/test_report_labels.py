@@ -4,6 +4,7 @@ diamonds as GPT-4o's."""
 
 from __future__ import annotations
 
+import pytest
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -58,6 +59,7 @@ def _legend(fig):
     return legend, [text.get_text() for text in legend.get_texts()]
 
 
+@pytest.mark.slow
 def test_each_arm_has_its_own_colour_in_every_legend_even_when_the_first_panel_is_empty(tmp_path, monkeypatch):
     from matplotlib.figure import Figure
 
@@ -116,6 +118,7 @@ def _legend_titles(monkeypatch) -> list[str]:
     return titles
 
 
+@pytest.mark.slow
 def test_a_local_run_names_the_model_not_litellms_route(tmp_path, monkeypatch):
     plugins = load_plugins(environ={})
     scenario = parse_scenario(LOCAL_RUN, "localrun.yaml", registry=plugins.registry)
@@ -131,6 +134,7 @@ def test_a_local_run_names_the_model_not_litellms_route(tmp_path, monkeypatch):
     assert titles == ["bars: local/SmolLM2-135M-Instruct, N = 3 trials per cell"] * len(figures())
 
 
+@pytest.mark.slow
 def test_a_run_whose_replies_named_the_model_is_reported_by_that_name(tmp_path, monkeypatch):
     """The server's own name for the model (each attempt records it, each result collects it) wins
     over the configured id, and the report says where it came from."""
@@ -156,6 +160,7 @@ def test_the_local_backends_default_model_is_named_local_without_its_route():
     assert model_without_route("Qwen/Qwen2-VL-7B-Instruct") == ("Qwen/Qwen2-VL-7B-Instruct", None)
 
 
+@pytest.mark.slow
 def test_the_simulated_pilots_figures_say_it_is_not_an_llm(tmp_path, monkeypatch):
     plugins = load_plugins(environ={})
     scenario = parse_scenario("name: t\ntrials: 3\nenvironments: [OF]\nbackend: mock\n", "t.yaml",

@@ -34,6 +34,7 @@ def test_two_coordinators_cannot_share_a_run_folder(repo, plugins, tmp_path):
     Ablation(scenario, plugins, RunFolder(tmp_path / "run"), resume=True).close()  # free once the first ended
 
 
+@pytest.mark.slow
 def test_resume_waits_for_orphaned_workers(repo, plugins, tmp_path):
     scenario = quickstart(repo, plugins)
     Ablation(scenario, plugins, RunFolder(tmp_path / "run")).close()
@@ -57,6 +58,7 @@ def _lock_files(folder):
 
 
 @pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.slow
 def test_a_finished_run_folder_holds_no_lock_files(repo, plugins, tmp_path, workers):
     scenario = quickstart(repo, plugins)
     ablation = Ablation(scenario, plugins, RunFolder(tmp_path / "run"), workers=workers)
@@ -70,6 +72,7 @@ def test_a_finished_run_folder_holds_no_lock_files(repo, plugins, tmp_path, work
     assert _lock_files(tmp_path / "run") == []
 
 
+@pytest.mark.slow
 def test_safeembodai_ablate_and_report_leave_no_lock_files(repo, cli_runner, tmp_path):
     from safeembodai_core.cli import cli
 
@@ -100,6 +103,7 @@ def _waits_on(path, pid):
 
 
 @pytest.mark.skipif(not Path("/proc/locks").exists(), reason="needs /proc/locks to see a blocked waiter")
+@pytest.mark.slow
 def test_a_worker_waiting_on_a_removed_lock_file_still_keeps_a_resume_out(tmp_path):
     """The holder removes the file while a worker waits on it: the worker must lock the file the
     path names afterwards, or a resume would start beside a live worker."""
@@ -188,6 +192,7 @@ def test_an_entry_point_cannot_take_a_builtin_plugin_name(monkeypatch):
         manager.load_plugins(environ={})
 
 
+@pytest.mark.slow
 def test_an_unwritable_run_folder_is_a_clear_error(repo, tmp_path):
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("a file where the run folder should go")

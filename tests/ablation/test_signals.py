@@ -92,6 +92,7 @@ class Coordinator:
         self.process.communicate()
 
 
+@pytest.mark.slow
 def test_sigterm_stops_a_serial_run_cleanly(repo, tmp_path):
     coordinator = Coordinator(repo, tmp_path)
     try:
@@ -110,6 +111,7 @@ def test_sigterm_stops_a_serial_run_cleanly(repo, tmp_path):
     (signal.SIGKILL, ("--workers", "2")), (signal.SIGTERM, ("--workers", "2")),
     (signal.SIGKILL, ("--workers", "2", "--concurrency", "3")),  # three trials in flight in each worker's threads
 ], ids=["SIGKILL", "SIGTERM", "SIGKILL-concurrency"])
+@pytest.mark.slow
 def test_killed_coordinator_leaves_no_process_and_resume_completes_the_run(repo, plugins, tmp_path, stop, parallel):
     coordinator = Coordinator(repo, tmp_path / "runs", *parallel)
     try:
@@ -166,6 +168,7 @@ stdout=subprocess.PIPE, text=True)
 
 
 @pytest.mark.parametrize("how", ["pdeathsig", "watchdog-only"])
+@pytest.mark.slow
 def test_a_blocked_worker_exits_when_its_coordinator_is_killed(tmp_path, how):
     coordinator = subprocess.Popen([sys.executable, "-c", COORDINATOR, WORKER, str(tmp_path), how],
                                    stdout=subprocess.PIPE, text=True, start_new_session=True)

@@ -50,6 +50,7 @@ def test_ablate_stops_at_the_token_cap_and_a_resume_finishes_the_run(repo, tmp_p
     assert len((run / "finished.jsonl").read_text().splitlines()) == 12
 
 
+@pytest.mark.slow
 def test_a_cost_cap_for_a_pilot_without_a_price_is_refused_before_any_folder(repo, tmp_path):
     done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate",
                            str(repo / "scenarios" / "quickstart.yaml"), "--max-cost", "1", "--out",

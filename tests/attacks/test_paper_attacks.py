@@ -56,6 +56,7 @@ def test_paper_scenarios_use_the_papers_kinds_at_the_releases_rate(name, repo, p
         assert options.rate == 0.5 and set(options.kinds) == set(PAPER_KINDS)
 
 
+@pytest.mark.slow
 def test_a_paper_run_injects_and_stores_only_the_papers_kinds(repo, plugins, tmp_path):
     scenario = load_scenario(repo / "scenarios" / "paper.yaml", ["trials=3", "max_steps=6"], registry=plugins.registry)
     runner = ScenarioRunner(scenario, plugins, run_dir=tmp_path)

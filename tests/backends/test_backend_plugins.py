@@ -15,6 +15,7 @@ def _run(code: str) -> str:
     return done.stdout.strip()
 
 
+@pytest.mark.slow
 def test_registering_and_running_the_mock_with_estimated_tokens_never_imports_litellm():
     out = _run("""
         import sys

@@ -60,6 +60,7 @@ def test_rate_limit_is_retried_then_succeeds(built_plugins, fake_server, fake_ke
     assert len(fake_server.requests) == 3
 
 
+@pytest.mark.slow
 def test_a_429_storm_slows_the_call_down_without_spending_its_retries(built_plugins, fake_server, fake_key):
     """Twelve 429s in a row with ``max_retries: 0``: the call waits each ``Retry-After`` out and gets its
     answer; 429s are bounded by ``rate_limit_wait_s``, not by the retries meant for broken servers."""
@@ -101,6 +102,7 @@ def test_a_429_holds_back_every_call_to_the_model_not_only_its_own(built_plugins
     assert [r.body.get("model") for r in fake_server.requests].count("gpt-4o") == 3  # one 429, two answers
 
 
+@pytest.mark.slow
 def test_after_a_429_one_call_goes_first_and_the_others_wait_for_its_answer(built_plugins, fake_server, fake_key):
     """Four trials in flight meet 429s: after each hold-off one call (the probe) goes alone; the
     others go only once it is answered -- two more 429s cost one call each, not one per trial."""
@@ -126,6 +128,7 @@ def test_after_a_429_one_call_goes_first_and_the_others_wait_for_its_answer(buil
     assert fake_server.arrivals[4:7] == [0, 0, 0]  # the probes went alone
 
 
+@pytest.mark.slow
 def test_a_call_that_waited_behind_the_probe_counts_that_wait_towards_rate_limit_wait_s(built_plugins, fake_server,
                                                                                          fake_key):
     """Every call is refused, each 429 after 0.6 s (``rate_limit_wait_s`` 1): a call that starts while
@@ -198,6 +201,7 @@ def test_client_errors_fail_at_once_and_never_show_the_key(built_plugins, fake_s
     assert len(fake_server.requests) == 1
 
 
+@pytest.mark.slow
 def test_a_hang_past_the_timeout_is_retried_then_reported(built_plugins, fake_server, fake_key):
     fake_server.push(Hang(5.0), Reply(GOOD))
     assert _backend(built_plugins, fake_server, timeout_s=0.5, max_retries=1).complete(_prompt(), _rng()).text == GOOD

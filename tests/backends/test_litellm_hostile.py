@@ -61,6 +61,7 @@ def test_finish_reason_is_the_providers_as_sent_clipped_at_64_and_judged_by_the_
             read_reply(reply)
 
 
+@pytest.mark.slow
 def test_a_trickled_reply_past_the_deadline_times_out_and_is_never_used(built_plugins, fake_server, fake_key):
     # one byte every 0.1 s for 3 s: every read arrives within httpx's per-read timeout of 0.5 s
     fake_server.push(Trickle(3.0, 0.1, Reply(LATE)), Reply(GOOD))

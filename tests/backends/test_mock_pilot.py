@@ -100,6 +100,7 @@ def _signals_of(response):
     return [s.describe() for s in response.control]
 
 
+@pytest.mark.slow
 def test_obeys_and_flags_injections_at_the_configured_rates(built_plugins):
     options = {"obey_injection_p": 0.8, "obey_injection_p_secure": 0.2, "flag_injection_p": 0.1,
                "flag_injection_p_secure": 0.6}
@@ -110,6 +111,7 @@ def test_obeys_and_flags_injections_at_the_configured_rates(built_plugins):
     assert abs(obey_secure - 0.4 * 0.2) < 0.06
 
 
+@pytest.mark.slow
 def test_reference_state_lowers_obedience_by_its_factor(built_plugins):
     reference = ReferenceState(step=1, executed=[ExecutedSignal(signal=Turn(command="turn", direction="left", angle=10),
                                                                 result=ExecutionResult(angle_deg=10))])

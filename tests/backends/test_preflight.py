@@ -75,6 +75,7 @@ def test_a_reachable_server_passes_without_a_request(built_plugins, fake_server,
     assert fake_server.requests == []  # a TCP connection, no tokens spent
 
 
+@pytest.mark.slow
 def test_an_ablation_whose_every_trial_errs_exits_non_zero(tmp_path, capsys, fake_key, fake_server):
     fake_server.default = Status(401, "invalid api key")
     code, stderr = cli(capsys, "ablate", scenario_file(tmp_path, fake_server.url), "--out", str(tmp_path / "runs"))

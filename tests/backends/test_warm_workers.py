@@ -33,6 +33,7 @@ def _scenario(tmp_path, server) -> dict:
     }
 
 
+@pytest.mark.slow
 def test_the_warm_up_imports_what_the_backend_needs(tmp_path, fake_server):
     """The module the fork server preloads builds the scenario's backend once: litellm is imported
     before any worker is forked (a worker would otherwise spend ~5 s of CPU on it)."""
@@ -50,6 +51,7 @@ def test_the_warm_up_imports_what_the_backend_needs(tmp_path, fake_server):
     assert len(fake_server.requests) == 0  # warming up calls no model
 
 
+@pytest.mark.slow
 def test_a_forked_worker_takes_the_coordinators_environment_when_the_run_starts(tmp_path, fake_server, monkeypatch):
     from safeembodai_core.ablation import Ablation, RunFolder
     from safeembodai_core.plugins import load_plugins

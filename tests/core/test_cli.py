@@ -74,6 +74,7 @@ def run_cli(*args: str, cwd=None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "safeembodai_core", *args], capture_output=True, text=True, cwd=cwd)
 
 
+@pytest.mark.slow
 def test_bad_scenario_exits_non_zero_with_a_message_and_no_traceback(tmp_path, repo):
     bad = tmp_path / "bad.yaml"
     bad.write_text((repo / "scenarios/quickstart.yaml").read_text().replace("rate: 0.3", "rate: 3"))
@@ -85,6 +86,7 @@ def test_bad_scenario_exits_non_zero_with_a_message_and_no_traceback(tmp_path, r
     assert debug.returncode == 1 and "Traceback" in debug.stderr
 
 
+@pytest.mark.slow
 def test_unknown_cell_and_unknown_backend_are_named(tmp_path, repo):
     scenario = str(repo / "scenarios/quickstart.yaml")
     completed = run_cli("run", scenario, "--arm", "nope", "--out", str(tmp_path / "x"))

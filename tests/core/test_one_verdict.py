@@ -11,6 +11,7 @@ reply as this reader in ``tests/backends/test_reply_transport.py``.
 
 from __future__ import annotations
 
+import pytest
 import sys
 from pathlib import Path
 
@@ -47,6 +48,7 @@ def loop_verdict(reply):
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(generated=bodies())
+@pytest.mark.slow
 def test_the_loop_and_the_guard_give_the_contracts_verdict(generated):
     body, plan = generated
     reply = reply_from_chat_completion(body)

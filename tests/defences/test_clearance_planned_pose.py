@@ -171,6 +171,7 @@ def _direct_check(ctx: ValidationContext, signal: Straight, r: float, required: 
 @settings(max_examples=300, deadline=None)
 @given(ranges=_RANGES, max_range=st.floats(500, 8000), earlier=st.lists(_SIGNALS, max_size=3),
        distance=st.floats(1, 399), forward=st.booleans(), r=st.floats(5, 90), dist=st.floats(170, 600))
+@pytest.mark.slow
 def test_property_later_moves_are_never_less_strict_than_the_measured_points(ranges, max_range, earlier, distance,
                                                                             forward, r, dist):
     lidar = LidarScan(ranges, max_range)

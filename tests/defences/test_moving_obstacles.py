@@ -241,6 +241,7 @@ signals = st.one_of(
 @example(plan=[go(-180.0)], heading=0.0, share=0.34375, speed=181.0, course=-151.0, offset=213.0, side=99.0)
 @pytest.mark.parametrize("wander, cruising", [(0.0, False), (25.0, False), (25.0, True)],
                          ids=["straight-courses", "wandering-courses", "cruising-courses"])
+@pytest.mark.slow
 def test_every_plan_that_drives_into_the_mover_is_refused(wander, cruising, plan, heading, share, speed, course, offset,
                                                           side):
     """The mover, on a straight course at a constant speed, is placed to pass within ``offset`` of

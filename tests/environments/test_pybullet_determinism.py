@@ -3,6 +3,7 @@ whatever ran before, in one process (separate physics clients) or in another."""
 
 from __future__ import annotations
 
+import pytest
 import hashlib
 import subprocess
 import sys
@@ -66,6 +67,7 @@ def test_different_seeds_give_different_rooms(make_env):
     assert not np.array_equal(layout[0], env.can_xy) and not np.array_equal(layout[1], env.balls_xy)
 
 
+@pytest.mark.slow
 def test_another_process_sees_the_same_trial(make_env):
     code = "\n".join([
         "import importlib.util, sys",

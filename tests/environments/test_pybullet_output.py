@@ -3,6 +3,7 @@ scenario running end to end on ``MO`` with the scripted backend."""
 
 from __future__ import annotations
 
+import pytest
 import os
 import subprocess
 import sys
@@ -104,6 +105,7 @@ def test_tiny_scenario_runs_end_to_end_on_MO_and_draws_its_trajectory(tmp_path):
     assert decode(picture).shape[1] == SIZE_PX
 
 
+@pytest.mark.slow
 def test_cli_run_on_MO_writes_a_trajectory_picture_and_no_pybullet_chatter(tmp_path):
     import yaml
 

@@ -26,6 +26,7 @@ def json_report(cli_runner, *args):
 
 
 @pytest.mark.parametrize("run", ["bag_run", "moving_bag_run"])
+@pytest.mark.slow
 def test_the_refusals_found_are_the_verdicts_recorded_in_the_trial(run, request, cli_runner):
     """Every attempt's plan of every guarded trial, judged again from the bag alone (rules, robot
     and limits as the bag recorded them; the earlier scans from the pose topic for the moving-obstacle

@@ -50,6 +50,7 @@ plans = st.lists(st.one_of(
 
 @settings(max_examples=150, deadline=None)
 @given(native_scans, st.integers(min_value=0, max_value=719), plans)
+@pytest.mark.slow
 def test_a_centred_aligned_scan_is_the_native_scan_and_gets_the_same_verdicts(ranges, shift, plan):
     native = np.array(ranges, dtype=float)
     ros = ros_from_native(native, shift % native.size)

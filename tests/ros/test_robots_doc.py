@@ -31,6 +31,7 @@ def test_the_python_examples_run(page, capsys):
     assert out[5].startswith("1 of 1 refused: ")
 
 
+@pytest.mark.slow
 def test_the_commands_run_in_order(page, repo, tmp_path, monkeypatch, cli_runner):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "scenarios").symlink_to(repo / "scenarios")

@@ -17,6 +17,8 @@ from safeembodai_core.view.files import Site, read_run_file
 from safeembodai_core.view.report_tables import report_tables
 from safeembodai_core.view.serve import SiteServer
 
+pytestmark = pytest.mark.slow  # each builds whole sites of runs (module fixtures of 14-18 s)
+
 
 @pytest.fixture
 def run(runs_dir, tmp_path) -> Path:

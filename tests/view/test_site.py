@@ -15,6 +15,8 @@ from safeembodai_core.cli import cli
 from safeembodai_core.view import build_site
 from safeembodai_core.view.html import CSP
 
+pytestmark = pytest.mark.slow  # each builds whole sites of runs (module fixtures of 14-18 s)
+
 
 class Page(HTMLParser):
     """The tags and attributes of a page, and its text."""
