@@ -176,3 +176,23 @@ def read_sole_object(text: str) -> tuple[dict[str, Any], int, int]:
 def read_one_object(text: str) -> dict[str, Any]:
     """The only JSON object in ``text`` (bare, fenced, or surrounded by prose), read strictly."""
     return read_sole_object(text)[0]
+
+
+def read_json_document(text: str, what: str = "the document") -> Any:
+    """A whole JSON document (an object or a list, nothing but whitespace around it) read as strictly
+    as an answer's object: duplicate keys, non-finite or huge numbers, bad Unicode and deep nesting
+    are refused with a :class:`ResponseParseError` naming ``what``. For JSON that came from an LLM by
+    another road (a recorded plan in a bag), so that it gets the answer's reading, not a second one."""
+    if _SURROGATE.search(text):
+        _check_text(text, what)
+    start = len(text) - len(text.lstrip())
+    try:
+        value, end = _strict_decoder().raw_decode(text, start)
+    except json.JSONDecodeError as error:
+        raise ResponseParseError(f"{what} is not valid JSON ({error.msg} at char {error.pos})") from None
+    except RecursionError:
+        raise ResponseParseError(f"{what} nests JSON too deeply to be read") from None
+    if text[end:].strip():
+        raise ResponseParseError(f"{what} holds more than one JSON value (text after char {end})")
+    _check_tree(value)
+    return value

@@ -77,6 +77,7 @@ def test_the_parser_keeps_the_full_contract():
     assert parse_response(json.dumps(long_plan)).planning == "p" * MAX_TEXT
 
 
+@pytest.mark.slow
 def test_the_backend_sends_caps_sized_from_its_own_max_tokens(built_plugins, fake_server):
     fake_server.default = Reply(answer(straight(100)))
     prompt = Prompt(system="S", user=(TextPart("user", "U"),))

@@ -218,6 +218,7 @@ def test_inspect_with_the_mock_gives_ablates_per_cell_moer(repo, tmp_path):
     assert usage.input_tokens == sum(t[2] for t in trials.values())
 
 
+@pytest.mark.slow
 def test_inspect_eval_runs_a_scenario_file_from_the_command_line(repo, tmp_path):
     logs = tmp_path / "logs"
     subprocess.run([str(INSPECT), "eval", "safeembodai/scenario",

@@ -191,8 +191,16 @@ def test_plan_messages_are_read_strictly(tmp_path):
                                         ("/plan", 3, plan('{"control": [{"command": "fly"}]}'))])
     verdicts = guard_bag(ok, Guard(), cmd_topic="/plan").verdicts
     assert [v.valid for v in verdicts] == [True, False] and verdicts[1].reasons[0].startswith("schema")
-    for name, text, expected in [("notjson", "{", "not a JSON plan"), ("shape", '{"plan": []}', '"control"'),
-                                 ("scalar", '{"control": 3}', "must be a list")]:
+    for name, text, expected in [("notjson", "{", "plan message is not valid JSON"),
+                                 ("shape", '{"plan": []}', '"control"'),
+                                 ("scalar", '{"control": 3}', "must be a list"),
+                                 # the LLM answers' strict reading, not json.loads' last-one-wins
+                                 ("twice", '{"control": [], "control": [{"command": "turn", "direction": "left", '
+                                           '"angle": 30}]}', "appears more than once"),
+                                 ("huge", '[{"command": "straight", "direction": "forward", "distance": 1e309}]',
+                                  "1e309"),
+                                 ("nan", '[{"command": "straight", "direction": "forward", "distance": NaN}]', "NaN"),
+                                 ("two", '[] []', "more than one JSON value")]:
         bad = write(tmp_path, name, base + [("/plan", 2, plan(text))])
         with pytest.raises(BagInputError, match=expected):
             guard_bag(bad, Guard(), cmd_topic="/plan")
