@@ -107,6 +107,7 @@ class _Totals:
     steps: int = 0
     prompt: int = 0
     completion: int = 0
+    estimated: bool = False
     distance: float = 0.0
     collisions: int = 0
     collisions_self: int = 0
@@ -129,6 +130,7 @@ class _Totals:
         self.steps += 1
         self.prompt += usage.prompt_tokens
         self.completion += usage.completion_tokens
+        self.estimated = self.estimated or usage.estimated
         self.interventions += record.interventions
         self.retries += record.retries
         self.attacked += bool(record.attacks)
@@ -166,6 +168,7 @@ class _Totals:
                error_kind: str | None = None) -> TrialResult:
         return TrialResult(
             spec=spec, outcome=outcome, steps=self.steps, prompt_tokens=self.prompt, completion_tokens=self.completion,
+            tokens_estimated=self.estimated,
             distance_mm=self.distance, collisions=self.collisions, collisions_self=self.collisions_self,
             collisions_struck=self.collisions_struck, interventions=self.interventions,
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,

@@ -20,7 +20,8 @@ attempt's record keeps the body as its text), and the rest is read as:
   relay's ``native_finish_reason`` (the provider's own) replaces it when that one is not a normal end.
 * numbers anywhere in the envelope are read as the answer's are: ``NaN``, literals over 32
   characters or magnitudes above 10^15 (a token count of 1e30) refuse the whole reply -- such a
-  server is broken; ``usage`` counts within that are clamped to [0, 2**31 - 1], non-numbers count 0.
+  server is broken; ``usage`` is read by :func:`read_usage`: anything but two whole, non-negative
+  counts is unusable (``usage_known`` False), and the backend counts the call's tokens itself.
 * a body that carries an ``error`` (an HTTP 200 carrying an error, with or without choices) -- an
   envelope error that quotes its message; a backend that sees it first treats it as the provider's
   error instead;
@@ -50,20 +51,34 @@ _REASONING_BLOCKS = ("reasoning_details", "thinking_blocks")
 _BLOCK_TEXT = ("text", "summary", "thinking", "content")
 
 
-def _count(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        if isinstance(value, float) and value == value and abs(value) < 2**63:
-            value = int(value)
-        else:
-            return 0
-    return min(MAX_TOKENS_REPORTED, max(0, value))
+def _count(value: Any) -> int | None:
+    """A whole, non-negative token count (an integral float too), clamped to 2**31 - 1; None otherwise."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, float):
+        if not (value == value and abs(value) < 2**63 and value.is_integer()):
+            return None
+        value = int(value)
+    if not isinstance(value, int) or value < 0:
+        return None
+    return min(MAX_TOKENS_REPORTED, value)
 
 
-def _usage(usage: Any) -> TokenUsage:
-    if not isinstance(usage, dict):
-        return TokenUsage()
-    return TokenUsage(prompt_tokens=_count(usage.get("prompt_tokens")),
-                      completion_tokens=_count(usage.get("completion_tokens")))
+def read_usage(usage: Any) -> TokenUsage | None:
+    """A server's ``usage`` (a mapping, or an object with the attributes), strictly: both
+    ``prompt_tokens`` and ``completion_tokens`` whole and non-negative, or None -- missing, null,
+    negative, fractional, text, or only ``total_tokens`` is unusable, never 0. The one reading of a
+    server's usage, for a raw body and for litellm's parsed response alike."""
+    if usage is None:
+        return None
+    get = usage.get if isinstance(usage, dict) else (lambda name: getattr(usage, name, None))
+    try:
+        prompt, completion = _count(get("prompt_tokens")), _count(get("completion_tokens"))
+    except Exception:  # an object whose attributes misbehave has no usable usage
+        return None
+    if prompt is None or completion is None:
+        return None
+    return TokenUsage(prompt_tokens=prompt, completion_tokens=completion)
 
 
 def error_text(body: Any) -> str | None:
@@ -151,7 +166,8 @@ def _check_strings(value: Any) -> None:
 def _read(data: Any, reply: BackendReply) -> BackendReply:
     if not isinstance(data, dict):
         raise ResponseParseError(f"the reply is not a JSON object (got {type(data).__name__})")
-    reply.usage = _usage(data.get("usage"))
+    usage = read_usage(data.get("usage"))
+    reply.usage, reply.usage_known = (usage, True) if usage is not None else (TokenUsage(), False)
     if isinstance(data.get("model"), str):
         reply.model = data["model"]  # whole: a backend masks its secrets before it shortens it
     message = error_message(data)
@@ -184,7 +200,7 @@ def _read(data: Any, reply: BackendReply) -> BackendReply:
 
 def reply_from_chat_completion(body: bytes | str, *, origin: str | None = None) -> BackendReply:
     """Read a chat-completion response body strictly (see the module docstring); never raises."""
-    reply = BackendReply(text="", origin=origin)
+    reply = BackendReply(text="", origin=origin, usage_known=False)  # known once read (a refused body: never)
     try:
         try:
             raw = body.decode("utf-8") if isinstance(body, (bytes, bytearray)) else str(body)

@@ -25,8 +25,12 @@ class _Record(BaseModel):
 
 
 class TokenUsage(_Record):
+    """Tokens a call used. ``estimated``: the server's own count was missing or unusable, so these
+    were counted here (the model's tokenizer over the request and the answer), never taken as 0."""
+
     prompt_tokens: int = Field(0, ge=0)
     completion_tokens: int = Field(0, ge=0)
+    estimated: bool = False
 
     @field_validator("prompt_tokens", "completion_tokens")
     @classmethod
@@ -41,6 +45,7 @@ class TokenUsage(_Record):
         return TokenUsage(
             prompt_tokens=self.prompt_tokens + other.prompt_tokens,
             completion_tokens=self.completion_tokens + other.completion_tokens,
+            estimated=self.estimated or other.estimated,
         )
 
 
@@ -256,6 +261,8 @@ class TrialResult(_Record):
     steps: int
     prompt_tokens: int = 0
     completion_tokens: int = 0
+    #: some of the tokens were counted here because the server's usage was missing or unusable
+    tokens_estimated: bool = False
     distance_mm: float = 0.0
     collisions: int = 0  # all collisions, attributed or not
     collisions_self: int = 0  # the robot's own motion made the contact

@@ -91,6 +91,8 @@ class BackendReply:
     choices: int | None = None
     envelope_error: str | None = None
     origin: str | None = None
+    #: False when the server's usage was missing or unusable: the backend then counts the tokens itself
+    usage_known: bool = True
 
 
 def finish_reason_text(reason: Any) -> str | None:

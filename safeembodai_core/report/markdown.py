@@ -112,8 +112,12 @@ def spending(results: list[TrialResult]) -> list[str]:
     priced = (f"${sum(c for c in costs if c is not None):.4f} at the backend's list price"
               if costs and all(c is not None for c in costs) else
               "no price: the backend knows none (a simulated pilot pays nothing)" if costs else "nothing to price")
+    estimated = sum(r.tokens_estimated for r in results)
+    counted = (f" **{plural(estimated, 'trial')} counted tokens here**: the server's usage was missing or "
+               "unusable, so the model's tokenizer counted the request and the answer (an estimate, never 0)."
+               if estimated else "")
     return [f"**Spent:** {tokens:,} tokens over {plural(len(results), 'trial')} (retries and `error` trials included; "
-            f"answers replayed from the response cache count as if paid); {priced}. Per cell, over its scored "
+            f"answers replayed from the response cache count as if paid); {priced}.{counted} Per cell, over its scored "
             "trials: `tokens_spent` and `cost_usd` in metrics.csv.", ""]
 
 

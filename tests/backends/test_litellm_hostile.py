@@ -10,16 +10,16 @@ import warnings
 import numpy as np
 import pytest
 
-from fake_openai import Raw, Reply, Status, Trickle
+from fake_openai import DROP, Envelope, Raw, Reply, Status, Trickle, choice
 from safeembodai_core.errors import BackendError
 from safeembodai_core.logs import redact
 from safeembodai_core.models import Prompt, TextPart, read_reply
+from safeembodai_core.models.chat_completion import read_usage
 from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
 from safeembodai_core.models.strict_json import ResponseParseError
 from safeembodai_core.testing import answer, turn
 from safeembodai_plugins.backends.litellm import call as litellm_call
 from safeembodai_plugins.backends.litellm.errors import scrub_message
-from safeembodai_plugins.backends.litellm.reply import token_count
 
 GOOD = answer(turn(30))
 LATE = answer(turn(90, "right"), planning="late answer")
@@ -129,21 +129,42 @@ def test_scrubbed_provider_text_is_one_line_without_internals_or_secrets():
     assert len(scrub_message("x" * 5000)) == 303
 
 
-def test_absurd_token_counts_are_clamped_and_never_raise(built_plugins, fake_server, fake_key):
-    fake_server.default = Reply(GOOD, usage=(10**12, -5))
+def test_absurd_token_counts_are_clamped_or_counted_here_and_never_raise(built_plugins, fake_server, fake_key):
+    fake_server.default = Reply(GOOD, usage=(10**12, 5))
     reply = _complete(built_plugins, fake_server)
-    assert (reply.usage.prompt_tokens, reply.usage.completion_tokens) == (2**31 - 1, 0)
+    assert (reply.usage.prompt_tokens, reply.usage.completion_tokens, reply.usage.estimated) == (2**31 - 1, 5, False)
     assert read_reply(reply).control[0].angle == 30
-    # past the strict reader's bound on any number (1e15) the whole envelope is refused, never a crash
+    # past the strict reader's bound on any number (1e15) the whole envelope is refused, never a crash;
+    # the call was paid all the same, so its tokens are counted here, not taken as 0
     fake_server.default = Reply(GOOD, usage=(10**30, -5))
     reply = _complete(built_plugins, fake_server)
-    assert (reply.usage.prompt_tokens, reply.usage.completion_tokens) == (0, 0)
+    assert reply.usage.estimated and reply.usage.prompt_tokens > 0
     assert "too large" in reply.envelope_error and GOOD.replace('"', '\\"') in reply.text
     with pytest.raises(ResponseParseError, match="refused as a whole"):
         read_reply(reply)
-    for value, count in [(12, 12), (12.9, 12), (-1, 0), (float("nan"), 0), (float("inf"), 0), (1e300, 2**31 - 1),
-                         ("12", 0), (None, 0), ([1], 0), (True, 0), (10**400, 2**31 - 1)]:
-        assert token_count(value) == count, value
+    for value, count in [({"prompt_tokens": 12, "completion_tokens": 3}, (12, 3)), ({"prompt_tokens": 12.0,
+                         "completion_tokens": 3}, (12, 3)), ({"prompt_tokens": 10**400, "completion_tokens": 0},
+                         (2**31 - 1, 0))]:
+        usage = read_usage(value)
+        assert (usage.prompt_tokens, usage.completion_tokens) == count, value
+    for value in [None, "12", [1], {"prompt_tokens": -1, "completion_tokens": 3}, {"prompt_tokens": 12.9,
+                  "completion_tokens": 3}, {"prompt_tokens": "12", "completion_tokens": 3}, {"total_tokens": 15},
+                  {"prompt_tokens": True, "completion_tokens": 3},
+                  {"prompt_tokens": float("nan"), "completion_tokens": 3},
+                  {"prompt_tokens": 12}, {"prompt_tokens": 12, "completion_tokens": None}]:
+        assert read_usage(value) is None, value
+
+
+@pytest.mark.parametrize("usage", [DROP, None, {"prompt_tokens": -10, "completion_tokens": 5},
+                                   {"prompt_tokens": 10.5, "completion_tokens": 5}, "many",
+                                   {"total_tokens": 1150}, {"prompt_tokens": "1000", "completion_tokens": "150"}],
+                         ids=["missing", "null", "negative", "fractional", "a string", "only total", "strings"])
+def test_an_unusable_usage_is_counted_here_never_zero(built_plugins, fake_server, fake_key, usage):
+    """Issue 35: every one of these counted 0 tokens, so no spending cap ever stopped a run."""
+    fake_server.default = Envelope([choice(GOOD)], {"usage": usage})
+    reply = _complete(built_plugins, fake_server)
+    assert reply.envelope_error is None and read_reply(reply).control[0].angle == 30
+    assert reply.usage.estimated and reply.usage.prompt_tokens > 0 and reply.usage.completion_tokens > 0
 
 
 def test_pydantic_warnings_about_an_odd_reply_never_reach_stderr(built_plugins, fake_server, fake_key, capfd):
@@ -155,8 +176,10 @@ def test_pydantic_warnings_about_an_odd_reply_never_reach_stderr(built_plugins, 
         warnings.simplefilter("always")
         assert _complete(built_plugins, fake_server).text == GOOD
         assert _complete(built_plugins, fake_server).text == "FRAGMENT-2"
-        with pytest.raises(BackendError, match="malformed reply"):
-            _complete(built_plugins, fake_server)
+        # litellm will not take that usage; the strict reading takes the reply and counts its tokens itself
+        # (before, the call failed as malformed and was paid again)
+        third = _complete(built_plugins, fake_server)
+        assert third.text == "FRAGMENT-4" and third.usage.estimated and len(fake_server.requests) == 3
     assert [str(w.message) for w in caught if "FRAGMENT" in str(w.message) or "serializ" in str(w.message)] == []
     assert "FRAGMENT" not in capfd.readouterr().err
 

@@ -10,7 +10,7 @@ import uuid
 import pytest
 import yaml
 
-from fake_openai import Reply, Status
+from fake_openai import DROP, Envelope, Reply, Status, choice
 from safeembodai_core.models import Outcome
 from safeembodai_core.runner import ScenarioRunner, trial_spec
 from safeembodai_core.scenario import parse_scenario
@@ -158,3 +158,25 @@ def test_a_trial_records_what_its_tokens_cost_at_the_models_list_price(built_plu
     mock = {**_scenario_data(fake_server, max_steps=2), "backend": "mock"}
     simulated, _ = _run(built_plugins, mock)
     assert simulated.tokens > 0 and simulated.cost_usd is None
+
+
+@pytest.mark.parametrize("usage", [DROP, None, {"total_tokens": 1150}, {"prompt_tokens": -1, "completion_tokens": 5}],
+                         ids=["missing", "null", "only total", "negative"])
+def test_a_server_that_reports_no_usable_usage_is_still_counted_capped_and_reported(
+        built_plugins, fake_server, fake_key, tmp_path, usage):
+    """Issue 35: with no usable usage every call counted 0 tokens, so ``--max-tokens`` never stopped a
+    run and report.md showed $0.00 for real spend. Now the calls are counted here, the cap applies
+    to that count, and the report says the counts were estimated."""
+    from safeembodai_core.ablation.spending import SpendingCap, SpendingCapReached
+    from safeembodai_core.report import write_report
+
+    fake_server.default = Envelope([choice(answer(turn(10)))], {"usage": usage})
+    result, _ = _run(built_plugins, _scenario_data(fake_server, max_steps=2))
+    assert result.tokens_estimated and result.prompt_tokens > 0 and result.completion_tokens > 0
+    assert result.cost_usd is not None and result.cost_usd > 0
+    with pytest.raises(SpendingCapReached):
+        SpendingCap(max_tokens=result.tokens).add(result)
+    scenario = parse_scenario(yaml.safe_dump(_scenario_data(fake_server, max_steps=2)), "<test>",
+                              registry=built_plugins.registry)
+    report = write_report(tmp_path, scenario, [result], plugins=built_plugins).read_text()
+    assert "**1 trial counted tokens here**" in report and "$0.0000" not in report

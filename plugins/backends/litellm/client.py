@@ -45,7 +45,7 @@ import structlog
 from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError
 from safeembodai_core.logs import register_secret
-from safeembodai_core.models import Prompt
+from safeembodai_core.models import Prompt, TokenUsage
 from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
 from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
 from safeembodai_core.quoting import quote_untrusted
@@ -57,7 +57,7 @@ from .errors import (MALFORMED, RATE_LIMITED, Failure, classify, exchange_failur
 from .limiter import limiter_for
 from .preflight import endpoint
 from .reply import reply_from_body, reply_from_response
-from .runtime import import_litellm
+from .runtime import count_completion_tokens, count_prompt_tokens, import_litellm
 from .transport import Recorder, openai_client, recording
 from ..messages import carries_images, chat_messages, response_format
 
@@ -263,12 +263,20 @@ class LiteLLMBackend(LLMBackend):
             self._pace()
             started = time.perf_counter()
             with recording() as recorder:  # call_with_deadline's worker sees it (a context copy)
+                failure = response = None
                 try:
                     response = call_with_deadline(self._litellm.completion, kwargs, o.timeout_s)
-                except Exception as error:  # every provider error is classified below
+                except (CallTimedOut, TooManyHungCalls) as error:
                     failure = self._failure(error, recorder, images)
-                else:
+                except Exception as error:  # every provider error is classified below
+                    # litellm could not parse a whole HTTP 200 body that the strict reading takes (a usage
+                    # it will not take, say): that reading is the reply, and the call is not paid again
+                    if not self._answered(recorder):
+                        failure = self._failure(error, recorder, images)
+                if failure is None:
                     reply = self._reply(response, recorder, time.perf_counter() - started)
+                    if not reply.usage_known:  # the call was paid all the same: never counted as 0
+                        reply.usage = self._counted(kwargs["messages"], reply.text)
                     self._limiter.spent(reply.usage.total, o.tokens_per_minute)
                     self._limiter.settle(answered=True)  # calls held after a 429 may go, its tokens counted
                     return reply
@@ -364,6 +372,27 @@ class LiteLLMBackend(LLMBackend):
     def close(self) -> None:
         if self._client is not None:
             self._finalizer()
+
+    def _answered(self, recorder: Recorder) -> bool:
+        """Whether the call's last exchange was a whole HTTP 200 body the strict reading takes as a reply."""
+        last = recorder.last
+        if self._client is None or last is None or last.status != 200 or last.body is None or last.refused:
+            return False
+        return reply_from_body(last.body, last.origin, self.options.model, self._secrets, 0.0).envelope_error is None
+
+    def _counted(self, messages: list[dict[str, Any]], text: str) -> TokenUsage:
+        """The call's tokens counted here, when the server's usage was missing or unusable: the
+        model's tokenizer (litellm's ``token_counter``), else the rough count of 4 characters a token."""
+        model = self.options.model
+        try:
+            prompt, answer = (count_prompt_tokens(messages, model, "litellm"),
+                              count_completion_tokens(text, model, "litellm"))
+        except Exception:  # a model litellm cannot tokenize: the rough count, still never 0
+            prompt, answer = count_prompt_tokens(messages, model, "estimate"), count_completion_tokens(text, model,
+                                                                                                      "estimate")
+        log.warning("backend.usage_estimated", backend=self.name, model=model, prompt_tokens=prompt,
+                    completion_tokens=answer)
+        return TokenUsage(prompt_tokens=prompt, completion_tokens=answer, estimated=True)
 
     def _reply(self, response: Any, recorder: Recorder, latency: float) -> BackendReply:
         o = self.options

@@ -28,18 +28,15 @@ is a short plain token (the configured one when the server names none).
 
 from __future__ import annotations
 
-import math
 import re
-from numbers import Real
 from typing import Any, Iterable
 
 from safeembodai_core.components import BackendReply
 from safeembodai_core.logs import mask_values
 from safeembodai_core.models import TokenUsage
-from safeembodai_core.models.chat_completion import reply_from_chat_completion
+from safeembodai_core.models.chat_completion import read_usage, reply_from_chat_completion
 from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason
 
-MAX_TOKENS_REPORTED = 2**31 - 1
 MODEL_CHARS = 100
 _NOT_PLAIN = re.compile(r"[^A-Za-z0-9_.:/@+\-]")
 
@@ -49,24 +46,9 @@ def plain(value: Any, most: int) -> str:
     return _NOT_PLAIN.sub("_", str(value)[:most])
 
 
-def token_count(value: Any) -> int:
-    """A server's token count as a sane int: clamped to [0, 2**31 - 1], non-numbers 0; never raises."""
-    if isinstance(value, bool) or not isinstance(value, Real):
-        return 0
-    if isinstance(value, int):
-        return min(MAX_TOKENS_REPORTED, max(0, value))
-    try:
-        number = float(value)
-        if not math.isfinite(number):
-            return 0
-        return int(min(MAX_TOKENS_REPORTED, max(0, int(value))))
-    except (TypeError, ValueError, OverflowError, ArithmeticError):
-        return 0
-
-
-def token_usage(usage: Any) -> TokenUsage:
-    return TokenUsage(prompt_tokens=token_count(getattr(usage, "prompt_tokens", 0)),
-                      completion_tokens=token_count(getattr(usage, "completion_tokens", 0)))
+def token_usage(usage: Any) -> TokenUsage | None:
+    """litellm's usage object through the one strict reading (None: unusable, to be counted)."""
+    return read_usage(usage)
 
 
 def model_name(reported: Any, configured: str, secrets: Iterable[str]) -> str:
@@ -121,9 +103,10 @@ def reply_from_response(response: Any, configured: str, secrets: Iterable[str], 
     message = getattr(choice, "message", None)
     content = getattr(message, "content", None)
     reasoning = getattr(message, "reasoning_content", None)
+    usage = token_usage(getattr(response, "usage", None))
     return BackendReply(
         text=mask_values(content if isinstance(content, str) else "", secrets),
-        usage=token_usage(getattr(response, "usage", None)), latency_s=latency_s,
+        usage=usage or TokenUsage(), usage_known=usage is not None, latency_s=latency_s,
         model=model_name(getattr(response, "model", None), configured, secrets),
         finish_reason=finish_reason(choice) if choice is not None else None,
         reasoning=mask_values(reasoning, secrets) if isinstance(reasoning, str) and reasoning else None,
