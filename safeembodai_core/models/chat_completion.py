@@ -64,6 +64,12 @@ def _count(value: Any) -> int | None:
     return min(MAX_TOKENS_REPORTED, value)
 
 
+def usage_believable(usage: TokenUsage, text: str) -> bool:
+    """Whether counts a reader took can be what a paid call used: a request is never 0 tokens, nor an
+    answer with text (litellm fills a missing usage with zeros for the routes it parses itself)."""
+    return usage.prompt_tokens > 0 and (usage.completion_tokens > 0 or not text)
+
+
 def read_usage(usage: Any) -> TokenUsage | None:
     """A server's ``usage`` (a mapping, or an object with the attributes), strictly: both
     ``prompt_tokens`` and ``completion_tokens`` whole and non-negative, or None -- missing, null,

@@ -35,6 +35,7 @@ MAX_DEPTH = 10
 QUOTE_CHARS = 60  # how much of an LLM-written fragment a refusal reason quotes
 _BAD_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f]")
 _SURROGATE = re.compile("[\ud800-\udfff]")
+_JSON_WHITESPACE = " \t\n\r"  # what JSON calls whitespace: no-break spaces and the like are not
 
 
 class ResponseParseError(ValueError):
@@ -179,20 +180,20 @@ def read_one_object(text: str) -> dict[str, Any]:
 
 
 def read_json_document(text: str, what: str = "the document") -> Any:
-    """A whole JSON document (an object or a list, nothing but whitespace around it) read as strictly
+    """A whole JSON document (one value, nothing but JSON whitespace around it) read as strictly
     as an answer's object: duplicate keys, non-finite or huge numbers, bad Unicode and deep nesting
     are refused with a :class:`ResponseParseError` naming ``what``. For JSON that came from an LLM by
     another road (a recorded plan in a bag), so that it gets the answer's reading, not a second one."""
     if _SURROGATE.search(text):
         _check_text(text, what)
-    start = len(text) - len(text.lstrip())
+    start = len(text) - len(text.lstrip(_JSON_WHITESPACE))
     try:
         value, end = _strict_decoder().raw_decode(text, start)
     except json.JSONDecodeError as error:
         raise ResponseParseError(f"{what} is not valid JSON ({error.msg} at char {error.pos})") from None
     except RecursionError:
         raise ResponseParseError(f"{what} nests JSON too deeply to be read") from None
-    if text[end:].strip():
+    if text[end:].strip(_JSON_WHITESPACE):
         raise ResponseParseError(f"{what} holds more than one JSON value (text after char {end})")
     _check_tree(value)
     return value

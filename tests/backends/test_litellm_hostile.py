@@ -157,8 +157,10 @@ def test_absurd_token_counts_are_clamped_or_counted_here_and_never_raise(built_p
 
 @pytest.mark.parametrize("usage", [DROP, None, {"prompt_tokens": -10, "completion_tokens": 5},
                                    {"prompt_tokens": 10.5, "completion_tokens": 5}, "many",
-                                   {"total_tokens": 1150}, {"prompt_tokens": "1000", "completion_tokens": "150"}],
-                         ids=["missing", "null", "negative", "fractional", "a string", "only total", "strings"])
+                                   {"total_tokens": 1150}, {"prompt_tokens": "1000", "completion_tokens": "150"},
+                                   {"prompt_tokens": 0, "completion_tokens": 0}],
+                         ids=["missing", "null", "negative", "fractional", "a string", "only total", "strings",
+                              "zeros"])
 def test_an_unusable_usage_is_counted_here_never_zero(built_plugins, fake_server, fake_key, usage):
     """Issue 35: every one of these counted 0 tokens, so no spending cap ever stopped a run."""
     fake_server.default = Envelope([choice(GOOD)], {"usage": usage})
@@ -202,3 +204,17 @@ def test_credentials_in_completion_kwargs_are_found_and_nothing_else():
                             "aws_secret_access_key": "aws-secret-987654321", "azure_ad_token": "ad-token-55555",
                             "max_completion_tokens": 50, "tokenizer": "gpt2-visible", "top_p": 0.5})
     assert found == ["Bearer tok-123456789", "tok-123456789", "aws-secret-987654321", "ad-token-55555"]
+
+
+@pytest.mark.parametrize("usage", [DROP, None, {"total_tokens": 1150}, {"prompt_tokens": 1000}],
+                         ids=["missing", "null", "only total", "no completion"])
+def test_a_route_litellm_parses_itself_does_not_turn_its_zero_filled_usage_into_a_free_call(
+        built_plugins, fake_server, fake_key, usage):
+    """Routes not read raw (``hosted_vllm/``, say) get litellm's usage object, which fills what the
+    server left out with zeros: a call of 0 prompt tokens, or an answer of 0 tokens, is not believed."""
+    fake_server.default = Envelope([choice(GOOD)], {"usage": usage})
+    backend = built_plugins.registry.build("llm_backend", "litellm", {
+        "model": "hosted_vllm/x", "api_base": fake_server.url, "api_key_env": "SAFEEMBODAI_TEST_KEY",
+        "backoff_s": 0.0, "backoff_max_s": 0.0, "timeout_s": 5.0, "max_retries": 0})
+    reply = backend.complete(_prompt(), np.random.default_rng(0))
+    assert reply.usage.estimated and reply.usage.prompt_tokens > 0 and reply.usage.completion_tokens > 0

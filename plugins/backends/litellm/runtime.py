@@ -32,6 +32,8 @@ def import_litellm() -> Any:
 
     litellm.suppress_debug_info = True
     litellm.set_verbose = False
+    # token_counter must not fetch a tokenizer from a hub for some model names (llama, cohere, ...): offline
+    litellm.disable_hf_tokenizer_download = True
     if hasattr(litellm, "telemetry"):
         litellm.telemetry = False
     for name in ("LiteLLM", "LiteLLM Router", "LiteLLM Proxy", "litellm"):
