@@ -70,7 +70,8 @@ class SlowdownZone:
             return 0
         if self.polygon_mm is not None:
             return int(np.count_nonzero(_in_polygon(points, np.array(self.polygon_mm))))
-        return int(np.count_nonzero(robot.body(float(self.band_mm)).inside(points)))  # type: ignore[arg-type]
+        band = self.band_mm if self.band_mm is not None else 0.0  # set whenever polygon_mm is not
+        return int(np.count_nonzero(robot.body(band).inside(points)))
 
 
 def _seconds(name: str, value: Any, positive: bool = False) -> float:

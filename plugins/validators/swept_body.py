@@ -22,6 +22,7 @@ it drives through a return just off the heading that the body sweeps, and accept
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
 
@@ -183,5 +184,5 @@ class SweptBodyRule(MotionValidator):
         verdict = Verdict(rule=self.name, valid=False, reason=(
             f"held {motion.duration_s:g} s, the body ({body}) touches {what} {_where(point)} of the robot "
             f"after {time_s:.2f} s"))
-        kind = "return" if touched is not None and touched[0] == time_s else "unseen"
+        kind: Literal["return", "unseen"] = "return" if touched is not None and touched[0] == time_s else "unseen"
         return MotionVerdict(verdict, time_s, kind, touched[0] if touched else None, hidden[0] if hidden else None)

@@ -90,8 +90,9 @@ class CommandFilter:
             raise ValueError(f"CommandFilter.on_pose: pose must be (x_mm, y_mm, heading_deg), got {pose!r}") from None
         if len(values) != 3:
             raise ValueError(f"CommandFilter.on_pose: pose must be (x_mm, y_mm, heading_deg), got {len(values)} values")
-        self._pose = tuple(finite_number("CommandFilter.on_pose", name, value)  # type: ignore[assignment]
-                           for name, value in zip(("x_mm", "y_mm", "heading_deg"), values))
+        x, y, heading = (finite_number("CommandFilter.on_pose", name, value)
+                         for name, value in zip(("x_mm", "y_mm", "heading_deg"), values))
+        self._pose = (x, y, heading)
 
     def _since_scan(self) -> tuple[float, float, float] | None:
         """Where the robot is now in the frame its latest scan was taken in; None when it has not moved
@@ -123,7 +124,8 @@ class CommandFilter:
             return Decision("stop", STOP, requested, time_s, report.reasons, age, report.collision_time_s)
         limited = self.guard.limit_twist(requested, self.horizon_s, slowdown=self.slowdown, lidar_mm=scan,
                                          since_scan=moved)
-        action = "forward" if not limited.limited else ("stop" if limited.stopped else "limit")
+        action: Literal["forward", "limit", "stop"] = (
+            "forward" if not limited.limited else ("stop" if limited.stopped else "limit"))
         return Decision(action, limited.twist if action != "stop" else STOP, requested, time_s, limited.reasons, age,
                         limited.collision_time_s)
 
