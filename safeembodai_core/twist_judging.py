@@ -23,8 +23,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from .geometry import Motion, read_polygon
-from .geometry.footprint import _in_polygon
+from .geometry import Motion, in_polygon, read_polygon
 from .guard_reports import LimitReport, TwistReport
 from .held_motion import MotionValidator, MotionVerdict
 from .models import Verdict
@@ -69,7 +68,7 @@ class SlowdownZone:
         if not len(points):
             return 0
         if self.polygon_mm is not None:
-            return int(np.count_nonzero(_in_polygon(points, np.array(self.polygon_mm))))
+            return int(np.count_nonzero(in_polygon(points, np.array(self.polygon_mm))))
         band = self.band_mm if self.band_mm is not None else 0.0  # set whenever polygon_mm is not
         return int(np.count_nonzero(robot.body(band).inside(points)))
 

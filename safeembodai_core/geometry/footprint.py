@@ -115,7 +115,7 @@ class Body:
         """Per (N, 2) point: inside the grown body or on its edge, as it stands now."""
         if self.polygon is None:
             return np.hypot(points[:, 0], points[:, 1]) <= self.reach_mm
-        inside = _in_polygon(points, self.polygon)
+        inside = in_polygon(points, self.polygon)
         if self.margin_mm > 0:
             inside |= _distance_to_edges(points, self.polygon) <= self.margin_mm
         return inside
@@ -142,7 +142,7 @@ class Body:
         return shape + (f" + {self.margin_mm:g} mm margin" if self.margin_mm else "")
 
 
-def _in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+def in_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Even-odd rule, with a point on an edge (to 1e-9 mm) counted inside; the edge distance is
     worked out only for the few points the rule left outside within the polygon's box."""
     x, y = points[:, 0:1], points[:, 1:2]
@@ -168,4 +168,4 @@ def _distance_to_edges(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     return np.min(np.hypot(nearest[..., 0], nearest[..., 1]), axis=1)
 
 
-__all__ = ["MAX_VERTICES", "Body", "read_polygon"]
+__all__ = ["MAX_VERTICES", "Body", "in_polygon", "read_polygon"]
