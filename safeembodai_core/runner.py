@@ -8,7 +8,6 @@ state leaks from one trial into the next.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Any
 
@@ -21,8 +20,11 @@ from .loop.trial import error_result
 from .models import TrialResult, TrialSpec
 from .plugins import Plugins
 from .refs import ComponentRef
-from .run_files import BAG_STORAGE_FILE, BAGS_DIR, trial_file_name
+from .run_files import BAG_STORAGE_FILE, BAGS_DIR
 from .scenario import Scenario
+from .trial_files import FolderFiles, TrialFiles, TrialOutputs, bag_file, trajectory_file
+
+__all__ = ["ScenarioRunner", "bag_file", "preflight", "trajectory_file", "trial_spec"]
 
 from .logs import get_logger
 
@@ -68,16 +70,6 @@ class PreflightError(SafeEmbodAIError):
     """The scenario's backend cannot work (no key, no server): raised before any trial runs."""
 
 
-def trajectory_file(run_dir: str | Path, trial_id: str) -> Path:
-    """Where the picture of ``trial_id`` goes in a run folder."""
-    return Path(run_dir) / "trajectories" / (trial_file_name(trial_id) + ".png")
-
-
-def bag_file(run_dir: str | Path, trial_id: str) -> Path:
-    """Where the bag of ``trial_id`` goes in a run folder that records bags."""
-    return Path(run_dir) / BAGS_DIR / trial_file_name(trial_id)
-
-
 def recorded_bag_storage(run_dir: str | Path | None) -> str | None:
     """The bag storage a run folder asks for (``bags/storage``), or None when it records no bags."""
     if run_dir is None:
@@ -106,14 +98,21 @@ class ScenarioRunner:
     """Builds and runs the trials of one scenario with one set of plugins."""
 
     def __init__(self, scenario: Scenario, plugins: Plugins, run_dir: str | Path | None = None,
-                 state: StateStore | None = None, save_trajectories: bool = False) -> None:
+                 state: StateStore | None = None, save_trajectories: bool = False,
+                 outputs: TrialOutputs | None = None) -> None:
+        """``outputs`` stands in for a run folder (a Ray worker's runner: its files, bag storage and
+        cache go back to the coordinator, ``ablation/relay.py``); else ``run_dir`` is read and written."""
         self.scenario = scenario
         self.plugins = plugins
         self.run_dir = str(run_dir) if run_dir is not None else None
-        self.save_trajectories = save_trajectories and run_dir is not None
-        self.bag_storage = recorded_bag_storage(run_dir)  # a ROS 2 bag per trial, as it ends
+        self.files: TrialFiles | None = (outputs.files if outputs is not None
+                                         else FolderFiles(run_dir) if run_dir is not None else None)
+        self.save_trajectories = save_trajectories and self.files is not None
+        # a ROS 2 bag per trial, as it ends
+        self.bag_storage = outputs.bag_storage if outputs is not None else recorded_bag_storage(run_dir)
         self._environments: dict[str, Any] = {}
         self._state = state
+        self._outputs = outputs
         self._cache: Any = None  # the response cache, opened with the first trial of a cacheable backend
 
     def build(self, kind: str, ref: ComponentRef, seed: int = 0) -> Any:
@@ -150,10 +149,15 @@ class ScenarioRunner:
     def _cached(self, backend: LLMBackend, spec: TrialSpec) -> LLMBackend:
         """``backend`` with its replies kept in the run's response cache (``loop/response_cache.py``),
         when it can say what it sends and the run folder keeps a cache; else ``backend`` itself."""
-        if self.run_dir is None or type(backend).cache_request is LLMBackend.cache_request:
+        if type(backend).cache_request is LLMBackend.cache_request:
             return backend
         from .loop.response_cache import CachedBackend, CacheSettings, ResponseCache
 
+        if self._outputs is not None:
+            cache = self._outputs.cache
+            return backend if cache is None else CachedBackend(backend, cache, spec.trial_id)
+        if self.run_dir is None:
+            return backend
         if self._cache is None:
             settings = CacheSettings.recorded(self.run_dir)
             if not settings.enabled:
@@ -187,7 +191,7 @@ class ScenarioRunner:
             parts.backend.close()
         if self.save_trajectories:
             self._save_trajectory(parts.environment, result)
-        if capture is not None:
+        if capture is not None and self.files is not None:
             self._save_bag(spec, capture, parts, result)
         return result
 
@@ -195,10 +199,9 @@ class ScenarioRunner:
         """Write the trial's bag (``bags/<trial>``), replacing one a resumed run left of an earlier try.
         A bag that cannot be written stops the run with an error naming it, as a picture does: the
         trial's result is stored (``safeembodai export`` makes the bag again from the run folder)."""
-        from .ros.bag_export import write_bag
-
         messages = self.bag_messages(spec, capture, self.state.steps(spec.trial_id), result, parts.environment.robot)
-        write_bag(bag_file(self.run_dir or ".", spec.trial_id), messages, self.bag_storage or "mcap", replace=True)
+        assert self.files is not None  # checked by the caller
+        self.files.bag(spec.trial_id, messages, self.bag_storage or "mcap")
 
     def bag_messages(self, spec: TrialSpec, capture: Any, records: list[Any], result: TrialResult | None,
                      robot: Any) -> list[Any]:
@@ -238,21 +241,9 @@ class ScenarioRunner:
         except Exception as error:  # a picture is a convenience: never lose a trial over it
             log.warning("trajectory.failed", trial=result.spec.trial_id, error=str(error))
             return False
-        if not picture:
+        if not picture or self.files is None:
             return False
-        path = self.trajectory_path(result.spec.trial_id)
-        partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            partial.write_bytes(picture)
-            os.replace(partial, path)
-        except OSError as error:
-            try:
-                partial.unlink(missing_ok=True)
-            except OSError:
-                pass
-            raise SafeEmbodAIError(f"cannot write the trajectory picture {path}: {error.strerror or error} "
-                                   f"(the trial's result is stored; resume the run once fixed)") from None
+        self.files.picture(result.spec.trial_id, picture)
         return True
 
     def draw_missing_trajectories(self, results: list[TrialResult]) -> int:

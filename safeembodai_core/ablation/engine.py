@@ -27,7 +27,7 @@ from ..plugins import Plugins
 from ..runner import ScenarioRunner
 from ..scenario import Scenario
 from .error_kinds import store_failed
-from .executors import ProcessExecutor, RayExecutor, SerialExecutor
+from .executors import ProcessExecutor, SerialExecutor
 from .run_folder import RunFolder, RunLock
 
 from ..logs import get_logger
@@ -105,9 +105,11 @@ class Ablation:
 
     def __init__(self, scenario: Scenario, plugins: Plugins, folder: RunFolder, *, resume: bool = False,
                  workers: int = 1, executor: str | None = None, address: str | None = None,
-                 bags: str | None = None, concurrency: int = 1, cache: Any = None) -> None:
+                 bags: str | None = None, concurrency: int = 1, cache: Any = None,
+                 connect_timeout_s: float | None = None) -> None:
         self.scenario, self.plugins, self.folder = scenario, plugins, folder
         self.workers, self.address, self.concurrency = workers, address, concurrency
+        self.connect_timeout_s = connect_timeout_s
         self.executor_name = check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
                                             concurrency=concurrency)
         if resume:
@@ -218,7 +220,20 @@ class Ablation:
             raise _not_persistent(self.executor_name, self.scenario)
         if self.executor_name == "process":
             return ProcessExecutor(scenario_json, str(self.folder.path), self.workers, self.concurrency)
-        return RayExecutor(scenario_json, str(self.folder.path), self.workers, self.address, self.concurrency)
+        return self._ray_executor(scenario_json)
+
+    def _ray_executor(self, scenario_json: dict[str, Any]) -> Any:
+        """Ray workers write nothing here: what they send is written by this process (``relay.py``)."""
+        from ..loop.response_cache import CacheSettings, ResponseCache
+        from .ray_executor import CONNECT_TIMEOUT_S, RayExecutor
+        from .relay import RelayedWrites
+
+        settings = CacheSettings.recorded(self.folder.path)
+        cache = ResponseCache(settings.path(self.folder.path), read=settings.read) if settings.enabled else None
+        writes = RelayedWrites(self.store, str(self.folder.path), cache)
+        return RayExecutor(scenario_json, writes, self.workers, self.address, self.concurrency,
+                           bag_storage=self.runner.bag_storage, cache=cache is not None,
+                           connect_timeout_s=self.connect_timeout_s or CONNECT_TIMEOUT_S)
 
     def redraw_missing_trajectories(self) -> int:
         """Draw the pictures of recorded trials that have none (see ``ScenarioRunner``)."""
@@ -242,7 +257,7 @@ class Ablation:
         executor = self._executor()
         try:
             for result in executor.run(pending):
-                if self.executor_name != "serial":
+                if self.executor_name == "process":
                     self.store.end_trial(result)  # idempotent: the worker's store already wrote it
                 self._note(result)
                 fresh.append(result)

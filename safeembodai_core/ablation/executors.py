@@ -1,4 +1,5 @@
-"""Where trials run: in this process, in a pool of worker processes, or on a Ray cluster.
+"""Where trials run on this machine: in this process, or in a pool of worker processes
+(``ray_executor.py``: on a Ray cluster).
 
 Every executor yields results as trials finish, in completion order. Results do not depend on the
 executor: a trial's seed comes from the scenario and its index only, and each worker builds its
@@ -15,109 +16,16 @@ from typing import Any, Iterator
 
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult, TrialSpec
+from .runner_pool import RATE_SHARE, RunnerPool, worker_logging
 from .warm_start import start_warm_server, worker_context
 
 #: How often the coordinator looks for a dead worker while it waits for results.
 POLL_S = 0.5
-#: The environment variable that tells a worker how many workers split a backend's rate limits.
-RATE_SHARE = "SAFEEMBODAI_RATE_SHARE"
 
 
-def build_worker_runner(scenario_json: dict[str, Any], run_dir: str, plugins: Any = None, state: Any = None) -> Any:
-    """What every worker thread (of a process or a Ray actor) runs trials with: its own worlds, built
-    from the recorded scenario; ``plugins`` and ``state`` (a :class:`.shared_store.SharedStateStore`)
-    may be shared by a process's threads, else it builds its own."""
-    from ..plugins import load_plugins
-    from ..runner import ScenarioRunner
-    from ..scenario import Scenario
-
-    scenario = Scenario.model_validate(scenario_json)
-    return ScenarioRunner(scenario, plugins or load_plugins(), run_dir=run_dir, save_trajectories=True, state=state)
-
-
-def _worker_logging() -> None:
-    """Logs go to a copy of stderr: a thread's ``silenced`` block (pybullet's chatter sent to
-    /dev/null through the process-wide descriptors 1 and 2) must not swallow another thread's warning."""
-    import sys
-
-    from ..logs import configure_logging
-
-    try:
-        sys.stderr = os.fdopen(os.dup(2), "w", buffering=1, encoding="utf-8", errors="replace")
-    except OSError:  # no stderr to copy: logs go where they would have gone
-        pass
-    configure_logging(os.environ.get("SAFEEMBODAI_WORKER_LOG_LEVEL", "warning"))
-
-
-class RunnerPool:
-    """Up to ``size`` trial runners, one per thread at a time, built when first needed."""
-
-    def __init__(self, scenario_json: dict[str, Any], run_dir: str, size: int, plugins: Any = None) -> None:
-        self.scenario_json, self.run_dir, self.size, self.plugins = scenario_json, run_dir, size, plugins
-        self._idle: queue.SimpleQueue[Any] = queue.SimpleQueue()
-        self._built = 0
-        self._lock = threading.Lock()
-        self._store: Any = None  # the threads' one state store, closed by the pool last
-        self._shared: Any = None  # ... behind the one lock all threads share
-        self._runners: list[Any] = []
-        # one runner built at a time: the first trials start while the others are still being built,
-        # instead of every thread sharing the GIL through its build
-        self._building = threading.Lock()
-
-    def run(self, spec: TrialSpec) -> TrialResult:
-        runner = self._take(spec)
-        try:
-            return runner.run(spec)
-        finally:
-            self._idle.put(runner)
-
-    def _take(self, spec: TrialSpec) -> Any:
-        try:
-            return self._idle.get_nowait()
-        except queue.Empty:
-            pass
-        with self._lock:
-            build = self._built < self.size
-            if build:
-                self._built += 1
-        if not build:
-            return self._idle.get()
-        with self._building:
-            if self.plugins is None:
-                from ..plugins import load_plugins
-
-                self.plugins = load_plugins()
-            if self._store is None and self.size > 1:
-                from .shared_store import SharedStateStore
-
-                self._store = self._build_store()
-                self._shared = SharedStateStore(self._store)
-            runner = build_worker_runner(self.scenario_json, self.run_dir, self.plugins, self._shared)
-            try:
-                runner.environment(spec.environment)  # the world, the slow part of a build
-            except Exception:  # the trial itself reports a world that cannot be built
-                pass
-        with self._lock:
-            self._runners.append(runner)
-        return runner
-
-    def _build_store(self) -> Any:
-        """The scenario's state store, built once for the pool's threads."""
-        from ..runner import ScenarioRunner
-        from ..scenario import Scenario
-
-        scenario = Scenario.model_validate(self.scenario_json)
-        return ScenarioRunner(scenario, self.plugins, run_dir=self.run_dir).build("state_store", scenario.state)
-
-    def close(self) -> None:
-        """Close every runner, then the shared store."""
-        with self._lock:
-            runners, self._runners = self._runners, []
-        for runner in runners:
-            runner.close()
-        if self._store is not None:
-            self._store.close()
-            self._store = None
+class WorkersLost(SafeEmbodAIError):
+    """The workers can run no more of the run's trials (killed, out of memory, a lost cluster):
+    finished trials are recorded, a resume runs the rest."""
 
 
 def _worker_main(scenario_json: dict[str, Any], run_dir: str, coordinator: int, concurrency: int,
@@ -137,7 +45,7 @@ def _worker_main(scenario_json: dict[str, Any], run_dir: str, coordinator: int, 
         os.environ.clear()
         os.environ.update(environ)
     os.environ[RATE_SHARE] = str(workers)
-    _worker_logging()
+    worker_logging()
     lock = hold_worker_lock(run_dir)  # noqa: F841 -- held until the process exits
     pool = RunnerPool(scenario_json, run_dir, concurrency)
 
@@ -219,8 +127,7 @@ class ProcessExecutor:
             except queue.Empty:
                 if any(p.exitcode not in (None, 0) for p in self.processes) or all(
                         p.exitcode is not None for p in self.processes):
-                    raise SafeEmbodAIError("a worker process died (killed or out of memory); finished trials are "
-                                           "recorded: resume the run to finish the rest") from None
+                    raise WorkersLost("a worker process died (killed or out of memory)") from None
                 continue
             if kind != "result":
                 raise SafeEmbodAIError(f"a worker failed: {payload}; finished trials are recorded: resume the run "
@@ -252,57 +159,3 @@ class ProcessExecutor:
         for channel in (self.tasks, self.results):
             channel.cancel_join_thread()  # never block on data no worker will read
             channel.close()
-
-
-class RayExecutor:
-    """One Ray actor per worker on a (local or remote) Ray cluster, each running up to
-    ``concurrency`` trials at once (a threaded actor, one trial runner per thread); needs the
-    ``ray`` extra."""
-
-    def __init__(self, scenario_json: dict[str, Any], run_dir: str, workers: int, address: str | None,
-                 concurrency: int = 1) -> None:
-        try:
-            import ray
-        except ImportError:
-            raise SafeEmbodAIError('the ray executor needs the ray extra: pip install -e ".[ray]"') from None
-        self.ray = ray
-        # a run must not phone home: Ray's usage stats stay off unless the user turned them on
-        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-        if not ray.is_initialized():
-            local = {"_node_ip_address": "127.0.0.1"} if address is None else {}
-            ray.init(address=address, include_dashboard=False, log_to_driver=False,
-                     ignore_reinit_error=True, configure_logging=False, **local)
-
-        @ray.remote
-        class TrialWorker:
-            def __init__(self, scenario_json, run_dir, concurrency, workers):
-                os.environ[RATE_SHARE] = str(workers)
-                _worker_logging()
-                self.pool = RunnerPool(scenario_json, run_dir, concurrency)
-
-            def run(self, spec_json):
-                return self.pool.run(TrialSpec.model_validate(spec_json)).model_dump(mode="json")
-
-        self.concurrency = concurrency
-        self.actors = [TrialWorker.options(max_concurrency=concurrency).remote(scenario_json, run_dir, concurrency,
-                                                                               workers) for _ in range(workers)]
-
-    def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
-        queue_ = [spec.model_dump(mode="json") for spec in specs]
-        load = {index: 0 for index in range(len(self.actors))}
-        running: dict[Any, int] = {}
-        while queue_ or running:
-            for index in load:
-                while queue_ and load[index] < self.concurrency:
-                    running[self.actors[index].run.remote(queue_.pop(0))] = index
-                    load[index] += 1
-            done, _ = self.ray.wait(list(running), num_returns=1)
-            for ref in done:
-                load[running.pop(ref)] -= 1
-                yield TrialResult.model_validate(self.ray.get(ref))
-
-    def close(self) -> None:
-        for actor in self.actors:
-            self.ray.kill(actor)
-
-    abort = close

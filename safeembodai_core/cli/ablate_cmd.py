@@ -17,14 +17,16 @@ import click
 from .common import load, load_recorded, scenario_options
 
 
-def _check_ray() -> None:
-    """Fail before a run folder is made, not after: the ray executor needs the ray extra."""
-    from ..errors import SafeEmbodAIError
+def _connect_ray(address, timeout_s) -> str:
+    """Fail before a run folder is made, not after: the ray executor needs the ray extra and a cluster
+    that answers. Returns the address connected to, for the run's header line."""
+    from ..ablation.ray_executor import _ray, connect
 
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        raise SafeEmbodAIError('the ray executor needs the ray extra: pip install -e ".[ray]"') from None
+    ray = _ray()
+    connected = connect(ray, address, timeout_s)
+    if address == "auto":  # whatever Ray found (RAY_ADDRESS, a cluster started here) is named in the header
+        connected = f"auto: {ray.get_runtime_context().gcs_address}"
+    return connected
 
 
 @click.command("ablate")
@@ -36,7 +38,11 @@ def _check_ray() -> None:
                    "8 for a remote litellm model, 1 otherwise).")
 @click.option("--executor", type=click.Choice(["serial", "process", "ray"]), default=None,
               help="Where trials run (default: serial for 1 worker and --concurrency 1, process otherwise).")
-@click.option("--address", default=None, help="Ray cluster address (with --executor ray; default: a local Ray).")
+@click.option("--address", default=None,
+              help="With --executor ray: the cluster, HOST:PORT, ray://HOST:PORT (Ray Client) or auto (RAY_ADDRESS, "
+                   "or a cluster started on this machine); default: a Ray of this machine only.")
+@click.option("--connect-timeout", type=click.FloatRange(min=0, min_open=True), default=30.0, show_default=True,
+              help="Seconds to wait for the Ray cluster at --address before giving up.")
 @click.option("--out", "out_root", type=click.Path(file_okay=False), default="runs", show_default=True,
               help="Folder that receives the run folder <scenario>-<time>.")
 @click.option("--resume", "resume_dir", type=click.Path(file_okay=False, exists=True), default=None,
@@ -56,8 +62,8 @@ def _check_ray() -> None:
                    "offline mock) and exit; nothing is sent, no folder is made.")
 @click.option("--bags", type=click.Choice(["mcap", "sqlite3"]), default=None,
               help="Also write each trial's ROS 2 bag into RUN/bags/ as it ends (docs/robots.md).")
-def ablate(scenario_path, backend, seed, overrides, workers, concurrency, executor, address, out_root, resume_dir,
-           no_report, cache_dir, no_cache, refresh, max_tokens, max_cost, dry_run, bags) -> None:
+def ablate(scenario_path, backend, seed, overrides, workers, concurrency, executor, address, connect_timeout, out_root,
+           resume_dir, no_report, cache_dir, no_cache, refresh, max_tokens, max_cost, dry_run, bags) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials.
 
     With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
@@ -67,6 +73,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
 
     from ..ablation import RunFolder
     from ..ablation.engine import check_executor, executor_name
+    from ..ablation.executors import WorkersLost
     from ..ablation.lifeline import StopSignals
     from ..ablation.spending import SpendingCapReached
     from ..errors import SafeEmbodAIError
@@ -88,8 +95,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
 
         show_estimate(scenario, plugins, resume_dir)
         return
-    if executor == "ray":
-        _check_ray()
+    where = _connect_ray(address, connect_timeout) if executor == "ray" else None
     _warm_workers_early(scenario, plugins, workers, executor, concurrency)
     from ..runner import preflight
 
@@ -104,12 +110,16 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     with StopSignals() as stop:
         try:
             results, report = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor,
-                                   address, bags, report=not no_report, concurrency=concurrency, cache=cache, cap=cap)
+                                   address, bags, report=not no_report, concurrency=concurrency, cache=cache, cap=cap,
+                                   where=where)
             console.print(summary_table(scenario, results, plugins=plugins))
             if report is not None:
                 console.print(f"report: {report}")
         except (KeyboardInterrupt, SafeEmbodAIError) as error:
             # a signal sent to the whole process group also kills workers: the broken pool is the signal's doing
+            if isinstance(error, WorkersLost) and stop.signum is None:
+                raise SafeEmbodAIError(f"{error}; finished trials are recorded: resume with --resume {folder.path}") \
+                    from None
             if isinstance(error, SpendingCapReached):
                 raise SafeEmbodAIError(f"{error}; finished trials are recorded, the answers of those cut off are "
                                        f"kept: resume with --resume {folder.path} (a cap counts from zero on "
@@ -190,7 +200,7 @@ def _spending_cap(scenario, plugins, max_tokens, max_cost):
 
 
 def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False,
-         concurrency=1, cache=None, cap=None):
+         concurrency=1, cache=None, cap=None, where=None):
     """Run the pending trials; return every result of the run and, with ``report``, the report
     written from the run's own store (its steps give refusals and attack kinds) before it closes."""
     from rich.markup import escape
@@ -207,8 +217,9 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address,
         cells = {(s.environment, s.arm, s.condition) for s in pending}
         console.print(f"run folder: {escape(str(folder.path))}", soft_wrap=True)  # whole, to copy
         in_flight = f", {concurrency} in flight per worker" if concurrency > 1 else ""
+        at = f" at {escape(terminal_text(where))}" if where else ""
         console.print(f"{plural(len(pending), 'trial')} to run in {plural(len(cells), 'cell')}"
-                      f" ({ablation.executor_name}, {plural(workers, 'worker')}{in_flight})")
+                      f" ({ablation.executor_name}{at}, {plural(workers, 'worker')}{in_flight})", soft_wrap=True)
         left = {cell: sum(1 for s in pending if (s.environment, s.arm, s.condition) == cell) for cell in cells}
         with AblationProgress(console) as progress:
             trials = progress.add_task("trials", total=len(pending))

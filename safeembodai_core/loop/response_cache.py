@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import stat
 import threading
 from dataclasses import asdict, dataclass
@@ -46,6 +47,10 @@ CACHE_DIR = "responses"
 SETTINGS_FILE = "response_cache.json"
 #: The largest stored reply read back (a reply's text is bounded far below by the loop).
 MAX_STORED_BYTES = 4_000_000
+#: Each trial's index of its keys (``<folder>/trials/<sha256 of the trial id>.keys``, a key a line).
+INDEX_DIR = "trials"
+MAX_INDEX_BYTES = 4_000_000
+_KEY = re.compile(r"[0-9a-f]{64}:[0-9]{1,9}")
 _TEXT_FIELDS = ("text", "model", "finish_reason", "reasoning", "envelope_error", "origin")
 
 
@@ -115,39 +120,84 @@ class ResponseCache:
         self.hits += 1
         return reply
 
-    def put(self, key: str, reply: BackendReply) -> None:
-        """Keep ``reply``; a reply that cannot be kept is logged, never a reason to lose a paid answer."""
-        data = asdict(reply)
-        data["usage"] = reply.usage.model_dump()
+    def put(self, key: str, reply: BackendReply, trial_id: str | None = None) -> None:
+        """Keep ``reply`` (and, with ``trial_id``, note its key in the trial's index, so a worker on
+        another machine can be handed the trial's replies: :meth:`replies_of`); a reply that cannot be
+        kept is logged, never a reason to lose a paid answer."""
+        try:
+            self.put_text(key, stored_text(reply), trial_id)
+        except ValueError as error:  # a number JSON cannot hold
+            log.warning("cache.unkept_reply", cache=str(self.folder), error=str(error))
+
+    def put_text(self, key: str, text: str, trial_id: str | None = None) -> None:
+        """Keep a reply already in its stored form (the caller has read it with :func:`stored_reply`)."""
+        if not _KEY.fullmatch(key):
+            raise ValueError(f"not a response cache key: {key[:80]!r}")
         target = self._path(key)
         aside = target.with_name(f".{target.name}.{os.getpid()}.{threading.get_ident()}")
         try:
-            text = json.dumps(data, allow_nan=False)
             target.parent.mkdir(exist_ok=True)
             aside.write_text(text, encoding="utf-8")
             os.replace(aside, target)
-        except (OSError, ValueError) as error:
+            if trial_id is not None:
+                self._note_key(trial_id, key)
+        except OSError as error:
             log.warning("cache.unkept_reply", cache=str(self.folder), error=str(error))
             aside.unlink(missing_ok=True)
+
+    def _index(self, trial_id: str) -> Path:
+        return self.folder / INDEX_DIR / (hashlib.sha256(trial_id.encode("utf-8")).hexdigest() + ".keys")
+
+    def _note_key(self, trial_id: str, key: str) -> None:
+        index = self._index(trial_id)
+        index.parent.mkdir(exist_ok=True)
+        descriptor = os.open(index, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        try:
+            os.write(descriptor, (key + "\n").encode("ascii"))
+        finally:
+            os.close(descriptor)
+
+    def replies_of(self, trial_id: str) -> dict[str, str]:
+        """The stored replies of ``trial_id`` (key -> stored text, each one :func:`stored_reply`
+        accepts), from the trial's index; empty when the cache is not read (``--refresh``). Replies
+        kept before the index existed are not found here (a worker on another machine calls again)."""
+        if not self.read:
+            return {}
+        listed = _read_regular(self._index(trial_id), MAX_INDEX_BYTES) or ""
+        replies: dict[str, str] = {}
+        for key in dict.fromkeys(listed.splitlines()):
+            text = _read_regular(self._path(key)) if _KEY.fullmatch(key) else None
+            if text is not None and stored_reply(text) is not None:
+                replies[key] = text
+        return replies
 
     def close(self) -> None:
         """Nothing to release: every reply is its own file."""
 
 
-def _read_regular(path: Path) -> str | None:
-    """The text of ``path`` if it is a regular file (no symlink followed) of at most
-    :data:`MAX_STORED_BYTES`; else None."""
+def stored_text(reply: BackendReply) -> str:
+    """``reply`` as the cache stores it (JSON; raises ValueError for a number JSON cannot hold)."""
+    data = asdict(reply)
+    data["usage"] = reply.usage.model_dump()
+    return json.dumps(data, allow_nan=False)
+
+
+def _read_regular(path: Path, limit: int = 0) -> str | None:
+    """The text of ``path`` if it is a regular file (no symlink followed) of at most ``limit`` bytes
+    (default :data:`MAX_STORED_BYTES`); else None."""
+    limit = limit or MAX_STORED_BYTES
     try:
-        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        # O_NONBLOCK: a FIFO put at a key must not hang the run in open (it is refused just below)
+        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
     except OSError:
         return None
     try:
         if not stat.S_ISREG(os.fstat(descriptor).st_mode):
             return None
-        data = os.read(descriptor, MAX_STORED_BYTES + 1)
+        data = os.read(descriptor, limit + 1)
     finally:
         os.close(descriptor)
-    if len(data) > MAX_STORED_BYTES:
+    if len(data) > limit:
         return None
     try:
         return data.decode("utf-8")
@@ -211,7 +261,7 @@ class CachedBackend(LLMBackend):
             log.debug("cache.hit", trial=self.trial_id, key=digest[:16])
             return kept
         reply = self.inner.complete(prompt, rng)
-        self.cache.put(key, reply)
+        self.cache.put(key, reply, self.trial_id)
         return reply
 
     def cost(self, prompt_tokens: int, completion_tokens: int) -> float | None:

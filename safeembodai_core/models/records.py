@@ -287,6 +287,9 @@ class TrialResult(_Record):
     cost_usd: float | None = Field(None, ge=0, le=1e9, allow_inf_nan=False)
     trajectory: list[Pose] = Field(default_factory=list)
     wall_time_s: float = 0.0
+    #: where the trial ran: the Ray node (its address and the start of its id) for a Ray run; None
+    #: for a trial run on the coordinator's machine (serial and process executors)
+    node: str | None = Field(None, max_length=80)
 
     @field_validator("prompt_tokens", "completion_tokens")
     @classmethod
