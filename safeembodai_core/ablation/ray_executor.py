@@ -6,10 +6,11 @@ trial streams what it leaves to the coordinator, which writes it as it arrives (
 shared disk is needed and ``--out`` may be relative.
 
 A lost node (its raylet killed, the machine gone) costs only the trials it was running: each runs
-again from its start on a remaining worker (an actor whose node is lost starts again elsewhere, up to
-:data:`MAX_RESTARTS` times; the response cache hands the re-run the replies already paid for). A
-trial cut off :data:`MAX_TRIAL_TRIES` times, or a cluster left with no worker, stops the run with
-:class:`~.executors.WorkersLost`: finished trials are recorded, and a resume finishes the rest.
+again from its start on a remaining worker (a lost worker is replaced by a new one on a node that
+lost none, up to :data:`MAX_RESTARTS` times per worker; the response cache hands the re-run the
+replies already paid for). A trial cut off :data:`MAX_TRIAL_TRIES` times, or a cluster left with no
+worker, stops the run with :class:`~.executors.WorkersLost`: finished trials are recorded, and a
+resume finishes the rest.
 
 Connecting: no address is a Ray of this machine only (``RAY_ADDRESS`` is ignored then); ``auto``
 lets Ray find one (``RAY_ADDRESS`` or a cluster started here); ``HOST:PORT`` and ``ray://HOST:PORT``
@@ -19,6 +20,7 @@ given ``connect_timeout_s``: a wrong address fails in seconds with a message nam
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import socket
@@ -34,7 +36,7 @@ from .relay import RelayedWrites, RelayWorker
 
 log = get_logger(__name__)
 
-#: How many times an actor is started again after its worker process or node was lost.
+#: How many times a worker is replaced after its process or its node was lost.
 MAX_RESTARTS = 3
 #: How many times a trial may be cut off by a lost worker before the run stops.
 MAX_TRIAL_TRIES = 3
@@ -109,8 +111,15 @@ def _init_within(ray: Any, address: str, timeout_s: float, options: dict[str, An
             failure.append(error)
 
     thread = threading.Thread(target=init, name="ray-connect", daemon=True)
-    thread.start()
-    thread.join(timeout_s)
+    quiet = _NotMainThreadNote()
+    logging.getLogger("ray").addFilter(quiet)
+    logging.getLogger("ray._private.worker").addFilter(quiet)
+    try:
+        thread.start()
+        thread.join(timeout_s)
+    finally:
+        logging.getLogger("ray").removeFilter(quiet)
+        logging.getLogger("ray._private.worker").removeFilter(quiet)
     if thread.is_alive():
         raise RayConnectError(f"cannot connect to the Ray cluster at {address}: no connection within {timeout_s:g} s "
                               "(--connect-timeout; is it a Ray head, and is this its Ray version?)")
@@ -120,6 +129,14 @@ def _init_within(ray: Any, address: str, timeout_s: float, options: dict[str, An
                               f"{type(failure[0]).__name__}: {first}") from None
 
 
+class _NotMainThreadNote(logging.Filter):
+    """Drops Ray's note that it set no SIGTERM handler when connecting from a thread: the run keeps
+    its own on purpose (see :func:`connect`)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return "SIGTERM handler is not set" not in record.getMessage()
+
+
 def _lost_errors(ray: Any) -> tuple[type[BaseException], ...]:
     """What Ray raises for a trial whose worker, its node or its results were lost."""
     e = ray.exceptions
@@ -127,9 +144,41 @@ def _lost_errors(ray: Any) -> tuple[type[BaseException], ...]:
                                                "ObjectLostError", "ActorUnschedulableError") if hasattr(e, name))
 
 
+def _live_nodes(ray: Any) -> list[str]:
+    """The cluster's live nodes (their ids, by address); empty where they cannot be listed."""
+    try:
+        return [node_id for _, node_id in sorted((node["NodeManagerAddress"], node["NodeID"])
+                                                 for node in ray.nodes() if node.get("Alive"))]
+    except (AttributeError, KeyError, TypeError):
+        return []
+
+
+def _client_mode(ray: Any) -> bool:
+    """Whether this process reaches its cluster through Ray Client (``ray://``)."""
+    try:
+        return bool(ray.util.client.ray.is_connected())
+    except AttributeError:  # a Ray without the client (or a stand-in)
+        return False
+
+
+class _Slot:
+    """One worker: its actor, the node it was put on, its trials in flight, and how often it was replaced."""
+
+    def __init__(self, actor: Any, node: str | None) -> None:
+        self.actor, self.node = actor, node
+        self.load = self.replaced = 0
+        self.generation = 0  # bumped with each new actor: a loss reported by an older one is not a new loss
+        self.alive = True
+
+
 class RayExecutor:
     """``workers`` Ray actors (:class:`~.relay.RelayWorker`), fed one trial at a time each thread;
-    what they send is written by ``writes`` (the coordinator's :class:`~.relay.RelayedWrites`)."""
+    what they send is written by ``writes`` (the coordinator's :class:`~.relay.RelayedWrites`).
+
+    Placement: the cluster's live nodes in turn, each actor pinned to its node (Ray's ``SPREAD``, and a
+    soft affinity, both put every worker of a two-node cluster on one node at times: the workers ask for
+    no CPU, as a trial's CPU use is the worker's own business). A worker that is lost (its process or
+    its node) is replaced by a new actor on a node that has lost none, up to :data:`MAX_RESTARTS` times."""
 
     def __init__(self, scenario_json: dict[str, Any], writes: RelayedWrites, workers: int, address: str | None,
                  concurrency: int = 1, *, bag_storage: str | None = None, cache: bool = False,
@@ -138,56 +187,103 @@ class RayExecutor:
         self.writes, self.concurrency = writes, concurrency
         self._owns_connection = not ray.is_initialized()
         self.address = connect(ray, address, connect_timeout_s) if self._owns_connection else "a running Ray"
-        actor = ray.remote(RelayWorker).options(
-            max_concurrency=concurrency, max_restarts=MAX_RESTARTS, max_task_retries=0,
-            num_cpus=0, scheduling_strategy="SPREAD")
-        self.actors = [actor.remote(scenario_json, concurrency, workers, bag_storage, cache) for _ in range(workers)]
+        self._arguments = (scenario_json, concurrency, workers, bag_storage, cache)
+        self._class = ray.remote(RelayWorker)
         self._lost = _lost_errors(ray)
+        self._suspect: set[str] = set()  # nodes that lost a worker
+        nodes = _live_nodes(ray)
+        self.slots = [_Slot(*self._start(nodes[k % len(nodes)] if nodes else None)) for k in range(workers)]
+        #: Ray Client streams nothing back: a trial's events then come all at once, when it is over
+        self.streaming = not _client_mode(ray)
+
+    @property
+    def actors(self) -> list[Any]:
+        return [slot.actor for slot in self.slots]
+
+    def _start(self, node: str | None) -> tuple[Any, str | None]:
+        """A new actor on ``node`` (pinned), or where Ray's ``SPREAD`` puts it when no node is named."""
+        placement: Any = "SPREAD"
+        if node is not None:
+            from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+            placement = NodeAffinitySchedulingStrategy(node_id=node, soft=False)
+        actor = self._class.options(max_concurrency=self.concurrency, max_restarts=0, max_task_retries=0, num_cpus=0,
+                                    scheduling_strategy=placement).remote(*self._arguments)
+        return actor, node
+
+    def _replace(self, slot: _Slot) -> None:
+        """Put a lost worker's slot on a node that has lost none (any live node if every one has)."""
+        if slot.node is not None:
+            self._suspect.add(slot.node)
+        try:
+            self.ray.kill(slot.actor)
+        except Exception:  # noqa: BLE001 -- an actor of a lost node: nothing to stop
+            pass
+        if slot.replaced >= MAX_RESTARTS:
+            slot.alive = False
+            return
+        nodes = _live_nodes(self.ray)
+        healthy = [node for node in nodes if node not in self._suspect] or nodes
+        used = Counter(other.node for other in self.slots if other.alive and other is not slot)
+        node = min(healthy, key=lambda n: used[n]) if healthy else None
+        slot.actor, slot.node = self._start(node)
+        slot.load = 0  # the old actor's trials in flight are lost with it (and re-queued as they report it)
+        slot.replaced += 1
+        slot.generation += 1
+        log.warning("ray.worker_replaced", node=node, times=slot.replaced)
 
     def run(self, specs: list[TrialSpec]) -> Iterator[TrialResult]:
         """Trials' results as they finish; each trial's records written before its result is yielded."""
         ray = self.ray
         waiting = deque(specs)
         tries: Counter[str] = Counter()
-        running: dict[Any, tuple[int, TrialSpec]] = {}
-        load = [0] * len(self.actors)
-        alive = [True] * len(self.actors)
+        running: dict[Any, tuple[_Slot, int, TrialSpec]] = {}
+        started: set[Any] = set()  # streams whose trial began on its worker
         while waiting or running:
-            for index, actor in enumerate(self.actors):
-                while waiting and alive[index] and load[index] < self.concurrency:
+            for slot in self.slots:
+                while waiting and slot.alive and slot.load < self.concurrency:
                     spec = waiting.popleft()
-                    stream = actor.run.remote(spec.model_dump(mode="json"), self.writes.replies_for(spec))
-                    running[stream] = (index, spec)
-                    load[index] += 1
+                    method = slot.actor.run if self.streaming else slot.actor.run_whole
+                    stream = method.remote(spec.model_dump(mode="json"), self.writes.replies_for(spec))
+                    running[stream] = (slot, slot.generation, spec)
+                    slot.load += 1
             if not running:
                 raise WorkersLost(f"the Ray cluster has no worker left ({len(waiting)} trials not run)")
             ready, _ = ray.wait(list(running), num_returns=1, timeout=POLL_S)
             for stream in ready:
-                index, spec = running[stream]
+                slot, generation, spec = running[stream]
                 try:
-                    event = ray.get(next(stream))
+                    events = [ray.get(next(stream))] if self.streaming else ray.get(stream)
                 except StopIteration:
-                    event = None
+                    events = None
                 except self._lost as error:
-                    event = error
-                if event is None or isinstance(event, BaseException):
+                    events = error
+                if events is None or isinstance(events, BaseException):
                     del running[stream]
-                    load[index] -= 1
-                    if isinstance(event, ray.exceptions.ActorDiedError):
-                        alive[index] = False
-                    self._cut_off(spec, event, tries, waiting)
+                    if generation == slot.generation:
+                        self._replace(slot)  # its other trials in flight fail too, and are re-queued
+                    self._cut_off(spec, events, stream in started or not self.streaming, tries, waiting)
+                    started.discard(stream)
                     continue
-                result = self.writes.receive(spec, event)
-                if result is not None:
-                    del running[stream]
-                    load[index] -= 1
-                    yield result
+                started.add(stream)
+                for event in events if isinstance(events, list) else ():
+                    result = self.writes.receive(spec, event)
+                    if result is not None:
+                        del running[stream]
+                        started.discard(stream)
+                        if generation == slot.generation:
+                            slot.load -= 1
+                        yield result
+                        break
 
-    def _cut_off(self, spec: TrialSpec, error: BaseException | None, tries: Counter[str], waiting: deque) -> None:
-        """A trial whose worker was lost: queued to run again from its start, or the run stops."""
-        tries[spec.trial_id] += 1
+    def _cut_off(self, spec: TrialSpec, error: BaseException | None, began: bool, tries: Counter[str],
+                 waiting: deque) -> None:
+        """A trial whose worker was lost: queued to run again from its start, or the run stops. A trial
+        that had not begun (its worker was already gone) is not counted against it."""
         why = type(error).__name__ if error is not None else "its stream ended early"
-        log.warning("ray.trial_cut_off", trial=spec.trial_id, tries=tries[spec.trial_id], error=why)
+        if began:
+            tries[spec.trial_id] += 1
+        log.warning("ray.trial_cut_off", trial=spec.trial_id, began=began, tries=tries[spec.trial_id], error=why)
         if tries[spec.trial_id] >= MAX_TRIAL_TRIES:
             raise WorkersLost(f"trial {spec.trial_id} was cut off {tries[spec.trial_id]} times by a lost Ray worker "
                               f"(last: {why})")
@@ -199,7 +295,7 @@ class RayExecutor:
                 self.ray.kill(actor)
             except Exception:  # noqa: BLE001 -- an actor of a lost node or a lost cluster: nothing to stop
                 pass
-        self.actors = []
+        self.slots = []
         if self._owns_connection:
             self.ray.shutdown()
             self._owns_connection = False

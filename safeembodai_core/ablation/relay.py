@@ -199,7 +199,12 @@ class RelayWorker:
         self.node = node_name()
 
     def run(self, spec_json: dict[str, Any], replies: dict[str, str]) -> Iterator[tuple[Any, ...]]:
+        """The trial's events as they happen (a Ray streaming generator)."""
         yield from relay_trial(self.hub, self.pool, self.node, spec_json, replies)
+
+    def run_whole(self, spec_json: dict[str, Any], replies: dict[str, str]) -> list[tuple[Any, ...]]:
+        """The trial's events all at once, when it is over: for Ray Client, which streams nothing."""
+        return list(relay_trial(self.hub, self.pool, self.node, spec_json, replies))
 
 
 def node_name() -> str:

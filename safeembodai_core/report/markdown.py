@@ -121,6 +121,16 @@ def spending(results: list[TrialResult]) -> list[str]:
             "trials: `tokens_spent` and `cost_usd` in metrics.csv.", ""]
 
 
+def nodes(results: list[TrialResult]) -> list[str]:
+    """Where the trials ran, for a run on a Ray cluster (nothing when every trial ran on this machine)."""
+    counts = Counter(r.node or "this machine" for r in results)
+    if set(counts) <= {"this machine"}:
+        return []
+    shown = ", ".join(f"`{_cell(node, 80)}` {count}" for node, count in sorted(counts.items()))
+    return [f"**Ran on:** {plural(len(counts), 'node')} ({shown} trials; a node is its address and the start "
+            "of its Ray id).", ""]
+
+
 def metrics_table(cells: list[Cell], catalog: Sequence[Metric] | None = None) -> list[str]:
     """The *Metrics per cell* table: a column per metric of ``catalog`` (the built-ins when None) that
     asks for one, a plugin's metrics described under it."""

@@ -116,7 +116,7 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
         writer.writeheader()
         writer.writerows(rows)
     metrics = [cell.metrics for cell in cells]
-    lines = markdown.header(scenario, info, len(results)) + markdown.spending(results)
+    lines = markdown.header(scenario, info, len(results)) + markdown.spending(results) + markdown.nodes(results)
     lines += markdown.metrics_table(cells, catalog) + markdown.outcomes_table(cells)
     lines += markdown.collision_rates_table(cells, rates)
     lines += markdown.world_rates_table(world_rates(scenario, cells), next(iter(scenario.arms)))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections import Counter
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -117,6 +118,7 @@ class RunSummary:
     tables: list[Any] = field(default_factory=list)  # report.md's tables (report_tables.Table)
     error: str | None = None
     page: str = ""  # the run page, relative to the site (none for an unreadable run)
+    nodes: list[tuple[str, int]] = field(default_factory=list)  # Ray nodes and their trials (none: this machine)
 
 
 def trial_page(trial_id: str) -> str:
@@ -155,6 +157,9 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
             summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition,
                                            s.index, r.outcome.value, r.steps, r.interventions, r.collisions_self,
                                            r.collisions_struck, r.detail))
+        if any(r.node for r in results):
+            counts = Counter(r.node or "this machine" for r in results)
+            summary.nodes = sorted(counts.items())
         summary.tables = report_tables(folder / "report.md")
         summary.figures = (sorted(p.name for p in (folder / "figures").glob("*.png"))
                            if (folder / "figures").is_dir() else [])

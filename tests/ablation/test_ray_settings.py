@@ -40,12 +40,13 @@ def test_a_run_never_phones_home_unless_the_user_says_so(monkeypatch):
     assert seen["usage_stats"] == "1"
 
 
-def test_workers_are_spread_over_nodes_restart_elsewhere_and_run_threads(monkeypatch):
+def test_workers_run_threads_and_are_replaced_by_the_executor_not_restarted_by_ray(monkeypatch):
     seen: dict = {}
     monkeypatch.setitem(sys.modules, "ray", fake_ray(seen))
     RayExecutor({}, None, workers=2, address=None, concurrency=16)
-    assert seen["actor_options"] == {"max_concurrency": 16, "max_restarts": MAX_RESTARTS, "max_task_retries": 0,
-                                     "num_cpus": 0, "scheduling_strategy": "SPREAD"}
+    assert seen["actor_options"] == {"max_concurrency": 16, "max_restarts": 0, "max_task_retries": 0,
+                                     "num_cpus": 0, "scheduling_strategy": "SPREAD"}  # no node listed: Ray's SPREAD
+    assert MAX_RESTARTS >= 1
 
 
 def test_no_address_is_a_ray_of_this_machine_whatever_RAY_ADDRESS_says(monkeypatch):
