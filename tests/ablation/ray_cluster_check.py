@@ -90,7 +90,10 @@ def main() -> None:
     subprocess.run(["ip", "link", "set", "lo", "up"], check=True)
     env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32),
                HOME=str(work / "home"), RAY_TMPDIR=str(work / "t"), PYTHONUNBUFFERED="1",
-               RAY_health_check_period_ms="1000", RAY_health_check_failure_threshold="3")
+               RAY_health_check_period_ms="1000", RAY_health_check_failure_threshold="3",
+               # Ray Client's server on the head starts a server per client: on a loaded 2-core machine that
+               # took more than its 30 s once (the client then fails); the run's own --connect-timeout follows
+               RAY_CLIENT_SERVER_CHECK_CHANNEL_TIMEOUT_S="150")
     env.pop("RAY_ADDRESS", None)
     dirs = {name: work / name for name in ("home", "t", "head", "node2", "driver")}
     for folder in dirs.values():
@@ -116,7 +119,8 @@ def main() -> None:
 
     # Ray Client
     report["client"] = ablate([scenario, "--set", "trials=1", "--executor", "ray", "--workers", "2", "--address",
-                               f"ray://127.0.0.1:{CLIENT_PORT}", "--out", "client", "--no-report"], driver, env)
+                               f"ray://127.0.0.1:{CLIENT_PORT}", "--connect-timeout", "180", "--out", "client",
+                               "--no-report"], driver, env)
     report["client"]["facts"] = facts(run_folder(report["client"]["out"], driver))
 
     # a node lost mid-run
