@@ -150,3 +150,32 @@ def markdown_literal(text: str) -> str:
     such as Inspect's transcript.
     """
     return _MARKDOWN_PUNCTUATION.sub(r"\\\1", terminal_text(text))
+
+
+#: What a spreadsheet reads as the start of a formula (OWASP's CSV injection list; a tab or a carriage
+#: return, the list's other two, is shown as an escape by :func:`terminal_text` first).
+_FORMULA_START = ("=", "+", "-", "@")
+
+
+def csv_cell(value: Any) -> Any:
+    """``value`` as a CSV cell a spreadsheet shows as it is: text shown as :func:`terminal_text` and, when
+    it starts like a formula (``= + - @``), behind a ``'``; numbers are
+    left alone (a negative difference stays a number), non-finite ones left empty."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return ""
+    if not isinstance(value, str):
+        return value
+    text = terminal_text(value)
+    return "'" + text if text.startswith(_FORMULA_START) else text
+
+
+def json_ready(value: Any) -> Any:
+    """``value`` with every non-finite float made None, so ``json.dumps(..., allow_nan=False)`` writes
+    standard JSON (``NaN`` and ``Infinity`` are not JSON, and most readers refuse them)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: json_ready(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(item) for item in value]
+    return value

@@ -22,6 +22,7 @@ from ..metrics.release import READINGS, ReleaseReadings
 from ..models import TrialResult
 from ..runner import trajectory_file
 from ..scenario import Scenario
+from ..text_safety import csv_cell, json_ready
 from . import markdown, step_facts
 from .cells import Cell, CollisionRates, collision_rates, release_of, scenario_cells, world_rates
 from .figures import draw_figures
@@ -109,12 +110,12 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
         summary["release_readings"] = {name: f"the authors' release's reading: {source}"
                                        for name, (_, source) in READINGS.items()}
     summary["trials"] = [r.model_dump(mode="json", exclude={"trajectory"}) for r in results]
-    (folder / "metrics.json").write_text(json.dumps(summary, indent=2), encoding="utf-8")
+    (folder / "metrics.json").write_text(json.dumps(json_ready(summary), indent=2, allow_nan=False), encoding="utf-8")
     fields = list(dict.fromkeys(key for row in rows for key in row)) or ["environment"]
     with (folder / "metrics.csv").open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows({key: csv_cell(value) for key, value in row.items()} for row in rows)
     metrics = [cell.metrics for cell in cells]
     lines = markdown.header(scenario, info, len(results)) + markdown.spending(results) + markdown.nodes(results)
     lines += markdown.metrics_table(cells, catalog) + markdown.outcomes_table(cells)

@@ -122,6 +122,10 @@ def main() -> None:
                                f"ray://127.0.0.1:{CLIENT_PORT}", "--connect-timeout", "180", "--out", "client",
                                "--no-report"], driver, env)
     report["client"]["facts"] = facts(run_folder(report["client"]["out"], driver))
+    if report["client"]["rc"] != 0:  # what the head's Ray Client server said, for the test's message
+        logs = sorted((work / "t").glob("ray/session_*/logs/ray_client_server*.err"))
+        report["client"]["server_logs"] = "".join(f"== {p.name}\n{p.read_text(errors='replace')[-1500:]}"
+                                                  for p in logs)
 
     # a node lost mid-run
     report["serial4"] = ablate([scenario, "--set", "trials=4", "--out", "serial4"], driver, env)

@@ -69,7 +69,7 @@ def cluster_report(repo):
 
 
 def _complete(run: dict, trials: int) -> dict:
-    assert run["rc"] == 0, run["err"][-2000:]
+    assert run["rc"] == 0, run["err"][-2000:] + run.get("server_logs", "")
     facts = run["facts"]
     assert len(facts["ledger"]) == len(set(facts["ledger"])) == trials  # nothing lost, nothing twice
     assert set(facts["nodes"]) == set(facts["ledger"])

@@ -1,0 +1,45 @@
+"""metrics.csv and metrics.json from hostile scenario names: no spreadsheet formula, no control
+character, no JSON that standard readers refuse."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+from safeembodai_core.ablation import Ablation, RunFolder
+from safeembodai_core.report import write_report
+from safeembodai_core.scenario import load_scenario
+from safeembodai_core.text_safety import csv_cell, json_ready
+
+
+def test_csv_cells_that_start_like_a_formula_are_text_numbers_stay_numbers():
+    assert csv_cell("=HYPERLINK(\"http://evil\")") == "'=HYPERLINK(\"http://evil\")"
+    assert [csv_cell(v) for v in ("+1", "-cmd", "@SUM(A1)")] == ["'+1", "'-cmd", "'@SUM(A1)"]
+    assert [csv_cell(v) for v in ("\tx", "\rx")] == ["\\tx", "\\rx"]  # shown as escapes: no longer a formula
+    assert csv_cell("arm\x1b[2J") == "arm\\x1b[2J"  # shown, not obeyed
+    assert csv_cell(-0.25) == -0.25 and csv_cell(3) == 3 and csv_cell(None) is None
+    assert csv_cell(math.nan) == "" and csv_cell(math.inf) == ""
+
+
+def test_json_ready_leaves_no_non_finite_number():
+    value = {"a": [1.0, math.nan, {"b": -math.inf}], "c": (math.inf, "x")}
+    assert json.loads(json.dumps(json_ready(value), allow_nan=False)) == {"a": [1.0, None, {"b": None}],
+                                                                         "c": [None, "x"]}
+
+
+def test_a_run_with_a_formula_for_an_arm_name_writes_inert_files(repo, plugins, tmp_path):
+    scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2"], plugins.registry)
+    arms = {("=cmd|' /C calc'!A0" if name == "baseline" else name): arm for name, arm in scenario.arms.items()}
+    scenario = scenario.model_copy(update={"arms": arms})
+    ablation = Ablation(scenario, plugins, RunFolder(tmp_path))
+    try:
+        results = ablation.run()
+        write_report(tmp_path, scenario, results, store=ablation.store, plugins=plugins)
+    finally:
+        ablation.close()
+    with (tmp_path / "metrics.csv").open(newline="", encoding="utf-8") as handle:
+        cells = [cell for row in csv.reader(handle) for cell in row]
+    assert "'=cmd|' /C calc'!A0" in cells
+    assert not any(cell.startswith(("=", "+", "@")) for cell in cells)
+    json.loads((tmp_path / "metrics.json").read_text(), parse_constant=lambda name: 1 / 0)  # no NaN/Infinity
