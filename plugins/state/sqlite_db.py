@@ -32,12 +32,17 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
+from pydantic import ValidationError
+
 from safeembodai_core.components import StateStore, StepFacts
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
 from safeembodai_core.text_safety import storable
 
 SCHEMA_VERSION = 1
+#: The longest any one read may take, and the most rows it may return (far beyond a real run's).
+MAX_QUERY_S = 120.0
+MAX_ROWS = 5_000_000
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -220,11 +225,58 @@ class SqliteStateStore(StateStore):
                 raise self._error(doing, error) from None
 
     def _query(self, doing: str, sql: str, args: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
+        """Rows of one query, bounded: a file from elsewhere may make ``trials`` a view that yields rows
+        forever, so a query stops with an error naming the file after :data:`MAX_QUERY_S` seconds or
+        :data:`MAX_ROWS` rows."""
         with self._lock:
+            conn = self._connection()
+            deadline = time.monotonic() + MAX_QUERY_S
+            conn.set_progress_handler(lambda: int(time.monotonic() > deadline), 10_000)
             try:
-                return self._connection().execute(sql, args).fetchall()
+                cursor = conn.execute(sql, args)
+                rows: list[tuple[Any, ...]] = []
+                while batch := cursor.fetchmany(1000):
+                    rows += batch
+                    if len(rows) > MAX_ROWS:
+                        raise StateStoreError(f"state store {str(self.path)!r}: cannot {doing}: more than "
+                                              f"{MAX_ROWS:,} rows (not a run's database?)")
+                return rows
+            except sqlite3.OperationalError as error:
+                if "interrupted" in str(error):
+                    raise StateStoreError(f"state store {str(self.path)!r}: cannot {doing}: the query took more "
+                                          f"than {MAX_QUERY_S:g} s (not a run's database?)") from None
+                raise self._error(doing, error) from None
             except sqlite3.Error as error:
                 raise self._error(doing, error) from None
+            finally:
+                conn.set_progress_handler(None, 0)
+
+    def _row(self, model: Any, text: Any, table: str, key: Any, column: str) -> Any:
+        """A stored record read back strictly: anything else is an error naming the file, table and row."""
+        where = f"state store {str(self.path)!r}, table {table}, row {key!r}"
+        if not isinstance(text, (str, bytes)):
+            raise StateStoreError(f"{where}: {column} is not JSON text")
+        try:
+            return model.model_validate_json(text)
+        except ValidationError as error:
+            first = error.errors()[0]
+            field = ".".join(str(part) for part in first["loc"]) or "(root)"
+            raise StateStoreError(f"{where}: {column} is not a {model.__name__}: {field}: {first['msg'][:200]}") \
+                from None
+
+    def _step_row(self, trial_id: str, step: int, text: Any) -> StepRecord:
+        record = self._row(StepRecord, text, "steps", (trial_id, step), "record")
+        if (record.trial_id, record.step) != (trial_id, step):
+            raise StateStoreError(f"state store {str(self.path)!r}, table steps, row {(trial_id, step)!r}: holds "
+                                  f"step {record.step} of trial {record.trial_id!r}")
+        return record
+
+    def _result_row(self, trial_id: str, text: Any) -> TrialResult:
+        result = self._row(TrialResult, text, "trials", trial_id, "result")
+        if result.spec.trial_id != trial_id:
+            raise StateStoreError(f"state store {str(self.path)!r}, table trials, row {trial_id!r}: holds the result "
+                                  f"of trial {result.spec.trial_id!r}")
+        return result
 
     # -- StateStore ---------------------------------------------------------------------------
 
@@ -266,7 +318,7 @@ class SqliteStateStore(StateStore):
     def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
         rows = self._query("read the reference state",
                            "SELECT record FROM steps WHERE trial_id = ? AND step = ?", (trial_id, step - 1))
-        return StepRecord.model_validate_json(rows[0][0]).to_reference() if rows else None
+        return self._step_row(trial_id, step - 1, rows[0][0]).to_reference() if rows else None
 
     def end_trial(self, result: TrialResult) -> None:
         result = storable(result)
@@ -285,9 +337,9 @@ class SqliteStateStore(StateStore):
         return list(self.iter_steps(trial_id))
 
     def iter_steps(self, trial_id: str) -> Iterator[StepRecord]:
-        rows = self._query("read steps", "SELECT record FROM steps WHERE trial_id = ? ORDER BY step", (trial_id,))
-        for (text,) in rows:
-            yield StepRecord.model_validate_json(text)
+        rows = self._query("read steps", "SELECT step, record FROM steps WHERE trial_id = ? ORDER BY step", (trial_id,))
+        for step, text in rows:
+            yield self._step_row(trial_id, step, text)
 
     def step_facts(self, trial_ids: Iterable[str]) -> dict[str, StepFacts]:
         """Refusals per rule and attacks per kind from two aggregate queries (milliseconds for
@@ -301,9 +353,16 @@ class SqliteStateStore(StateStore):
 
     def results(self) -> list[TrialResult]:
         """Every finished trial's result, cell by cell (what a resumed ablation skips)."""
-        rows = self._query("read trial results", "SELECT result FROM trials WHERE status = 'finished' "
+        rows = self._query("read trial results", "SELECT trial_id, result FROM trials WHERE status = 'finished' "
                                                  "ORDER BY environment, arm, condition, trial_index")
-        return [TrialResult.model_validate_json(text) for (text,) in rows]
+        seen: set[str] = set()
+        results = []
+        for trial_id, text in rows:
+            if trial_id in seen:
+                raise StateStoreError(f"state store {str(self.path)!r}, table trials: trial {trial_id!r} has two rows")
+            seen.add(trial_id)
+            results.append(self._result_row(trial_id, text))
+        return results
 
     @property
     def persistent(self) -> bool:
@@ -327,7 +386,7 @@ class SqliteStateStore(StateStore):
     def result(self, trial_id: str) -> TrialResult | None:
         """The stored result of a finished trial (None while it runs or if it never ended)."""
         rows = self._query("read a trial result", "SELECT result FROM trials WHERE trial_id = ?", (trial_id,))
-        return TrialResult.model_validate_json(rows[0][0]) if rows and rows[0][0] else None
+        return self._result_row(trial_id, rows[0][0]) if rows and rows[0][0] else None
 
     def close(self) -> None:
         if self._conn is not None:

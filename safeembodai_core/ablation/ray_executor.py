@@ -32,7 +32,7 @@ from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import TrialResult, TrialSpec
 from .executors import POLL_S, WorkersLost
-from .relay import RelayedWrites, RelayWorker
+from .relay import RelayedWrites, RelayError, RelayWorker
 
 log = get_logger(__name__)
 
@@ -138,10 +138,18 @@ class _NotMainThreadNote(logging.Filter):
 
 
 def _lost_errors(ray: Any) -> tuple[type[BaseException], ...]:
-    """What Ray raises for a trial whose worker, its node or its results were lost."""
+    """What Ray raises for a trial whose worker, its node or its results were lost (a worker killed for
+    memory included)."""
     e = ray.exceptions
     return tuple(getattr(e, name) for name in ("RayActorError", "WorkerCrashedError", "NodeDiedError",
-                                               "ObjectLostError", "ActorUnschedulableError") if hasattr(e, name))
+                                               "ObjectLostError", "ActorUnschedulableError", "OutOfMemoryError")
+                 if hasattr(e, name))
+
+
+def _last_line(error: BaseException) -> str:
+    """The last line of Ray's message (it carries the remote traceback before it)."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    return (lines[-1] if lines else type(error).__name__)[:300]
 
 
 def _live_nodes(ray: Any) -> list[str]:
@@ -190,6 +198,8 @@ class RayExecutor:
         self._arguments = (scenario_json, concurrency, workers, bag_storage, cache)
         self._class = ray.remote(RelayWorker)
         self._lost = _lost_errors(ray)
+        self._failed: tuple[type[BaseException], ...] = tuple(
+            error for error in (getattr(getattr(ray, "exceptions", None), "RayTaskError", None),) if error)
         self._suspect: set[str] = set()  # nodes that lost a worker
         nodes = _live_nodes(ray)
         self.slots = [_Slot(*self._start(nodes[k % len(nodes)] if nodes else None)) for k in range(workers)]
@@ -257,7 +267,11 @@ class RayExecutor:
                 except StopIteration:
                     events = None
                 except self._lost as error:
+                    if getattr(error, "actor_init_failed", False):  # a node without the project, say
+                        raise WorkersLost(f"a Ray worker could not start on its node: {_last_line(error)}") from None
                     events = error
+                except self._failed as error:  # an error of the worker's own, not of Ray's
+                    raise RelayError(f"a Ray worker failed on trial {spec.trial_id}: {_last_line(error)}") from None
                 if events is None or isinstance(events, BaseException):
                     del running[stream]
                     if generation == slot.generation:
@@ -275,6 +289,9 @@ class RayExecutor:
                             slot.load -= 1
                         yield result
                         break
+                else:
+                    if not self.streaming:  # a whole trial must end with its result
+                        raise RelayError(f"a Ray worker sent trial {spec.trial_id} without its end")
 
     def _cut_off(self, spec: TrialSpec, error: BaseException | None, began: bool, tries: Counter[str],
                  waiting: deque) -> None:

@@ -4,8 +4,11 @@ A Ray worker may run on a node with its own disk and its own working directory, 
 writes the run folder. Everything a trial leaves -- its steps as they are recorded (the one before
 a motion included), the result, the replies of a paid model, its picture and its bag -- travels to
 the coordinator as a stream of events (a Ray streaming generator per trial), and the coordinator
-writes each as it arrives, in the order the trial made it: the same write-ahead order as a worker
-writing directly (a motion that ran is on record before the next).
+writes each as it arrives, in the order the trial made it: the same order as a worker writing
+directly. Not the same moment: nothing waits for the coordinator's write, so a worker may be a few
+steps ahead of the run folder, and a failed write there stops the run after the worker went on (a
+serial run would have stopped the trial before its motion ran). A trial cut off meanwhile runs again
+from its start.
 
 The worker side keeps the records of its trials in flight (R_{i-1} for the next prompt and the
 bag's steps come from them) and forgets a trial once its stream ends. The coordinator side reads
@@ -165,11 +168,10 @@ def relay_trial(hub: RelayHub, pool: Any, node: str, spec_json: dict[str, Any],
 
     def work() -> None:
         try:
-            result = pool.run(spec)
+            done = ("done", pool.run(spec).model_dump(mode="json"))
         except BaseException as error:  # the runner records component failures itself: this is a bug
-            outbox.put(("failed", f"{type(error).__name__}: {error}"))
-            return
-        outbox.put(("done", result.model_dump(mode="json")))
+            done = ("failed", f"{type(error).__name__}: {error}")
+        outbox.put(done)
 
     try:
         yield ("node", node)
@@ -225,6 +227,7 @@ class RelayedWrites:
     def __init__(self, store: StateStore, run_dir: str, cache: Any = None) -> None:
         self.store, self.files, self.cache = store, FolderFiles(run_dir), cache
         self._nodes: dict[str, str] = {}
+        self._ended: set[str] = set()  # trials whose result the store holds, awaiting their "done"
 
     def replies_for(self, spec: TrialSpec) -> dict[str, str]:
         """The kept replies a worker is handed with ``spec`` (none without a cache)."""
@@ -241,6 +244,7 @@ class RelayedWrites:
         elif kind == "begin" and len(payload) == 1:
             if _model(TrialSpec, payload[0], trial) != spec:
                 raise RelayError(f"a worker began another trial than {trial}")
+            self._ended.discard(trial)
             self.store.begin_trial(spec)
         elif kind == "step" and len(payload) == 1:
             record = _model(StepRecord, payload[0], trial)
@@ -251,10 +255,15 @@ class RelayedWrites:
             self._keep_reply(trial, *payload)
         elif kind in ("end", "done") and len(payload) == 1:
             result = self._result(spec, payload[0])
-            if kind == "done":
-                self._nodes.pop(trial, None)
-                return result
-            self.store.end_trial(result)
+            if kind == "end":
+                self.store.end_trial(result)
+                self._ended.add(trial)
+                return None
+            if trial not in self._ended:  # a result the store never got would be counted as finished
+                raise RelayError(f"a worker ended trial {trial} without storing its result first")
+            self._ended.discard(trial)
+            self._nodes.pop(trial, None)
+            return result
         elif kind == "picture" and len(payload) == 1 and isinstance(payload[0], bytes):
             self.files.picture(trial, _bounded(payload[0], trial, "picture"))
         elif kind == "bag" and len(payload) == 1:

@@ -74,6 +74,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     from ..ablation import RunFolder
     from ..ablation.engine import check_executor, executor_name
     from ..ablation.executors import WorkersLost
+    from ..ablation.relay import RelayError
     from ..ablation.lifeline import StopSignals
     from ..ablation.spending import SpendingCapReached
     from ..errors import SafeEmbodAIError
@@ -117,7 +118,7 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
                 console.print(f"report: {report}")
         except (KeyboardInterrupt, SafeEmbodAIError) as error:
             # a signal sent to the whole process group also kills workers: the broken pool is the signal's doing
-            if isinstance(error, WorkersLost) and stop.signum is None:
+            if isinstance(error, (WorkersLost, RelayError)) and stop.signum is None:
                 raise SafeEmbodAIError(f"{error}; finished trials are recorded: resume with --resume {folder.path}") \
                     from None
             if isinstance(error, SpendingCapReached):

@@ -137,11 +137,12 @@ class ResponseCache:
         aside = target.with_name(f".{target.name}.{os.getpid()}.{threading.get_ident()}")
         try:
             target.parent.mkdir(exist_ok=True)
+            known = target.exists()  # a reply called again (--refresh): its key is in the index already
             aside.write_text(text, encoding="utf-8")
             os.replace(aside, target)
-            if trial_id is not None:
+            if trial_id is not None and not known:
                 self._note_key(trial_id, key)
-        except OSError as error:
+        except OSError as error:  # the reply, or only its index line (then a worker elsewhere calls again)
             log.warning("cache.unkept_reply", cache=str(self.folder), error=str(error))
             aside.unlink(missing_ok=True)
 
@@ -151,8 +152,12 @@ class ResponseCache:
     def _note_key(self, trial_id: str, key: str) -> None:
         index = self._index(trial_id)
         index.parent.mkdir(exist_ok=True)
-        descriptor = os.open(index, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
+        # O_NONBLOCK: a FIFO put at the index must not hang the run (it is refused below)
+        flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+        descriptor = os.open(index, flags, 0o644)
         try:
+            if not stat.S_ISREG(os.fstat(descriptor).st_mode):
+                raise OSError(f"{index} is not a regular file")
             os.write(descriptor, (key + "\n").encode("ascii"))
         finally:
             os.close(descriptor)

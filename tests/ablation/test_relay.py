@@ -153,3 +153,19 @@ def test_a_step_or_result_of_another_trial_is_refused(scenario, tmp_path):
             writes.receive(specs[1], done)
     finally:
         runner.close()
+
+
+def test_a_fifo_at_a_trials_index_never_hangs_and_a_key_is_noted_once(tmp_path):
+    import hashlib
+    import os
+
+    cache = ResponseCache(tmp_path / "responses")
+    key = "cd" * 32 + ":0"
+    cache.put(key, _reply(), "E/a/c/0")
+    cache.put(key, _reply("again"), "E/a/c/0")  # --refresh called again: the index keeps one line
+    assert list(cache.replies_of("E/a/c/0")) == [key]
+    index = tmp_path / "responses" / "trials" / (hashlib.sha256(b"E/a/c/1").hexdigest() + ".keys")
+    os.mkfifo(index)
+    cache.put("ef" * 32 + ":0", _reply(), "E/a/c/1")  # returns: the reply is kept, its index line is not
+    assert cache.get("ef" * 32 + ":0") == _reply()
+    assert cache.replies_of("E/a/c/1") == {}
