@@ -20,7 +20,7 @@ from .loop.trial import error_result
 from .models import TrialResult, TrialSpec
 from .plugins import Plugins
 from .refs import ComponentRef
-from .run_files import BAG_STORAGE_FILE, BAGS_DIR
+from .run_files import BAG_STORAGE_FILE, BAGS_DIR, read_run_text
 from .scenario import Scenario
 from .trial_files import FolderFiles, TrialFiles, TrialOutputs, bag_file, trajectory_file
 
@@ -76,10 +76,10 @@ def recorded_bag_storage(run_dir: str | Path | None) -> str | None:
         return None
     marker = Path(run_dir) / BAGS_DIR / BAG_STORAGE_FILE
     try:
-        storage = marker.read_text(encoding="utf-8").strip()
+        storage = read_run_text(marker, 1024).strip()
     except FileNotFoundError:
         return None
-    except (OSError, UnicodeDecodeError) as error:
+    except OSError as error:
         raise SafeEmbodAIError(f"{marker} is unreadable: {error}") from None
     if storage not in ("mcap", "sqlite3"):
         raise SafeEmbodAIError(f"{marker} says {storage[:40]!r}: it must say mcap or sqlite3")

@@ -20,12 +20,15 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SafeEmbodAIError
-from ..run_files import BAG_STORAGE_FILE, BAGS_DIR
+from ..run_files import BAG_STORAGE_FILE, BAGS_DIR, read_run_text
 from ..scenario import Scenario
 
 SCENARIO_FILE = "scenario.json"
 LEDGER_FILE = "finished.jsonl"
 COORDINATOR_LOCK = ".coordinator.lock"
+#: The largest scenario.json and finished.jsonl read back (far beyond a real run's).
+MAX_SCENARIO_BYTES = 16_000_000
+MAX_LEDGER_BYTES = 256_000_000
 WORKERS_LOCK = ".workers.lock"
 
 
@@ -82,10 +85,10 @@ class RunFolder:
     def recorded_scenario(self) -> dict[str, Any]:
         target = self.path / SCENARIO_FILE
         try:
-            record = json.loads(target.read_text(encoding="utf-8"))
+            record = json.loads(read_run_text(target, MAX_SCENARIO_BYTES))
         except FileNotFoundError:
             raise SafeEmbodAIError(f"{self.path} is not a run folder (no {SCENARIO_FILE})") from None
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
+        except (OSError, json.JSONDecodeError, RecursionError) as error:
             raise SafeEmbodAIError(f"{target} is unreadable: {error}") from None
         if not (isinstance(record, dict) and isinstance(record.get("fingerprint"), str)
                 and isinstance(record.get("scenario"), dict)):
@@ -129,10 +132,10 @@ class RunFolder:
         A line cut short by a kill in the middle of an append is ignored: its trial is in the store.
         """
         try:
-            text = self.ledger_path.read_text(encoding="utf-8")
+            text = read_run_text(self.ledger_path, MAX_LEDGER_BYTES)
         except FileNotFoundError:
             return None
-        except (OSError, UnicodeDecodeError) as error:
+        except OSError as error:
             raise SafeEmbodAIError(f"{self.ledger_path} is unreadable: {error}") from None
         ids = []
         for line in text.splitlines(keepends=True):

@@ -39,6 +39,7 @@ from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import ControlLimits, Prompt, TokenUsage
 from ..models.reply import BackendReply
+from ..run_files import read_regular_file, read_run_text
 
 log = get_logger(__name__)
 
@@ -76,10 +77,10 @@ class CacheSettings:
         it says nothing."""
         marker = Path(run_dir) / SETTINGS_FILE
         try:
-            data = json.loads(marker.read_text(encoding="utf-8"))
+            data = json.loads(read_run_text(marker, 65_536))
         except FileNotFoundError:
             return cls()
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
+        except (OSError, json.JSONDecodeError, RecursionError) as error:
             raise SafeEmbodAIError(f"{marker} is unreadable: {error}") from None
         if (not isinstance(data, dict) or set(data) != {"enabled", "folder", "read"}
                 or not isinstance(data["enabled"], bool) or not isinstance(data["read"], bool)
@@ -188,24 +189,11 @@ def stored_text(reply: BackendReply) -> str:
 
 
 def _read_regular(path: Path, limit: int = 0) -> str | None:
-    """The text of ``path`` if it is a regular file (no symlink followed) of at most ``limit`` bytes
-    (default :data:`MAX_STORED_BYTES`); else None."""
-    limit = limit or MAX_STORED_BYTES
+    """The text of ``path`` if it is a regular file (no symlink followed, never a FIFO) of at most
+    ``limit`` bytes (default :data:`MAX_STORED_BYTES`) in UTF-8; else None."""
+    data = read_regular_file(path, limit or MAX_STORED_BYTES)
     try:
-        # O_NONBLOCK: a FIFO put at a key must not hang the run in open (it is refused just below)
-        descriptor = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
-    except OSError:
-        return None
-    try:
-        if not stat.S_ISREG(os.fstat(descriptor).st_mode):
-            return None
-        data = os.read(descriptor, limit + 1)
-    finally:
-        os.close(descriptor)
-    if len(data) > limit:
-        return None
-    try:
-        return data.decode("utf-8")
+        return data.decode("utf-8") if data is not None else None
     except UnicodeDecodeError:
         return None
 

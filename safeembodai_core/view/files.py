@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import os
 import re
-import stat
 import tempfile
 from pathlib import Path
 
 from ..errors import SafeEmbodAIError
+from ..run_files import read_regular_file
 
 PNG = b"\x89PNG\r\n\x1a\n"
 MAX_PICTURE_BYTES = 20_000_000
@@ -34,21 +34,9 @@ def safe_name(text: str) -> str:
 
 def read_run_file(path: Path, max_bytes: int = MAX_PICTURE_BYTES, png: bool = False) -> bytes | None:
     """The bytes of ``path`` when it is a regular file (not a symlink) of at most ``max_bytes``
-    (and a PNG, with ``png``); None otherwise."""
-    try:
-        flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
-        fd = os.open(path, flags)
-    except OSError:
-        return None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode) or info.st_size > max_bytes:
-            return None
-        with os.fdopen(fd, "rb", closefd=False) as handle:
-            data = handle.read(max_bytes + 1)
-    finally:
-        os.close(fd)
-    if len(data) > max_bytes or (png and not data.startswith(PNG)):
+    (and a PNG, with ``png``); None otherwise (:func:`~safeembodai_core.run_files.read_regular_file`)."""
+    data = read_regular_file(path, max_bytes)
+    if data is None or (png and not data.startswith(PNG)):
         return None
     return data
 

@@ -113,3 +113,28 @@ def test_report_and_show_say_it_in_one_line(run, capsys):
         if done.value.code == 1:
             [line] = [line for line in err.splitlines() if line.startswith("Error: ")]
             assert "table trials" in line and ids[0] in line
+
+
+@pytest.mark.parametrize("name", ["scenario.json", "finished.jsonl", "response_cache.json"])
+@pytest.mark.parametrize("kind", ["fifo", "symlink", "folder"])
+def test_a_run_file_that_is_not_a_regular_file_is_refused_at_once(run, capsys, name, kind):
+    import os
+
+    folder, _ = run
+    target = folder / name
+    target.unlink(missing_ok=True)
+    if kind == "fifo":
+        os.mkfifo(target)  # a plain open() would wait here for a writer forever
+    elif kind == "symlink":
+        secret = folder.parent / "secret.json"
+        secret.write_text("{}")
+        target.symlink_to(secret)
+    else:
+        target.mkdir()
+    start = time.monotonic()
+    with pytest.raises(SystemExit) as done:
+        main(["ablate", "--resume", str(folder), "--no-report"])
+    err = capsys.readouterr().err
+    assert done.value.code == 1 and time.monotonic() - start < 30
+    [line] = [line for line in err.splitlines() if line.startswith("Error: ")]
+    assert name in line and "unreadable" in line and "Traceback" not in err
