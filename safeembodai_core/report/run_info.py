@@ -14,7 +14,6 @@ name a server reports in its replies is not part of the stored records, so it ca
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -123,11 +122,13 @@ def _options(scenario: Scenario, plugins: Any) -> dict[str, Any]:
 def _recorded_fingerprint(folder: Path | None) -> str | None:
     if folder is None:
         return None
+    from ..ablation.run_folder import RunFolder
+    from ..errors import SafeEmbodAIError
+
     try:
-        value = json.loads((folder / "scenario.json").read_text(encoding="utf-8")).get("fingerprint")
-    except (OSError, ValueError, AttributeError):
+        return RunFolder(folder).recorded_scenario()["fingerprint"]
+    except SafeEmbodAIError:  # no run folder's scenario: the report says so
         return None
-    return value if isinstance(value, str) else None
 
 
 def _answered_by(results: Any) -> list[str]:

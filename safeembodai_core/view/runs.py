@@ -6,7 +6,6 @@ Read-only: the results store is opened read-only, a run's lock is probed without
 
 from __future__ import annotations
 
-import json
 import os
 from collections import Counter
 from dataclasses import dataclass, field
@@ -172,8 +171,8 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
 def broken(folder: Path, error: Exception) -> RunSummary:
     """The index row of a run folder that cannot be read (its error shown, the rest left empty)."""
     try:
-        name = json.loads((folder / SCENARIO_FILE).read_text(encoding="utf-8"))["scenario"]["name"]
-    except Exception:
+        name = RunFolder(folder).recorded_scenario()["scenario"].get("name", "?")
+    except SafeEmbodAIError:  # the bounded reader's refusal (a FIFO, a symlink, not JSON): the row shows the error
         name = "?"
     return RunSummary(name=folder.name, path=folder, when="", scenario=str(name), backend="", model="", pilot="",
                       seed=0, trials_per_cell=0, total=0, finished=0, status="unreadable", simulated=None,
