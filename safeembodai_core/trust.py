@@ -35,7 +35,7 @@ ENTRY_POINTS: tuple[EntryPoint, ...] = (
                "safeembodai_core.run_files:read_run_text"),
     EntryPoint("run folder picture", "a picture or figure of a run folder shown by view",
                "safeembodai_core.run_files:read_regular_file"),
-    EntryPoint("results store", "results.sqlite's rows (a result, a step record), every query bounded",
+    EntryPoint("results store", "the sqlite store's rows (a result, a step record), every query bounded",
                "safeembodai_plugins.state.sqlite_db:SqliteStateStore._row"),
     EntryPoint("scenario file", "a scenario YAML given on the command line or read by a task",
                "safeembodai_core.scenario.limits:read_scenario_text"),
