@@ -38,7 +38,7 @@ from ..components import LLMBackend
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import ControlLimits, Prompt, TokenUsage
-from ..models.reply import BackendReply
+from ..models.reply import BackendReply, envelope_error_text, finish_reason_text, plain_token
 from ..run_files import read_regular_file, read_run_text
 
 log = get_logger(__name__)
@@ -217,9 +217,12 @@ def stored_reply(text: Any) -> BackendReply | None:
         if type(latency) not in (int, float) or not 0 <= latency < 86_400:
             return None
         usage = TokenUsage.model_validate(data.get("usage") or {})
-        return BackendReply(text=fields["text"], usage=usage, latency_s=float(latency), model=fields["model"] or "",
-                            finish_reason=fields["finish_reason"], reasoning=fields["reasoning"], choices=choices,
-                            envelope_error=fields["envelope_error"], origin=fields["origin"])
+        # cleaned as a live reply is: a cache file could hold anything in these fields
+        return BackendReply(text=fields["text"], usage=usage, latency_s=float(latency),
+                            model=plain_token(fields["model"]) if fields["model"] else "",
+                            finish_reason=finish_reason_text(fields["finish_reason"]), reasoning=fields["reasoning"],
+                            choices=choices, envelope_error=envelope_error_text(fields["envelope_error"]),
+                            origin=plain_token(fields["origin"], 200) if fields["origin"] else None)
     except (ValueError, TypeError, RecursionError):
         return None
 

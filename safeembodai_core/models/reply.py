@@ -95,6 +95,30 @@ class BackendReply:
     usage_known: bool = True
 
 
+#: The longest model name a reply keeps, and the characters it may hold (others become ``_``).
+MODEL_CHARS = 100
+_NOT_PLAIN = re.compile(r"[^A-Za-z0-9_.:/@+\-]")
+#: The longest envelope error a reply read back keeps (ours are far shorter).
+ENVELOPE_ERROR_CHARS = 300
+
+
+def plain_token(value: Any, most: int = MODEL_CHARS) -> str:
+    """``value`` as a short single token: characters outside ``[A-Za-z0-9_.:/@+-]`` become ``_``
+    (a model's name as a server or a stored reply gives it: never an escape sequence or Markdown)."""
+    return _NOT_PLAIN.sub("_", str(value)[:most])
+
+
+def envelope_error_text(error: Any) -> str | None:
+    """A stored reply's envelope error as this version would have written it: one line, shown as
+    terminal text, clipped visibly (a cache file could hold anything there)."""
+    if error is None:
+        return None
+    from ..text_safety import one_line, terminal_text
+
+    text = one_line(terminal_text(str(error)))
+    return text if len(text) <= ENVELOPE_ERROR_CHARS else text[:ENVELOPE_ERROR_CHARS] + CLIPPED
+
+
 def finish_reason_text(reason: Any) -> str | None:
     """A backend's finish reason as short text, as sent (an enum's value, say); None when not reported."""
     if reason is None:

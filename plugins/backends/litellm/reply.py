@@ -28,23 +28,14 @@ is a short plain token (the configured one when the server names none).
 
 from __future__ import annotations
 
-import re
 from typing import Any, Iterable
 
 from safeembodai_core.components import BackendReply
 from safeembodai_core.logs import mask_values
 from safeembodai_core.models import TokenUsage
 from safeembodai_core.models.chat_completion import read_usage, reply_from_chat_completion
-from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason
-
-MODEL_CHARS = 100
-_NOT_PLAIN = re.compile(r"[^A-Za-z0-9_.:/@+\-]")
-
-
-def plain(value: Any, most: int) -> str:
-    """``value`` as a short single token: characters outside ``[A-Za-z0-9_.:/@+-]`` become ``_``."""
-    return _NOT_PLAIN.sub("_", str(value)[:most])
-
+from safeembodai_core.models.reply import (NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason,
+                                           plain_token)
 
 def token_usage(usage: Any) -> TokenUsage | None:
     """litellm's usage object through the one strict reading (None: unusable, to be counted)."""
@@ -55,7 +46,7 @@ def model_name(reported: Any, configured: str, secrets: Iterable[str]) -> str:
     """The model the server names (a short plain token, secrets masked), or the configured one."""
     if not isinstance(reported, str) or not reported:
         return configured
-    return plain(mask_values(reported, secrets), MODEL_CHARS)
+    return plain_token(mask_values(reported, secrets))
 
 
 def _masked(text: str | None, secrets: Iterable[str]) -> str | None:
