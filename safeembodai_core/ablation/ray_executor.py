@@ -121,8 +121,10 @@ def _init_within(ray: Any, address: str, timeout_s: float, options: dict[str, An
         logging.getLogger("ray").removeFilter(quiet)
         logging.getLogger("ray._private.worker").removeFilter(quiet)
     if thread.is_alive():
+        client = (" Ray Client's server on the head fails now and then to start a server for a new client "
+                  "(ray-project/ray#63202): try again." if address.startswith("ray://") else "")
         raise RayConnectError(f"cannot connect to the Ray cluster at {address}: no connection within {timeout_s:g} s "
-                              "(--connect-timeout; is it a Ray head, and is this its Ray version?)")
+                              f"(--connect-timeout; is it a Ray head, and is this its Ray version?).{client}")
     if failure:
         first = (str(failure[0]).strip().splitlines() or [""])[-1][:300]
         raise RayConnectError(f"cannot connect to the Ray cluster at {address}: "

@@ -118,9 +118,15 @@ def main() -> None:
     report["ray"]["facts"] = facts(run_folder(report["ray"]["out"], driver))
 
     # Ray Client
-    report["client"] = ablate([scenario, "--set", "trials=1", "--executor", "ray", "--workers", "2", "--address",
-                               f"ray://127.0.0.1:{CLIENT_PORT}", "--connect-timeout", "180", "--out", "client",
-                               "--no-report"], driver, env)
+    # Ray's client server on the head dies now and then as it forks a server for a new client (a gRPC race,
+    # ray-project/ray#63202, open): the connection then fails, and a new invocation is the documented remedy
+    for attempt in range(1, 4):
+        report["client"] = ablate([scenario, "--set", "trials=1", "--executor", "ray", "--workers", "2", "--address",
+                                   f"ray://127.0.0.1:{CLIENT_PORT}", "--connect-timeout", "60", "--out",
+                                   f"client{attempt}", "--no-report"], driver, env)
+        report["client"]["attempts"] = attempt
+        if "cannot connect to the Ray cluster" not in report["client"]["err"]:
+            break
     report["client"]["facts"] = facts(run_folder(report["client"]["out"], driver))
     if report["client"]["rc"] != 0:  # what the head's Ray Client server said, for the test's message
         logs = sorted((work / "t").glob("ray/session_*/logs/ray_client_server*.err"))

@@ -97,6 +97,8 @@ def test_a_listening_port_that_never_answers_as_ray_fails_within_the_timeout():
         hung = fake_ray({}, init=lambda **kwargs: time.sleep(30))  # Ray's init retrying forever
         with pytest.raises(RayConnectError, match=f"{address}: no connection within 0.5 s"):
             connect(hung, address, timeout_s=0.5)
+        with pytest.raises(RayConnectError, match=r"try again\.$"):  # Ray Client's own flakiness is named
+            connect(hung, f"ray://{address}", timeout_s=0.5)
 
 
 def test_a_connection_ray_refuses_is_one_line_naming_the_address():
