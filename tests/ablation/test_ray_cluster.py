@@ -102,7 +102,9 @@ def test_ray_client_runs_the_same_trials(cluster_report):
 def test_a_node_killed_mid_run_loses_and_duplicates_nothing(cluster_report):
     assert cluster_report["killed_pids"] > 0
     killed = cluster_report["killed"]
-    assert "ray.trial_cut_off" in killed["err"] and "began=True" in killed["err"]  # a trial was cut off mid-way
+    # the lost worker was replaced; almost always a trial of it was cut off mid-way too (the node can be
+    # killed in the moment between two of its trials: test_ray_recovery.py checks a cut-off trial exactly)
+    assert "ray.worker_replaced" in killed["err"], killed["err"][-2000:]
     if killed["rc"] != 0:  # a clean stop is allowed: then a resume must finish it
         assert "--resume" in killed["err"]
         assert cluster_report["resumed"]["rc"] == 0, cluster_report["resumed"]["err"][-2000:]
