@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pytest
 
+from .processes import processes_naming
+
 pytest.importorskip("ray", reason='the ray extra is not installed: pip install -e ".[ray]"')
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.timeout(900)]
@@ -38,20 +40,6 @@ def _namespaces_or_skip() -> None:
         pytest.skip(f"namespaces are unavailable here: {probe.stderr.strip()[:200]}")
 
 
-def _left_behind(marker: str) -> list[str]:
-    """Processes of this machine whose command line names ``marker`` (the cluster's private folder)."""
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
-            except OSError:
-                continue
-            if marker in command and entry.name != str(os.getpid()):
-                found.append(f"{entry.name}: {command[:120]}")
-    return found
-
-
 @pytest.fixture(scope="module")
 def cluster_report(repo):
     _namespaces_or_skip()
@@ -62,7 +50,7 @@ def cluster_report(repo):
                               capture_output=True, text=True, timeout=840)
         assert done.returncode == 0, done.stderr[-3000:]
         report = json.loads(done.stdout)
-        report["left_behind"] = _left_behind(work)
+        report["left_behind"] = processes_naming(work)
         yield report
     finally:
         shutil.rmtree(work, ignore_errors=True)

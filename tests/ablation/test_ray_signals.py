@@ -14,23 +14,11 @@ from pathlib import Path
 
 import pytest
 
+from .processes import processes_naming
+
 pytest.importorskip("ray", reason='the ray extra is not installed: pip install -e ".[ray]"')
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow]
-
-
-def _processes_naming(marker: str) -> list[str]:
-    found = []
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                command = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
-                state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
-            except OSError:
-                continue
-            if marker in command and state != "Z":
-                found.append(command[:120])
-    return found
 
 
 def _ledger(out: Path) -> list[str]:
@@ -60,7 +48,7 @@ def test_sigterm_under_ray_is_the_documented_stop_and_resume_finishes(repo, tmp_
         assert "interrupted (SIGTERM)" in stdout and f"resume with --resume {folder}" in stdout.replace("\n", "")
         assert "Traceback" not in stderr
         time.sleep(1)
-        assert _processes_naming(scratch) == []  # the Ray this run started ended with it
+        assert processes_naming(scratch) == []  # the Ray this run started ended with it
 
         done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", "--resume", str(folder),
                                "--executor", "ray", "--workers", "2", "--no-report"], env=env, capture_output=True,
