@@ -33,8 +33,8 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int) -> Non
     refresh = 5 if serve else 0
     with console.status("rendering"):
         counts = build_site(root, target, plugins, refresh=refresh)
-    console.print(f"{counts['runs']} run(s), {counts['trials']} trial page(s) rendered into "
-                  f"{terminal_markup(str(target))}")
+    console.print(f"{counts['found']} run(s) found, {counts['runs']} rendered anew ({counts['trials']} trial "
+                  f"page(s)), the others unchanged, into {terminal_markup(str(target))}")
     if not serve:
         console.print(f"open {terminal_markup(str(target / 'index.html'))}")
         return

@@ -20,13 +20,24 @@ from .report_tables import report_tables
 
 
 def find_runs(source: Path) -> list[Path]:
-    """``source`` itself when it is a run folder (holds ``scenario.json``), else its run folders."""
+    """``source`` itself when it is a run folder (holds ``scenario.json``), else the run folders in it and
+    one level further down (``ablate --out runs/X`` puts its run in ``runs/X/<scenario>-<time>``), by path.
+    A folder that holds none is an error naming it (a ``safeembodai run`` folder is one trial, not a run)."""
     if (source / SCENARIO_FILE).is_file():
         return [source]
     if not source.is_dir():
         raise SafeEmbodAIError(f"{source} is neither a run folder nor a folder of runs")
-    return sorted((p for p in source.iterdir() if p.is_dir() and (p / SCENARIO_FILE).is_file()),
-                  key=lambda p: p.name)
+    found = []
+    for child in sorted(p for p in source.iterdir() if p.is_dir() and not p.is_symlink()):
+        if (child / SCENARIO_FILE).is_file():
+            found.append(child)
+        else:
+            found += sorted(p for p in child.iterdir() if p.is_dir() and not p.is_symlink()
+                            and (p / SCENARIO_FILE).is_file())
+    if not found:
+        raise SafeEmbodAIError(f"{source} holds no run folder (a run folder, which 'safeembodai ablate' writes, holds "
+                               f"{SCENARIO_FILE}; a 'safeembodai run' folder holds one trial's trial.json)")
+    return found
 
 
 def running(folder: Path) -> bool:

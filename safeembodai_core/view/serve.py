@@ -34,6 +34,12 @@ class _Handler(SimpleHTTPRequestHandler):
             self.send_error(421, "Misdirected Request")
             return None
         asked = unquote(urlsplit(self.path).path)
+        if asked == "/":  # the address `view --serve` prints without its page: the index
+            self.send_response(302)
+            self.send_header("Location", "/index.html")
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+            return None
         path = Path(self.translate_path(self.path))
         root = Path(os.path.realpath(self.directory))
         real = Path(os.path.realpath(path))

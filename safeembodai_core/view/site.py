@@ -43,23 +43,25 @@ def _cached(known: dict[str, Any], folder: Path) -> RunSummary | None:
 
 
 def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh: int = 0) -> dict[str, int]:
-    """Render the site of ``source`` (a run folder, or a folder of them) into ``out``; return how
-    many runs and trial pages were (re)rendered. ``refresh``: seconds after which the index and
-    the pages of running runs ask the browser to reload (0: never)."""
+    """Render the site of ``source`` (a run folder, or a folder of them) into ``out``; return how many
+    runs were found (``found``) and how many runs and trial pages were (re)rendered. ``refresh``:
+    seconds after which the index and the pages of running runs ask the browser to reload (0: never)."""
     from ..plugins import load_plugins
 
     source = Path(source)
+    folders = find_runs(source)  # none: an error, before any file of the site is written
     site = Site(Path(out))
     plugins = plugins or load_plugins()
     for asset in ("view.css", "view.js", "favicon.png"):
         site.write(asset, (STATIC / asset).read_bytes())
     runs: dict[str, Any] = _manifest(site).get("runs", {})
     summaries: list[RunSummary] = []
-    counts = {"runs": 0, "trials": 0}
-    for folder in find_runs(source):
+    counts = {"found": len(folders), "runs": 0, "trials": 0}
+    for folder in folders:
         stamp = f"{signature(folder)}|running:{running(folder)}"  # a run that stopped is rendered anew
-        known = runs.get(folder.name, {})
-        name = safe_name(folder.name)
+        key = folder.name if folder == source else folder.relative_to(source).as_posix()  # runs/X/mo-...: X/mo-...
+        known = runs.get(key, {})
+        name = safe_name(key.replace("/", "-"))
         cached = _cached(known, folder) if known.get("signature") == stamp else None
         if cached is not None and (site.out / "runs" / name / "index.html").is_file():
             summaries.append(cached)
@@ -72,7 +74,7 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
         summary.page = f"runs/{name}/index.html"
         counts["runs"] += 1
         counts["trials"] += sum(1 for t in trials.values() if t.get("rendered"))
-        runs[folder.name] = {"signature": stamp, "trials": {k: {"key": v["key"]} for k, v in trials.items()},
+        runs[key] = {"signature": stamp, "trials": {k: {"key": v["key"]} for k, v in trials.items()},
                              "summary": _plain(summary)}
         summaries.append(summary)
     site.write("index.html", render("index.html.j2", runs=summaries, refresh=refresh))

@@ -111,5 +111,8 @@ def test_the_server_serves_the_site_only(run, tmp_path):
         assert status("/index.html") == 200
         assert status("/leak.txt") == 404 and status("/runs/") == 404 and status("/.draft.html.partial") == 404
         assert status("/index.html", host="evil.example:80") == 421
+        with urllib.request.urlopen(base + "/", timeout=10) as response:  # the bare address: the index
+            assert response.status == 200 and response.url.endswith("/index.html")
+        assert status("/", host="evil.example:80") == 421
     finally:
         server.stop()

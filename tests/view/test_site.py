@@ -133,13 +133,33 @@ def test_rebuilding_renders_only_what_changed(runs_dir, tmp_path):
     source = tmp_path / "runs"
     shutil.copytree(runs_dir / "hostile", source / "hostile")
     out = tmp_path / "site"
-    assert build_site(source, out) == {"runs": 1, "trials": 4}
-    assert build_site(source, out) == {"runs": 0, "trials": 0}
+    assert build_site(source, out) == {"found": 1, "runs": 1, "trials": 4}
+    assert build_site(source, out) == {"found": 1, "runs": 0, "trials": 0}
     shutil.copytree(runs_dir / "mo-40", source / "mo-40")
-    assert build_site(source, out) == {"runs": 1, "trials": 40}
+    assert build_site(source, out) == {"found": 2, "runs": 1, "trials": 40}
     manifest = json.loads((out / "manifest.json").read_text())
     assert set(manifest["runs"]) == {"hostile", "mo-40"}
     assert "hostile" in (out / "index.html").read_text()  # a run not rendered again keeps its row
+
+
+def test_runs_one_level_down_are_found_and_a_folder_without_runs_is_an_error(runs_dir, tmp_path, capsys):
+    from safeembodai_core.cli import main
+
+    source = tmp_path / "runs"
+    shutil.copytree(runs_dir / "hostile", source / "mo-study" / "hostile")  # ablate --out runs/mo-study
+    shutil.copytree(runs_dir / "hostile", source / "hostile")  # the same name at the top: both kept apart
+    out = tmp_path / "site"
+    assert build_site(source, out)["found"] == 2
+    assert set(json.loads((out / "manifest.json").read_text())["runs"]) == {"hostile", "mo-study/hostile"}
+    assert (out / "runs" / "mo-study-hostile" / "index.html").is_file()
+    empty = tmp_path / "empty"
+    (empty / "quickstart-run-1").mkdir(parents=True)  # a 'safeembodai run' folder: one trial, not a run
+    (empty / "quickstart-run-1" / "trial.json").write_text("{}")
+    with pytest.raises(SystemExit) as done:
+        main(["view", str(empty), "--out", str(tmp_path / "site2")])
+    assert done.value.code == 1
+    assert "holds no run folder" in capsys.readouterr().err
+    assert not (tmp_path / "site2").exists()  # nothing written
 
 
 def test_a_broken_run_folder_gets_a_row_with_its_error_and_hides_nothing(runs_dir, tmp_path, cli_runner):
