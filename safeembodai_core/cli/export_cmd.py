@@ -29,7 +29,7 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
     from rich.console import Console
     from rich.progress import Progress
 
-    from ..errors import SafeEmbodAIError
+    from ..errors import SafeEmbodAIError, StateStoreError
     from ..loop.replay import replay_trial
     from ..ros.bag_export import write_bag
     from ..run_files import trial_file_name
@@ -43,6 +43,8 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
     def read(what: str, call):  # a corrupt row is an error naming the run and what could not be read
         try:
             return call()
+        except StateStoreError as error:  # the store's own strict reading names the file, table and row
+            raise SafeEmbodAIError(f"{run_dir}: cannot read {what}: {error}") from None
         except SafeEmbodAIError:
             raise
         except Exception as error:
