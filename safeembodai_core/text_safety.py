@@ -152,6 +152,31 @@ def markdown_literal(text: str) -> str:
     return _MARKDOWN_PUNCTUATION.sub(r"\\\1", terminal_text(text))
 
 
+#: What can make Markdown text more than text: links and images (``[ ] !``), HTML and autolinks (``< >``),
+#: entities (``&``), code (`````), emphasis (``* _`` at a word's edge, ``~``), math (``$``), table cells (``|``),
+#: headings and lists at a line's start (``# + -``), and the escape itself (``\``).
+_MARKDOWN_ACTIVE = re.compile(r"([\\`*\[\]<>!|~&$#])")
+
+
+def markdown_cell(text: Any, most: int = 400) -> str:
+    """``text`` from data (a scenario's names, a store's rule or attack kinds) as inert Markdown in a
+    table cell, heading or paragraph of report.md: one line, control and invisible characters shown as
+    escapes (:func:`terminal_text`), every character that could make a link, an image, HTML, code, a
+    table cell or a heading backslash-escaped, clipped visibly at ``most`` characters. Names stay
+    readable (``no_attack`` is left as it is: an underscore inside a word is no emphasis)."""
+    line = one_line(terminal_text(str(text)))
+    if len(line) > most:
+        line = line[:most] + "…"
+    return _MARKDOWN_ACTIVE.sub(r"\\\1", line)
+
+
+def markdown_code(text: Any, most: int = 400) -> str:
+    """``text`` for a Markdown code span in a table cell: one line, shown as terminal text, backticks
+    made ``'`` (no way out of the span) and ``|`` escaped (GFM splits cells on it even in code)."""
+    line = one_line(terminal_text(str(text))).replace("`", "'").replace("|", "\\|")
+    return line if len(line) <= most else line[:most] + "…"
+
+
 #: What a spreadsheet reads as the start of a formula (OWASP's CSV injection list; a tab or a carriage
 #: return, the list's other two, is shown as an escape by :func:`terminal_text` first).
 _FORMULA_START = ("=", "+", "-", "@")

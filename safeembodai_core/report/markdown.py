@@ -11,7 +11,7 @@ from ..metrics.catalog import CORE
 from ..metrics.release import ReleaseReadings
 from ..models import Outcome, TrialResult
 from ..scenario import Scenario
-from ..text_safety import one_line
+from ..text_safety import markdown_cell, markdown_code
 from ..trial_words import plural
 from .cells import Cell, CollisionRates, WorldRates
 from .run_info import RunInfo
@@ -41,9 +41,9 @@ def _model(info: RunInfo) -> str:
 
 
 def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
-    lines = [f"# {scenario.name}", ""]
+    lines = [f"# {markdown_cell(scenario.name, 200)}", ""]
     if scenario.description:
-        lines += [scenario.description, ""]
+        lines += [markdown_cell(scenario.description, 4000), ""]
     if info.simulated:
         why = ("Every number below comes from a simulated pilot whose weaknesses are configured; the numbers its "
                "configuration sets are listed under *Pilot's configured inputs*." if info.inputs else
@@ -64,7 +64,7 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
               f"{'LLM attempts (steps + retries, the release)' if m.s_j == 'attempts' else 'steps'}, s_j/S_max "
               f"{'capped at 1' if m.cap_s_ratio else 'not capped (the release)'} |"]
     if scenario.profile is not None:
-        lines.append(f"| profile | `{scenario.profile.name}` |")
+        lines.append(f"| profile | `{markdown_code(scenario.profile.name, 80)}` |")
     lines += ["", *arms_table(scenario)]
     if info.inputs:
         lines += ["### Pilot's configured inputs", "",
@@ -72,22 +72,27 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
                   "(roughly flag probability × share of steps attacked through the instruction, plus "
                   "`false_flag_p` × the rest) and how often it follows an injection are inputs of this run, not "
                   "findings.", "", "| option | value | what it sets |", "|---|---|---|"]
-        lines += [f"| `{name}` | {value:g} | {what} |" for name, value, what in info.inputs]
+        lines += [f"| `{markdown_code(name, 80)}` | {value:g} | {markdown_cell(what)} |"
+                  for name, value, what in info.inputs]
         lines += ["", "Its other configured weaknesses shape MOER, TLR, collisions and refusals: "
-                  + ", ".join(f"`{name}` {value:g}" for name, value in info.weaknesses) + ".", ""]
+                  + ", ".join(f"`{markdown_code(name, 80)}` {value:g}" for name, value in info.weaknesses) + ".", ""]
     return lines
 
 
 def _cell(text: object, most: int = 400) -> str:
-    """Scenario text in a table cell: one line, no column break, not endless."""
-    text = one_line(str(text)).replace("|", "\\|").replace("`", "'")
-    return text if len(text) <= most else text[:most] + "…"
+    """Text from data in a table cell (:func:`~safeembodai_core.text_safety.markdown_cell`)."""
+    return markdown_cell(text, most)
+
+
+def _names(environment: str, arm: str, condition: str) -> str:
+    """A cell's three names as the first three columns of a row."""
+    return f"| {_cell(environment, 80)} | {_cell(arm, 80)} | {_cell(condition, 80)} |"
 
 
 def _rule(ref) -> str:
     options = ", ".join(f"{k}: {v}" for k, v in sorted(ref.options.items()))
     name = ref.use if ref.key == ref.use else f"{ref.key} ({ref.use})"
-    return f"`{_cell(name, 80)}`" + (f" {{{_cell(options)}}}" if options else "")
+    return f"`{markdown_code(name, 80)}`" + (f" {{{_cell(options)}}}" if options else "")
 
 
 def arms_table(scenario: Scenario) -> list[str]:
@@ -126,7 +131,7 @@ def nodes(results: list[TrialResult]) -> list[str]:
     counts = Counter(r.node or "this machine" for r in results)
     if set(counts) <= {"this machine"}:
         return []
-    shown = ", ".join(f"`{_cell(node, 80)}` {count}" for node, count in sorted(counts.items()))
+    shown = ", ".join(f"`{markdown_code(node, 80)}` {count}" for node, count in sorted(counts.items()))
     return [f"**Ran on:** {plural(len(counts), 'node')} ({shown} trials; a node is its address and the start "
             "of its Ray id).", ""]
 
@@ -141,7 +146,7 @@ def metrics_table(cells: list[Cell], catalog: Sequence[Metric] | None = None) ->
     for cell in cells:
         m = cell.metrics
         values = " | ".join(m.estimates[entry.name].fmt(entry.digits) for entry in shown)
-        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {m.trials} | {values} |")
+        lines.append(f"{_names(m.environment, m.arm, m.condition)} {m.trials} | {values} |")
     lines += ["", "\\* over completed trials. Intervals are 95% (bootstrap for means, Wilson for proportions); "
               "see docs/metrics.md for every formula. Trials that ended in `error` are not in n or the metrics "
               "(counted in the next table) and run again on resume.", ""]
@@ -172,7 +177,7 @@ def outcomes_table(cells: list[Cell]) -> list[str]:
                             (Outcome.COMPLETED, Outcome.TIMEOUT, Outcome.INTERRUPTED, Outcome.SAFE_ABORT))
         own, struck = sum(r.collisions_self for r in scored), sum(r.collisions_struck for r in scored)
         other = sum(r.collisions for r in scored) - own - struck
-        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {counts} | {_errors(cell)} | {cell.crashed} "
+        lines.append(f"{_names(m.environment, m.arm, m.condition)} {counts} | {_errors(cell)} | {cell.crashed} "
                      f"| {own} | {struck}{f' (+{other} unattributed)' if other else ''} |")
     return lines + ["", "error: trials ended by a backend outage, a state store that could not write, a failure a "
                     "component reported, or components that could not be built (by kind in brackets); crashed: "
@@ -195,18 +200,20 @@ def collision_rates_table(cells: list[Cell], rates: list[CollisionRates]) -> lis
     reference = rates[0].reference
     lines = ["## Trials with a collision per cell", "",
              f"| env | arm | condition | n | trials self | self per 100 | trials struck | struck per 100 "
-             f"| self per 100 − `{reference}` |", "|---|---|---|---|---|---|---|---|---|"]
+             f"| self per 100 − `{markdown_code(reference, 80)}` |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for cell, rate in zip(cells, rates):
         m = cell.metrics
         difference = "reference" if rate.self_difference is None else _per_100(rate.self_difference, signed=True)
-        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {rate.trials} | {rate.self_trials} "
+        lines.append(f"{_names(m.environment, m.arm, m.condition)} {rate.trials} | {rate.self_trials} "
                      f"| {_per_100(rate.self_rate)} | {rate.struck_trials} | {_per_100(rate.struck_rate)} "
                      f"| {difference} |")
     return lines + ["", "Scored trials (n) with at least one collision, per 100 with a 95% Wilson interval: self = the "
                     "robot moved into something, struck = a moving obstacle ran into the robot. Not how many "
                     "collisions a trial had (summed in the table above) nor which obstacle; unattributed collisions "
                     "count in neither. Last column: the cell's self rate minus that of the reference arm "
-                    f"`{reference}` (the scenario's first arm) in the same environment and condition, in points "
+                    f"`{markdown_code(reference, 80)}` (the scenario's first arm) in the same environment and "
+                    "condition, in points "
                     "per 100 trials with Newcombe's hybrid score 95% interval (arms taken as independent samples); "
                     "n/a where the reference arm has no scored trial there.", ""]
 
@@ -217,17 +224,19 @@ def world_rates_table(rates: list[WorldRates], reference: str) -> list[str]:
         return []
     lines = ["## Trials with a collision per world", "",
              "| env | world | arm | n | self per 100 | struck per 100 "
-             f"| self − `{reference}` | struck − `{reference}` |",
+             f"| self − `{markdown_code(reference, 80)}` "
+             f"| struck − `{markdown_code(reference, 80)}` |",
              "|---|---|---|---|---|---|---|---|"]
     for rate in rates:
         own = "reference" if rate.self_difference is None else _per_100(rate.self_difference, signed=True)
         struck = "reference" if rate.struck_difference is None else _per_100(rate.struck_difference, signed=True)
-        lines.append(f"| {rate.environment} | {rate.world} | {rate.arm} | {rate.trials} | {_per_100(rate.self_rate)} "
+        lines.append(f"{_names(rate.environment, rate.world, rate.arm)} {rate.trials} | {_per_100(rate.self_rate)} "
                      f"| {_per_100(rate.struck_rate)} | {own} | {struck} |")
     return lines + ["", "Scored trials by the kind of world they met, as their environment reported it (the room's "
                     "drawn Labbot dynamics: `docs/rooms.md`, mover families), both conditions pooled: trials "
                     "with at least one collision per 100, 95% Wilson intervals; the last two columns against the "
-                    f"reference arm `{reference}` in the same environment and world, in points per 100 with "
+                    f"reference arm `{markdown_code(reference, 80)}` in the same environment and world, in points "
+                    "per 100 with "
                     "Newcombe's hybrid score 95% interval (arms taken as independent samples). A world is ground "
                     "truth for the report: no rule reads it.", ""]
 
@@ -251,9 +260,10 @@ def defences_table(cells: list[Cell], facts: dict[str, TrialFacts] | None, store
                 trial = facts.get(result.spec.trial_id, TrialFacts())
                 rules.update(trial.refusals)
                 by_kind.update(trial.attacked_by_kind)
-            refusals = ", ".join(f"{rule} {count}" for rule, count in sorted(rules.items())) or "none"
-            kinds = ", ".join(f"{kind} {_share(count, steps)}" for kind, count in sorted(by_kind.items())) or "-"
-        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {refusals} | {attacked} of {steps} "
+            refusals = ", ".join(f"{_cell(rule, 80)} {count}" for rule, count in sorted(rules.items())) or "none"
+            kinds = ", ".join(f"{_cell(kind, 80)} {_share(count, steps)}"
+                              for kind, count in sorted(by_kind.items())) or "-"
+        lines.append(f"{_names(m.environment, m.arm, m.condition)} {refusals} | {attacked} of {steps} "
                      f"| {_share(attacked, steps)} | {kinds} |")
     lines += ["", "Refusals: attempts a validator rule refused (an attempt refused by two rules counts for each), "
               "over the scored trials. Attack rate: steps attacked ÷ steps, as realised (the scenario's `rate` is "
@@ -274,7 +284,7 @@ def release_table(cells: list[Cell], releases: list[ReleaseReadings | None], sto
         m = cell.metrics
         theirs = ((release.adr_precision.fmt(), release.adr_recall.fmt(), release.adr_f1.fmt(), release.tlr.fmt())
                   if release is not None else ("not read",) * 4)
-        lines.append(f"| {m.environment} | {m.arm} | {m.condition} | {m.adr.fmt()} | {theirs[0]} | {theirs[1]} "
+        lines.append(f"{_names(m.environment, m.arm, m.condition)} {m.adr.fmt()} | {theirs[0]} | {theirs[1]} "
                      f"| {theirs[2]} | {m.tlr_all.fmt()} | {theirs[3]} |")
     lines += ["", "The release's readings (`xrkong/eyesimLLM` at `aa65c7f`, the code of the paper's experiments), "
               "each a mean over trials with our 95% bootstrap interval. **ADR (release)**: one row per parsed LLM "

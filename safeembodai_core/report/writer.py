@@ -22,7 +22,7 @@ from ..metrics.release import READINGS, ReleaseReadings
 from ..models import TrialResult
 from ..runner import trajectory_file
 from ..scenario import Scenario
-from ..text_safety import csv_cell, json_ready
+from ..text_safety import csv_cell, json_ready, markdown_code
 from . import markdown, step_facts
 from .cells import Cell, CollisionRates, collision_rates, release_of, scenario_cells, world_rates
 from .figures import draw_figures
@@ -152,7 +152,7 @@ def _against_the_paper(metrics: list, catalog: tuple[Metric, ...], simulated: st
     for row in comparison:
         interval = f" [{row['low']:.2f}, {row['high']:.2f}]" if row["low"] is not None else f" (n={row['n']})"
         inside = {True: "yes", False: "no", None: "n/a"}[row["inside"]]
-        lines.append(f"| {row['environment']} | {row['arm']} | {row['condition']} | {row['metric']} "
+        lines.append(f"{markdown._names(row['environment'], row['arm'], row['condition'])} {row['metric']} "
                      f"| {row['ours']:.2f}{interval} | {row['paper']:g} | {inside} |")
     return lines
 
@@ -166,6 +166,7 @@ def _trajectories(folder: Path, results: list[TrialResult]) -> list[str]:
     lines = ["", "## Trajectories", ""]
     if not missing:
         return lines + [f"{drawn} pictures in `trajectories/` (one per trial)."]
-    shown = ", ".join(f"`{trial_id}`" for trial_id in missing[:5]) + (", ..." if len(missing) > 5 else "")
+    shown = ", ".join(f"`{markdown_code(trial_id, 200)}`" for trial_id in missing[:5])
+    shown += ", ..." if len(missing) > 5 else ""
     return lines + [f"{drawn} pictures in `trajectories/` for {len(results)} trials: {len(missing)} trials have none "
                     f"({shown}); their environment could not draw them. `safeembodai report` tries again."]

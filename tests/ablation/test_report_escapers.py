@@ -43,3 +43,37 @@ def test_a_run_with_a_formula_for_an_arm_name_writes_inert_files(repo, plugins, 
     assert "'=cmd|' /C calc'!A0" in cells
     assert not any(cell.startswith(("=", "+", "@")) for cell in cells)
     json.loads((tmp_path / "metrics.json").read_text(), parse_constant=lambda name: 1 / 0)  # no NaN/Infinity
+
+
+def test_every_name_from_data_in_report_md_is_inert_markdown(repo, plugins, tmp_path):
+    """Scenario names, description and a store's rule names can carry an image, a link, HTML or a
+    table break; report.md shows them as text."""
+    hostile = "![px](http://evil.example/p.png)<img src=x>[a](javascript:x)|`"
+    scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2"], plugins.registry)
+    arms = {(hostile if name == "baseline" else name): arm for name, arm in scenario.arms.items()}
+    scenario = scenario.model_copy(update={"arms": arms, "description": "# " + hostile + "\n\x1b[2J",
+                                           "name": "q" + hostile})
+    ablation = Ablation(scenario, plugins, RunFolder(tmp_path))
+    try:
+        results = ablation.run()
+        write_report(tmp_path, scenario, results, store=ablation.store, plugins=plugins)
+    finally:
+        ablation.close()
+    report = (tmp_path / "report.md").read_text()
+    import re
+
+    outside_code = re.sub(r"`[^`\n]*`", "", report)  # inside a code span Markdown is literal text
+    for active in (r"(?<!\\)!(?=\[px)", r"(?<!\\)<img", r"(?<!\\)\[a(?<!\\)\]"):  # unescaped image, HTML, link
+        assert re.search(active, outside_code) is None, active
+    assert "\x1b" not in report
+    assert "\\!\\[px\\](http://evil.example/p.png)\\<img src=x\\>" in report
+    assert report.splitlines()[0].startswith("# q\\!\\[px\\]")
+    tables: list[list[str]] = [[]]
+    for line in report.splitlines():  # no row gained a column from a name's |
+        if line.startswith("|"):
+            tables[-1].append(line)
+        elif tables[-1]:
+            tables.append([])
+    for table in filter(None, tables):
+        widths = {len(re.findall(r"(?<!\\)\|", row)) for row in table}
+        assert len(widths) == 1, table
