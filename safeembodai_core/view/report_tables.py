@@ -1,8 +1,8 @@
 """The tables of a run's ``report.md`` (written by ``ablate``/``report``), for the run page.
 
 Only the Markdown tables are read, each under the heading above it: a row is a line starting with
-``|``, cells split on unescaped ``|``, the separator row dropped, code backticks removed. The text is
-shown as text (the page escapes it); nothing else of the Markdown is interpreted.
+``|``, cells split on unescaped ``|``, the separator row dropped, code backticks removed, backslash
+escapes undone (report.md escapes names from data: ``\\[`` is ``[``). The text is shown as text (the page escapes it); nothing else of the Markdown is interpreted.
 """
 
 from __future__ import annotations
@@ -12,6 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 _SPLIT = re.compile(r"(?<!\\)\|")
+_CODE_MARK = re.compile(r"(?<!\\)`")
+#: CommonMark's backslash escapes of ASCII punctuation (report.md escapes names from data so)
+_ESCAPED = re.compile(r"\\([!-/:-@\[-`{-~])")
 _SEPARATOR = re.compile(r"^\|?\s*:?-{3,}")
 #: Larger reports are not read (a hostile or broken file must not stall the page).
 MAX_BYTES = 2_000_000
@@ -26,7 +29,7 @@ class Table:
 
 def _cells(line: str) -> list[str]:
     parts = _SPLIT.split(line.strip().strip("|"))
-    return [part.strip().replace("\\|", "|").replace("`", "") for part in parts]
+    return [_ESCAPED.sub(r"\1", _CODE_MARK.sub("", part.strip())) for part in parts]
 
 
 def report_tables(path: Path) -> list[Table]:
