@@ -2,7 +2,8 @@
 
 Only the Markdown tables are read, each under the heading above it: a row is a line starting with
 ``|``, cells split on unescaped ``|``, the separator row dropped, code backticks removed, backslash
-escapes undone (report.md escapes names from data: ``\\[`` is ``[``). The text is shown as text (the page escapes it); nothing else of the Markdown is interpreted.
+escapes undone (report.md escapes names from data: ``\\[`` is ``[``). The text is shown as text
+(the page escapes it); nothing else of the Markdown is interpreted.
 """
 
 from __future__ import annotations
