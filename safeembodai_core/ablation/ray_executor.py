@@ -196,7 +196,8 @@ class RayExecutor:
         ray = self.ray = _ray()
         self.writes, self.concurrency = writes, concurrency
         self._owns_connection = not ray.is_initialized()
-        self.address = connect(ray, address, connect_timeout_s) if self._owns_connection else "a running Ray"
+        if self._owns_connection:  # the CLI connects before making the run folder; a library caller may not have
+            connect(ray, address, connect_timeout_s)
         self._arguments = (scenario_json, concurrency, workers, bag_storage, cache)
         self._class = ray.remote(RelayWorker)
         self._lost = _lost_errors(ray)

@@ -28,16 +28,25 @@ def test_json_ready_leaves_no_non_finite_number():
                                                                          "c": [None, "x"]}
 
 
-def test_a_run_with_a_formula_for_an_arm_name_writes_inert_files(repo, plugins, tmp_path):
-    scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2"], plugins.registry)
-    arms = {("=cmd|' /C calc'!A0" if name == "baseline" else name): arm for name, arm in scenario.arms.items()}
-    scenario = scenario.model_copy(update={"arms": arms})
-    ablation = Ablation(scenario, plugins, RunFolder(tmp_path))
+def _run_and_report(scenario, plugins, folder):
+    """Run ``scenario`` into ``folder`` and write its report there."""
+    ablation = Ablation(scenario, plugins, RunFolder(folder))
     try:
-        results = ablation.run()
-        write_report(tmp_path, scenario, results, store=ablation.store, plugins=plugins)
+        write_report(folder, scenario, ablation.run(), store=ablation.store, plugins=plugins)
     finally:
         ablation.close()
+
+
+def _hostile_arm(repo, plugins, arm: str, **update):
+    """quickstart (1 trial, 2 steps) with its baseline arm renamed ``arm`` and ``update`` applied."""
+    scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2"], plugins.registry)
+    arms = {(arm if name == "baseline" else name): value for name, value in scenario.arms.items()}
+    return scenario.model_copy(update={"arms": arms, **update})
+
+
+def test_a_run_with_a_formula_for_an_arm_name_writes_inert_files(repo, plugins, tmp_path):
+    scenario = _hostile_arm(repo, plugins, "=cmd|' /C calc'!A0")
+    _run_and_report(scenario, plugins, tmp_path)
     with (tmp_path / "metrics.csv").open(newline="", encoding="utf-8") as handle:
         cells = [cell for row in csv.reader(handle) for cell in row]
     assert "'=cmd|' /C calc'!A0" in cells
@@ -49,16 +58,8 @@ def test_every_name_from_data_in_report_md_is_inert_markdown(repo, plugins, tmp_
     """Scenario names, description and a store's rule names can carry an image, a link, HTML or a
     table break; report.md shows them as text."""
     hostile = "![px](http://evil.example/p.png)<img src=x>[a](javascript:x)|`"
-    scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2"], plugins.registry)
-    arms = {(hostile if name == "baseline" else name): arm for name, arm in scenario.arms.items()}
-    scenario = scenario.model_copy(update={"arms": arms, "description": "# " + hostile + "\n\x1b[2J",
-                                           "name": "q" + hostile})
-    ablation = Ablation(scenario, plugins, RunFolder(tmp_path))
-    try:
-        results = ablation.run()
-        write_report(tmp_path, scenario, results, store=ablation.store, plugins=plugins)
-    finally:
-        ablation.close()
+    scenario = _hostile_arm(repo, plugins, hostile, description="# " + hostile + "\n\x1b[2J", name="q" + hostile)
+    _run_and_report(scenario, plugins, tmp_path)
     report = (tmp_path / "report.md").read_text()
     import re
 
