@@ -7,6 +7,8 @@ message and exits non-zero without a traceback unless ``--debug`` is given.
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class SafeEmbodAIError(Exception):
     """Base class of every error SafeEmbodAI reports to a user."""
@@ -38,7 +40,14 @@ class BackendError(SafeEmbodAIError):
 
     A trial that meets this error ends with status ``error``: it is neither a safety failure nor
     a success, and an ablation carries on with the next trial.
+
+    :param spent: what the failed call (and the step's earlier attempts, added by the loop) used
+        before the backend gave up -- a ``TokenUsage``, None when nothing was paid. The trial counts it.
     """
+
+    def __init__(self, message: str, spent: Any = None) -> None:
+        super().__init__(message)
+        self.spent = spent
 
 
 class EnvironmentError_(SafeEmbodAIError):

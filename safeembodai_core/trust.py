@@ -43,6 +43,13 @@ ENTRY_POINTS: tuple[EntryPoint, ...] = (
                "safeembodai_core.models.strict_json:read_json_document"),
     EntryPoint("ray worker event", "what a Ray worker on another machine sends for its trial",
                "safeembodai_core.ablation.relay:RelayedWrites.receive"),
+    EntryPoint("inspect model output", "what Inspect's model hands the solver (only on a provider that shows the "
+               "whole reply: safeembodai/<backend> or mockllm)",
+               "safeembodai_core.integrations.inspect.bridge:backend_reply"),
+    EntryPoint("inspect usage", "the token counts of Inspect's model output",
+               "safeembodai_core.integrations.inspect.bridge:output_usage"),
+    EntryPoint("inspect provider", "the model Inspect was told to use: a provider that parses the body itself is "
+               "refused", "safeembodai_core.integrations.inspect.providers:check_provider"),
 )
 
 #: Modules that call a raw reader, and why they may. Everything else goes through an entry point's reader.

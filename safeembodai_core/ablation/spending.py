@@ -54,16 +54,34 @@ class SpendingCap:
         trials are left to run (a run whose last trial crosses the cap is complete, not stopped).
         A trial's cost is the one it recorded (``TrialResult.cost_usd``), priced again only without one."""
         self.tokens += result.prompt_tokens + result.completion_tokens
+        unpriced = False
         if self.max_cost is not None and self.price is not None:
             cost = result.cost_usd
-            if cost is None:
-                cost = self.price(result.prompt_tokens, result.completion_tokens) or 0.0
-            self.cost += cost
+            if cost is None and result.tokens:
+                cost = self._priced(result)
+                unpriced = cost is None  # unknown is never free: the cap cannot vouch for the next trial
+            self.cost += cost or 0.0
         if not more:
             return
+        if unpriced:
+            raise SpendingCapReached(f"--max-cost {self.max_cost:g}: trial {result.spec.trial_id} has no price "
+                                     f"(the backend priced it as unknown), so what the run spent is unknown; "
+                                     f"stopped before another trial (the finished ones cost at least "
+                                     f"${self.cost:.4f})")
         if self.max_tokens is not None and self.tokens >= self.max_tokens:
             raise SpendingCapReached(f"--max-tokens {self.max_tokens} reached: the finished trials used "
                                      f"{self.tokens} tokens")
         if self.max_cost is not None and self.cost >= self.max_cost:
             raise SpendingCapReached(f"--max-cost {self.max_cost:g} reached: the finished trials cost "
                                      f"${self.cost:.4f} at the model's list price")
+
+    def _priced(self, result: TrialResult) -> float | None:
+        """The trial's tokens at the backend's price; None when it has none (or says something
+        that is not a price: a failure, NaN, a negative or absurd number)."""
+        try:
+            cost = self.price(result.prompt_tokens, result.completion_tokens) if self.price is not None else None
+        except Exception:  # a plugin's cost() that fails mid-run: no price, which stops the run
+            return None
+        if isinstance(cost, bool) or not isinstance(cost, (int, float)) or not 0 <= cost <= 1e9:
+            return None
+        return float(cost)

@@ -23,7 +23,8 @@ from typing import Callable, Sequence
 
 from .. import seeds
 from ..components import LLMBackend, PromptBuilder, Validator
-from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, read_reply
+from ..errors import BackendError
+from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, TokenUsage, read_reply
 from ..models.reply import as_reply, finish_reason_text
 from ..validation import ValidationContext, validate_plan
 
@@ -75,7 +76,8 @@ def decide(
     the context as the world reads when an answer has arrived; each answer that parses is judged
     on it, read anew; ``ended`` says the world has ended meanwhile (a mover struck the robot while
     the LLM thought): no retry follows a refusal then. A
-    :class:`~safeembodai_core.errors.BackendError` from the backend propagates to the trial.
+    :class:`~safeembodai_core.errors.BackendError` from the backend propagates to the trial, its
+    ``spent`` grown by the usage of the step's attempts answered before it (nothing paid is lost).
     """
     attempts: list[Attempt] = []
     failures: list[str] = []
@@ -86,7 +88,11 @@ def decide(
         prepare = getattr(backend, "prepare_attempt", None)
         sampling = prepare(index=index, limits=request.limits, rng=rng) if callable(prepare) else None
         started = time.perf_counter()
-        reply = as_reply(backend.complete(prompt, rng))
+        try:
+            reply = as_reply(backend.complete(prompt, rng))
+        except BackendError as error:  # the step's answered attempts were paid: the trial counts them
+            error.spent = sum((a.usage for a in attempts), error.spent or TokenUsage()) if attempts else error.spent
+            raise
         latency = reply.latency_s or (time.perf_counter() - started)
         attempt = Attempt(index=index, raw_text=_stored(reply.text), reasoning=_stored(reply.reasoning),
                           choices=_count(reply.choices), origin=_stored(reply.origin) or None,

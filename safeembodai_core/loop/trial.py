@@ -39,6 +39,7 @@ from ..models import (
     StepRecord,
     Straight,
     TrialResult,
+    TokenUsage,
     TrialSpec,
 )
 from ..models.prompt import DEFAULT_TASK
@@ -150,6 +151,13 @@ class _Totals:
                 self.distance += abs(item.result.distance_mm)
             if item.result.collided:
                 self._collided(record.step, item.result.collision, item.result.detail)
+
+    def spent(self, usage: Any) -> None:
+        """Tokens paid outside any recorded step (a step whose backend gave up): counted all the same."""
+        if isinstance(usage, TokenUsage):
+            self.prompt += usage.prompt_tokens
+            self.completion += usage.completion_tokens
+            self.estimated = self.estimated or usage.estimated
 
     def observed(self, step: int, truth: Any) -> None:
         """Count a collision outside any command (a Labbot ran into the robot while it waited),
@@ -265,6 +273,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
             outcome, detail = Outcome.TIMEOUT, f"step budget of {settings.max_steps} spent"
     except SafeEmbodAIError as error:  # backend outage, plugin failure, unreadable store
         outcome, detail = Outcome.ERROR, str(error)
+        if isinstance(error, BackendError):
+            totals.spent(error.spent)  # paid before the backend gave up: on the trial's count
         error_kind = ("backend" if isinstance(error, BackendError) else
                       "store" if isinstance(error, StateStoreError) else "reported")
         log.warning("trial.error", trial=spec.trial_id, step=step, error=detail)

@@ -114,8 +114,11 @@ def spending(results: list[TrialResult]) -> list[str]:
     """What the recorded trials used: tokens, and their cost where every trial has a price."""
     tokens = sum(r.tokens for r in results)
     costs = [r.cost_usd for r in results if r.tokens]  # a trial that used no token costs nothing
-    priced = (f"${sum(c for c in costs if c is not None):.4f} at the backend's list price"
-              if costs and all(c is not None for c in costs) else
+    known = [c for c in costs if c is not None]
+    priced = (f"${sum(known):.4f} at the backend's list price" if costs and len(known) == len(costs) else
+              f"${sum(known):.4f} at the backend's list price for {plural(len(known), 'trial')}, and an unknown "
+              f"cost for {plural(len(costs) - len(known), 'trial')} with no price (not $0: the total is unknown)"
+              if known else
               "no price: the backend knows none (a simulated pilot pays nothing)" if costs else "nothing to price")
     estimated = sum(r.tokens_estimated for r in results)
     counted = (f" **{plural(estimated, 'trial')} counted tokens here**: the server's usage was missing or "

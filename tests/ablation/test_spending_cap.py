@@ -75,3 +75,20 @@ def test_a_price_that_fails_is_a_clear_error():
 
     with pytest.raises(SafeEmbodAIError, match="--max-cost: the backend's price failed \\(RuntimeError: no table\\)"):
         SpendingCap(max_cost=1.0, price=broken)
+
+
+@pytest.mark.parametrize("said", [None, float("nan"), -1.0, "0.5", RuntimeError("table gone")],
+                         ids=["none", "nan", "negative", "text", "raises"])
+def test_a_trial_the_price_cannot_price_stops_the_cost_cap_never_counts_as_free(said):
+    """The price knew the model at the start; a trial it then cannot price is an unknown cost, not $0."""
+    def price(p, c):
+        if (p, c) == (1000, 1000):
+            return 0.01
+        if isinstance(said, Exception):
+            raise said
+        return said
+
+    cap = SpendingCap(max_cost=100.0, price=price)
+    with pytest.raises(SpendingCapReached, match=r"trial OF/a/c/0 has no price .* what the run spent is unknown"):
+        cap.add(_result(600, 100))
+    cap.add(_result(0, 0))  # a trial that used no token costs nothing, priced or not

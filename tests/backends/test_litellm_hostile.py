@@ -112,6 +112,32 @@ def test_a_malformed_200_is_a_malformed_reply_retried_once_in_one_clean_line(bui
         assert internal not in message
 
 
+def test_a_refused_200_was_paid_its_tokens_go_on_the_answer_or_on_the_give_up(built_plugins, fake_server,
+                                                                              fake_key):
+    """A whole 200 body the strict reading refused was answered, so paid: it counts (estimated) on the
+    try that answers, or as ``BackendError.spent`` when the backend gives up. A 5xx is not billed."""
+    fake_server.push(Raw("not json at all"), Reply(GOOD, usage=(1000, 150)))
+    reply = _complete(built_plugins, fake_server, max_retries=3)
+    assert reply.usage.prompt_tokens > 1000 and reply.usage.completion_tokens > 150 and reply.usage.estimated
+    fake_server.default = Raw("not json at all")
+    with pytest.raises(BackendError, match="gave up after 2 tries") as raised:
+        _complete(built_plugins, fake_server, max_retries=3)
+    assert raised.value.spent.estimated and raised.value.spent.prompt_tokens > 2 * 10
+    fake_server.default = Status(500, "boom")
+    with pytest.raises(BackendError) as raised:
+        _complete(built_plugins, fake_server, max_retries=1)
+    assert raised.value.spent is None
+
+
+def test_a_call_abandoned_at_its_deadline_counts_as_the_most_it_can_have_cost(built_plugins, fake_server,
+                                                                              fake_key):
+    fake_server.default = Trickle(3.0, 0.1, Reply(LATE))
+    with pytest.raises(BackendError, match="timed out") as raised:
+        _complete(built_plugins, fake_server, timeout_s=0.5, max_tokens=300)
+    spent = raised.value.spent
+    assert spent.estimated and spent.prompt_tokens > 0 and spent.completion_tokens == 300
+
+
 def test_a_real_server_error_is_still_a_server_error(built_plugins, fake_server, fake_key):
     fake_server.push(Raw("<html><body>Bad gateway\n  at /srv/app/proxy.py:12</body></html>", code=502,
                          content_type="text/html"), Status(500, "boom"))

@@ -166,8 +166,50 @@ def case_ray_worker_event(text: str, folder: Path) -> None:
     assert not any(p.is_symlink() for p in folder.rglob("*"))
 
 
+def case_inspect_model_output(text: str) -> None:
+    inspect_ai = pytest.importorskip("inspect_ai", reason='needs the inspect extra: pip install -e ".[inspect]"')
+    from inspect_ai.model import StopDetails
+
+    from safeembodai_core.integrations.inspect.bridge import REFUSED_REPLY, backend_reply
+    from safeembodai_core.models.reply import read_reply
+
+    for details in (None, StopDetails(type=REFUSED_REPLY, explanation=text), StopDetails(type=text[:20])):
+        output = inspect_ai.model.ModelOutput.from_content("m", text, stop_reason="stop", stop_details=details)
+        reply = backend_reply(output, 0.0)
+        assert "\x1b" not in (reply.envelope_error or "") and "\n" not in (reply.envelope_error or "")
+        refuses_cleanly(lambda: read_reply(reply))
+
+
+def case_inspect_usage(text: str) -> None:
+    inspect_ai = pytest.importorskip("inspect_ai", reason='needs the inspect extra: pip install -e ".[inspect]"')
+    from safeembodai_core.integrations.inspect.bridge import output_usage
+
+    try:
+        value = json.loads(text)
+    except (ValueError, RecursionError):
+        value = text
+    output = inspect_ai.model.ModelOutput.from_content("m", "answer")
+    output.usage = inspect_ai.model.ModelUsage.model_construct(input_tokens=value, output_tokens=value)
+    usage = output_usage(output, None)
+    assert usage.prompt_tokens > 0 and usage.completion_tokens > 0  # never 0: read, or counted here
+
+
+def case_inspect_provider(text: str) -> None:
+    pytest.importorskip("inspect_ai", reason='needs the inspect extra: pip install -e ".[inspect]"')
+    from safeembodai_core.integrations.inspect.providers import ProviderRefused, check_provider
+
+    try:
+        check_provider(text)
+    except ProviderRefused as refused:
+        assert "\x1b" not in str(refused) and "\u202e" not in str(refused)
+    else:
+        assert text.split("/")[0] in ("safeembodai", "mockllm")
+
+
 TEXT_CASES = {"llm reply": case_llm_reply, "llm envelope": case_llm_envelope, "server usage": case_server_usage,
-              "cached reply": case_cached_reply, "bag plan": case_bag_plan}
+              "cached reply": case_cached_reply, "bag plan": case_bag_plan,
+              "inspect model output": case_inspect_model_output, "inspect usage": case_inspect_usage,
+              "inspect provider": case_inspect_provider}
 FILE_CASES = {"scenario file": case_scenario_file, "run folder file": case_run_folder_file,
               "run folder picture": case_run_folder_picture, "results store": case_results_store,
               "ray worker event": case_ray_worker_event}

@@ -4,6 +4,7 @@ provider, and Inspect's own ``mockllm`` answering for a trial that ends in each 
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -164,31 +165,73 @@ def _fake_openai(repo):
     return module
 
 
-def test_a_real_provider_gets_the_prompt_as_chat_messages_with_images(repo, tmp_path, monkeypatch):
-    """Inspect's OpenAI-compatible provider against a local fake server: what goes on the wire.
+def _duplicate_content_body(first, second):
+    """A chat completion whose message has two ``content`` keys: the SDK keeps the last, a reader the first."""
+    return ('{"id": "x", "object": "chat.completion", "model": "robot-pilot", "choices": [{"index": 0, '
+            '"finish_reason": "stop", "message": {"role": "assistant", "content": ' + json.dumps(first) +
+            ', "content": ' + json.dumps(second) + '}}], "usage": {"prompt_tokens": 900, "completion_tokens": 40}}')
 
-    Inspect's OpenAI providers need openai >= 3.4 (the core accepts 1.40 to <4; a fresh install gets 3.x).
-    """
-    openai = pytest.importorskip("openai")
-    if tuple(int(n) for n in openai.__version__.split(".")[:2]) < (3, 4):
-        pytest.skip(f"Inspect's OpenAI providers need openai>=3.4 (installed {openai.__version__}): "
-                    'pip install -U "openai>=3.4"')
+
+def test_inspects_own_openai_provider_is_refused_before_anything_is_sent(repo, tmp_path, monkeypatch):
+    """``openai-api/`` parses the body itself (a duplicate key, a BOM cannot be seen): the eval stops at
+    its first sample with the flags that run the same model through ``safeembodai/litellm``."""
+    fake = _fake_openai(repo)
+    with fake.FakeOpenAI(fake.Reply(answer(*[straight(390)] * 4))) as server:
+        monkeypatch.setenv("FAKE_API_KEY", "sk-fake")
+        monkeypatch.setenv("FAKE_BASE_URL", server.url)
+        [log] = inspect_eval(_corridor_task(tmp_path), model=get_model("openai-api/fake/robot-pilot", memoize=False),
+                             log_dir=str(tmp_path / "logs"), display="none")
+    assert log.status == "error"
+    assert "--model safeembodai/litellm/openai/robot-pilot -M api_base=$FAKE_BASE_URL " \
+           "-M api_key_env=FAKE_API_KEY" in log.error.message
+    assert server.requests == []  # refused before the trial: nothing was sent, nothing paid
+
+
+def test_inspect_eval_on_an_own_provider_exits_1_with_one_message_and_no_traceback(tmp_path):
+    """From the command line the refusal comes as the task is built: one message, exit 1."""
+    done = subprocess.run([str(INSPECT), "eval", "safeembodai/quickstart", "--model", "openai/gpt-4o",
+                           "--log-dir", str(tmp_path / "logs"), "--display", "plain"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "OPENAI_API_KEY": "sk-never-used"})
+    assert done.returncode == 1, done.stdout + done.stderr
+    said = " ".join((done.stdout + done.stderr).split())
+    assert "Inspect's 'openai' provider parses the server's reply itself" in said
+    assert "--model safeembodai/litellm/gpt-4o" in said
+    assert "Traceback" not in said
+
+
+def test_the_same_model_through_safeembodai_litellm_reads_the_raw_reply(repo, tmp_path, monkeypatch):
+    """The switch the refusal names, against a local OpenAI-compatible server: the prompt on the wire
+    as chat messages with both pictures, the server's usage in the trial's result -- and a reply with
+    two ``content`` keys refused as ``Guard`` refuses it, where Inspect's own provider executed the last."""
     fake = _fake_openai(repo)
     with fake.FakeOpenAI(fake.Reply(answer(*[straight(390)] * 4), usage=(1234, 56))) as server:
         monkeypatch.setenv("FAKE_API_KEY", "sk-fake")
-        monkeypatch.setenv("FAKE_BASE_URL", server.url)
-        log = _eval(_corridor_task(tmp_path), get_model("openai-api/fake/robot-pilot", memoize=False), tmp_path)
-    [sample] = log.samples
-    assert sample.scores["outcome"].answer == "completed"
-    assert sample.store["safeembodai:result"]["prompt_tokens"] == 1234  # the provider's usage, via Inspect
-    [request] = server.requests
-    system, user = request.body["messages"]
-    assert system["role"] == "system" and "Control the robot" in system["content"]
-    kinds = [part["type"] for part in user["content"]]
-    assert "text" in kinds and kinds.count("image_url") == 2  # camera and LiDAR pictures
-    assert all(part["image_url"]["url"].startswith("data:image/png;base64,")
-               for part in user["content"] if part["type"] == "image_url")
-    assert "metadata" not in json.dumps(request.body) and "bit_generator" not in json.dumps(request.body)
+        model = get_model("safeembodai/litellm/openai/robot-pilot", api_base=server.url,
+                          api_key_env="FAKE_API_KEY", max_retries=0, memoize=False)
+        log = _eval(_corridor_task(tmp_path), model, tmp_path / "ok")
+        [sample] = log.samples
+        assert sample.scores["outcome"].answer == "completed"
+        assert sample.store["safeembodai:result"]["prompt_tokens"] == 1234  # the server's usage, via Inspect
+        [request] = server.requests
+        system, user = request.body["messages"]
+        assert system["role"] == "system" and "Control the robot" in system["content"]
+        kinds = [part["type"] for part in user["content"]]
+        assert "text" in kinds and kinds.count("image_url") == 2  # camera and LiDAR pictures
+        assert all(part["image_url"]["url"].startswith("data:image/png;base64,")
+                   for part in user["content"] if part["type"] == "image_url")
+        assert "metadata" not in json.dumps(request.body) and "bit_generator" not in json.dumps(request.body)
+
+        hostile = _duplicate_content_body("I will wait.", answer(*[straight(390)] * 4))
+        server.push(*[fake.Raw(hostile)] * 4)
+        log = _eval(_corridor_task(tmp_path), model, tmp_path / "hostile")
+    sample = resolve_sample_attachments(log.samples[0])
+    assert sample.scores["outcome"].answer == "safe_abort"  # refused at every attempt, never executed
+    steps = [e.data for e in sample.events if e.event == "info" and e.source == STEP_SOURCE]
+    assert "appears more than once" in steps[0] and "executed" not in steps[0]
+    result = sample.store["safeembodai:result"]
+    # a refused envelope's usage is not believed: each of the 4 paid replies counted here, marked estimated
+    assert result["tokens_estimated"] is True and result["prompt_tokens"] >= 4 * 100
 
 
 @pytest.mark.slow
@@ -261,6 +304,25 @@ def test_backend_reply_maps_inspects_stop_reasons_into_the_loops_words(inspect_r
     else:
         with pytest.raises(ResponseParseError, match="finish reason"):
             read_reply(reply)
+
+
+@pytest.mark.parametrize("usage", [None, (0, 0), (-5, 10), (100, 0)], ids=["none", "zeros", "negative",
+                                                                          "no answer tokens"])
+def test_an_unusable_inspect_usage_is_counted_here_never_zero(usage):
+    """What Inspect says a call used is read as a server's usage is: unusable is counted here, marked estimated."""
+    from safeembodai_core.integrations.inspect.bridge import backend_reply
+
+    output = _output((answer(turn(10)), "stop"))
+    output.usage = None if usage is None else ModelUsage(input_tokens=usage[0], output_tokens=usage[1],
+                                                         total_tokens=sum(usage))
+    prompt = Prompt(system="S" * 400, user=(TextPart("instruction", "go"),))
+    reply = backend_reply(output, 0.0, prompt)
+    assert reply.usage.estimated and reply.usage.prompt_tokens >= 100 and reply.usage.completion_tokens > 0
+    output.usage = ModelUsage(input_tokens=1234, output_tokens=56, total_tokens=1290)
+    assert backend_reply(output, 0.0, prompt).usage.model_dump() == {"prompt_tokens": 1234, "completion_tokens": 56,
+                                                                     "estimated": False}
+    output.metadata = {"safeembodai": {"usage_estimated": True}}  # safeembodai/<backend> counted it itself
+    assert backend_reply(output, 0.0, prompt).usage.estimated
 
 
 def test_backend_reply_counts_choices_and_reads_the_reasoning_parts():
@@ -546,3 +608,18 @@ async def _limiter_of_loop():
     from safeembodai_core.integrations.inspect.solver import _trial_threads
 
     return _trial_threads()
+
+
+def test_every_documented_inspect_model_is_one_a_task_runs_on(repo):
+    """The docs' ``inspect eval`` lines name providers the solver accepts (a refused one would fail a reader)."""
+    from safeembodai_core.integrations.inspect.providers import check_provider
+
+    named = []
+    for path in [repo / "README.md", *sorted((repo / "docs").rglob("*.md"))]:
+        for line in path.read_text(encoding="utf-8").splitlines():
+            found = re.search(r"inspect eval .*--model (\S+)", line)
+            if found and found.group(1) not in ("...", "`"):
+                named.append(found.group(1))
+    assert len(named) >= 5
+    for model in named:
+        check_provider(model)

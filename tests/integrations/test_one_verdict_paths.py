@@ -99,10 +99,12 @@ def test_the_inspect_round_trip_gives_the_guards_verdict(inspect_model, generate
     messages = prompt_messages(Prompt(system="S", user=(TextPart("instruction", "go"),)), rng(1, "backend"))
     output = asyncio.run(inspect_model.api.generate(messages, [], "none", GenerateConfig()))
     back = backend_reply(output, 0.0)
+    expected, reasons = guard_verdict(reply)
     try:
         signals = [s.model_dump() for s in read_reply(back).control]
-    except ResponseParseError:
+    except ResponseParseError as error:
         signals = None
-    expected, _ = guard_verdict(reply)
+        if reply.envelope_error:  # a reply refused as a whole: the same words come back through Inspect
+            assert reasons == [str(error)]
     assert signals == expected
     assert (signals is not None) == (plan is not None)

@@ -251,7 +251,38 @@ class LiteLLMBackend(LLMBackend):
             self._limiter.settle(answered=False)
 
     def _call(self, kwargs: dict[str, Any], rng: np.random.Generator) -> BackendReply:
-        """Ask until answered or given up: pacing, 429 hold-offs and retries (:meth:`complete`)."""
+        """Ask until answered or given up (:meth:`_ask`). What the tries before the answer were paid
+        (:meth:`_paid`) is added to the reply's usage; a give-up carries it as ``BackendError.spent``."""
+        paid: list[TokenUsage] = []
+        try:
+            reply = self._ask(kwargs, rng, paid)
+        except BackendError as error:
+            error.spent = sum(paid, TokenUsage()) if paid else None
+            raise
+        if paid:
+            reply.usage = sum(paid, reply.usage)
+        return reply
+
+    def _paid(self, error: Exception, recorder: Recorder, kwargs: dict[str, Any]) -> TokenUsage | None:
+        """What a failed try was paid, counted here (estimated), or None when it was not paid: a whole
+        HTTP 200 body the strict reading refused (the server answered: the request and the body's
+        length), a call abandoned at its deadline (the server may have answered after: the request
+        and ``max_tokens``, the most it can be). A 429, a 4xx/5xx or a refused connection is not billed."""
+        last = recorder.last if recorder is not None else None
+        if last is not None and last.status == 200 and last.body is not None:
+            answer = last.body.decode("utf-8", "replace")
+        elif isinstance(error, CallTimedOut):
+            answer = None
+        else:
+            return None
+        usage = self._counted(kwargs["messages"], answer if answer is not None else "")
+        if answer is None:
+            usage = usage.model_copy(update={"completion_tokens": self.options.max_tokens})
+        return usage
+
+    def _ask(self, kwargs: dict[str, Any], rng: np.random.Generator, paid: list[TokenUsage]) -> BackendReply:
+        """Ask until answered or given up: pacing, 429 hold-offs and retries (:meth:`complete`);
+        each failed try that was paid goes on ``paid``."""
         o = self.options
         malformed = attempt = limited = 0
         first_429 = 0.0
@@ -264,16 +295,18 @@ class LiteLLMBackend(LLMBackend):
             self._pace()
             started = time.perf_counter()
             with recording() as recorder:  # call_with_deadline's worker sees it (a context copy)
-                failure = response = None
+                failure = response = cost = None
                 try:
                     response = call_with_deadline(self._litellm.completion, kwargs, o.timeout_s)
                 except (CallTimedOut, TooManyHungCalls) as error:
                     failure = self._failure(error, recorder, images)
+                    cost = self._paid(error, recorder, kwargs)
                 except Exception as error:  # every provider error is classified below
                     # litellm could not parse a whole HTTP 200 body that the strict reading takes (a usage
                     # it will not take, say): that reading is the reply, and the call is not paid again
                     if not self._answered(recorder):
                         failure = self._failure(error, recorder, images)
+                        cost = self._paid(error, recorder, kwargs)
                 if failure is None:
                     reply = self._reply(response, recorder, time.perf_counter() - started)
                     if not (reply.usage_known and usage_believable(reply.usage, reply.text)):
@@ -282,6 +315,8 @@ class LiteLLMBackend(LLMBackend):
                     self._limiter.spent(reply.usage.total, o.tokens_per_minute)
                     self._limiter.settle(answered=True)  # calls held after a 429 may go, its tokens counted
                     return reply
+            if cost is not None:
+                paid.append(cost)
             if failure.kind == RATE_LIMITED and _QUOTA_SPENT.search(failure.detail):
                 failure = Failure(f"{RATE_LIMITED}: the account's quota is spent", False, failure.detail)
             elif failure.kind == RATE_LIMITED:  # not a retry: the run slows down until the provider lets it on

@@ -17,9 +17,9 @@ import sys
 from functools import lru_cache
 from typing import Any, Literal
 
+from safeembodai_core.models.token_estimate import message_tokens, text_tokens
+
 TokenCounting = Literal["litellm", "estimate"]
-_IMAGE_TOKENS = {"low": 85, "high": 85 + 4 * 170, "auto": 85}
-_PER_MESSAGE = 4
 
 
 @lru_cache(maxsize=1)
@@ -44,20 +44,9 @@ def import_litellm() -> Any:
 
 
 def estimate_tokens(messages: list[dict[str, Any]], text: str | None = None) -> int:
-    """A quick approximation: about four characters a token, 85 per low-detail image."""
-    if text is not None:
-        return max(1, round(len(text) / 4))
-    total = 3
-    for message in messages:
-        total += _PER_MESSAGE
-        content = message["content"]
-        parts = [{"type": "text", "text": content}] if isinstance(content, str) else content
-        for part in parts:
-            if part["type"] == "text":
-                total += round(len(part["text"]) / 4)
-            else:
-                total += _IMAGE_TOKENS.get(part["image_url"].get("detail", "auto"), 85)
-    return total
+    """A quick approximation (:mod:`safeembodai_core.models.token_estimate`): about four characters
+    a token, 85 per low-detail image; ``text``: an answer's tokens instead."""
+    return text_tokens(text) if text is not None else message_tokens(messages)
 
 
 def count_prompt_tokens(messages: list[dict[str, Any]], model: str, method: TokenCounting) -> int:

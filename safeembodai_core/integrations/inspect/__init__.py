@@ -1,7 +1,8 @@
 """SafeEmbodAI in Inspect AI (the ``inspect`` extra): tasks, solver, scorers and a model provider.
 
-``inspect eval safeembodai/mo --model openai/gpt-4o`` runs a scenario's ablation with Inspect's
-model; ``--model safeembodai/mock`` with the offline simulated pilot. The names are registered by
+``inspect eval safeembodai/mo --model safeembodai/litellm/gpt-4o`` runs a scenario's ablation
+through Inspect (only on a provider that shows the whole reply: :mod:`.providers`); ``--model
+safeembodai/mock`` with the offline simulated pilot. The names are registered by
 the top-level module ``safeembodai`` (Inspect names a package's tasks after the module that
 defines them; ``docs/inspect.md``). Importing this package needs ``inspect-ai`` installed.
 """

@@ -35,6 +35,9 @@ import numpy as np
 from ...components import BackendReply, LLMBackend
 from ...errors import BackendError
 from ...models import ImagePart, Prompt, TextPart, TokenUsage
+from ...models.chat_completion import read_usage, usage_believable
+from ...models.reply import envelope_error_text
+from ...models.token_estimate import estimated_usage
 from ...text_safety import one_line
 
 #: The key of the user message's metadata that carries the prompt's own facts.
@@ -47,6 +50,9 @@ _STOP_REASONS: dict[str, str | None] = {"stop": "stop", "max_tokens": "length", 
                                         "content_filter": "content_filter", "tool_calls": "tool_calls"}
 #: The ``stop_details.type`` by which ``safeembodai/<backend>`` says "the backend reported no reason".
 NOT_REPORTED = "not_reported"
+#: The ``stop_details.type`` by which it says "the backend refused the reply as a whole" (the
+#: explanation is the refusal, handed back as the reply's ``envelope_error``).
+REFUSED_REPLY = "refused_reply"
 
 
 def rng_state(rng: np.random.Generator) -> dict[str, Any]:
@@ -157,25 +163,44 @@ def reasoning_text(message: Any) -> str | None:
     return "\n".join(texts) if texts else None
 
 
-def backend_reply(output: Any, started: float) -> BackendReply:
+def output_usage(output: Any, prompt: Prompt | None, detail: str = "low") -> TokenUsage:
+    """Inspect's ``ModelUsage`` of ``output`` read as a server's usage is (:func:`read_usage`: two
+    whole, non-negative counts, and believable); anything else -- none, a zero for a request, a
+    negative or fractional count -- is the call counted here (:func:`estimated_usage`), never 0.
+    Counts ``safeembodai/<backend>`` made itself stay marked estimated (the output's metadata)."""
+    usage = getattr(output, "usage", None)
+    read = None if usage is None else read_usage({"prompt_tokens": getattr(usage, "input_tokens", None),
+                                                  "completion_tokens": getattr(usage, "output_tokens", None)})
+    text = output.completion if isinstance(output.completion, str) else ""
+    if read is not None and usage_believable(read, text):
+        marked = ((getattr(output, "metadata", None) or {}).get(META) or {}).get("usage_estimated") is True
+        return read.model_copy(update={"estimated": True}) if marked else read
+    return estimated_usage(prompt or Prompt(system="", user=()), text, detail)
+
+
+def backend_reply(output: Any, started: float, prompt: Prompt | None = None, detail: str = "low") -> BackendReply:
     """Inspect's ``ModelOutput`` as the loop's :class:`BackendReply`: the whole reply.
 
     The text is the first choice's text parts (``output.completion``), ``choices`` how many
     choices the output held (anything but one is refused), ``reasoning`` the first choice's
     reasoning parts (:func:`reasoning_text`), ``finish_reason`` its stop reason
-    (:func:`finish_reason`).
+    (:func:`finish_reason`), ``usage`` :func:`output_usage` (``prompt``: what was sent, for the count);
+    a reply ``safeembodai/<backend>`` marks refused as a whole (:data:`REFUSED_REPLY`) comes back with
+    its refusal as ``envelope_error``, so the reasons read as under ``ablate``.
     """
-    usage = output.usage
     first = output.choices[0] if output.choices else None
+    details = getattr(first, "stop_details", None)
+    refused = envelope_error_text(getattr(details, "explanation", None) or "refused by the backend") \
+        if getattr(details, "type", None) == REFUSED_REPLY else None
     return BackendReply(
         text=output.completion,
-        usage=TokenUsage(prompt_tokens=usage.input_tokens if usage else 0,
-                         completion_tokens=usage.output_tokens if usage else 0),
+        usage=output_usage(output, prompt, detail),
         latency_s=output.time or (time.perf_counter() - started),
         model=output.model or "",
         finish_reason=None if first is None else finish_reason(first.stop_reason, getattr(first, "stop_details", None)),
         reasoning=None if first is None else reasoning_text(first.message),
         choices=len(output.choices),
+        envelope_error=refused,
     )
 
 
@@ -207,4 +232,4 @@ class InspectBackend(LLMBackend):
                 output = anyio.from_thread.run(self.model.generate, messages)
         except Exception as error:  # the provider's, after Inspect's retries; or a sample limit
             raise BackendError(one_line(f"inspect model {self.model}: {type(error).__name__}: {error}")) from error
-        return backend_reply(output, started)
+        return backend_reply(output, started, prompt, self.detail)

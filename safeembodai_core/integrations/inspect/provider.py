@@ -1,8 +1,10 @@
 """The framework's offline backends as an Inspect model provider: ``--model safeembodai/mock``.
 
 ``safeembodai/<name>`` builds the registered LLM backend ``<name>`` (``mock``, the simulated
-pilot; ``scripted``; a plugin's own) with the ``-M key=value`` model arguments as its options,
-validated by the backend's options model exactly as a scenario's ``backend.options`` are.
+pilot; ``scripted``; ``litellm``; a plugin's own) with the ``-M key=value`` model arguments as its
+options, validated by the backend's options model exactly as a scenario's ``backend.options`` are.
+``safeembodai/<name>/<model>`` sets the backend's ``model`` option too (``safeembodai/litellm/openai/gpt-4o``):
+Inspect keeps ``-M model=...`` for itself.
 
 A call made by :class:`~.bridge.InspectBackend` carries the prompt's sections, modality names
 and the state of the generator the loop drew for that call (the user message's metadata), so
@@ -32,9 +34,11 @@ from inspect_ai.model import (
 from ...components import BackendReply, BuildContext
 from ...errors import SafeEmbodAIError
 from ...models import TokenUsage
-from ...models.reply import NORMAL_FINISH_REASONS, as_reply, finish_reason_text, normal_finish_reason
+from ...models.reply import (
+    NORMAL_FINISH_REASONS, as_reply, envelope_error_text, finish_reason_text, normal_finish_reason,
+)
 from ...quoting import quote_untrusted
-from .bridge import NOT_REPORTED, prompt_from_messages
+from .bridge import META, NOT_REPORTED, REFUSED_REPLY, prompt_from_messages
 
 #: The backend's finish reasons (normalised: :func:`~safeembodai_core.models.reply.normal_finish_reason`)
 #: that Inspect has a stop reason for. A normal end is ``stop``; not reported is ``unknown`` with
@@ -61,7 +65,8 @@ def stop_reason(reply: BackendReply) -> tuple[str, StopDetails | None]:
     """
     if reply.envelope_error or (reply.choices is not None and reply.choices != 1):
         why = reply.envelope_error or f"the reply held {reply.choices} choices"
-        return ABNORMAL_STOP, StopDetails(type="refused_reply", explanation=quote_untrusted(why, 300))
+        # as one line of terminal-safe text, clipped visibly: the bridge hands it back as the envelope error
+        return ABNORMAL_STOP, StopDetails(type=REFUSED_REPLY, explanation=envelope_error_text(why))
     normal = normal_finish_reason(reply.finish_reason)
     if normal is None:  # "unknown" alone would read back as refused: say it was not reported
         return "unknown", StopDetails(type=NOT_REPORTED, explanation="the backend reports no finish reason")
@@ -81,9 +86,13 @@ class SafeEmbodAIModelAPI(ModelAPI):
         super().__init__(model_name=model_name, base_url=base_url, api_key=api_key, config=config)
         from ...plugins import load_plugins
 
-        context = BuildContext(component=model_name, kind="llm_backend", seed=0, run_dir=None, label="inspect")
+        backend, _, model = model_name.partition("/")
+        options = dict(model_args)
+        if model:  # safeembodai/litellm/openai/gpt-4o: Inspect's -M cannot pass "model" (its own argument)
+            options["model"] = model
+        context = BuildContext(component=backend, kind="llm_backend", seed=0, run_dir=None, label="inspect")
         try:
-            self.backend = load_plugins().registry.build("llm_backend", model_name, dict(model_args), context)
+            self.backend = load_plugins().registry.build("llm_backend", backend, options, context)
         except SafeEmbodAIError as error:
             raise ValueError(f"safeembodai/{model_name}: {error}") from None
 
@@ -111,6 +120,8 @@ class SafeEmbodAIModelAPI(ModelAPI):
         usage = reply.usage if isinstance(reply.usage, TokenUsage) else TokenUsage()
         output.usage = ModelUsage(input_tokens=usage.prompt_tokens, output_tokens=usage.completion_tokens,
                                   total_tokens=usage.prompt_tokens + usage.completion_tokens)
+        if usage.estimated:  # Inspect's usage cannot say so: the output's metadata does (read by the bridge)
+            output.metadata = {**(output.metadata or {}), META: {"usage_estimated": True}}
         return output
 
     def close(self) -> None:

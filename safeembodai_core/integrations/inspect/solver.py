@@ -37,6 +37,7 @@ from ...runner import ScenarioRunner
 from ...scenario import Scenario
 from ...text_safety import markdown_literal
 from .bridge import InspectBackend
+from .providers import check_provider
 
 #: The key of the sample store that holds the trial's result (``TrialResult`` as JSON, no path).
 RESULT_KEY = "safeembodai:result"
@@ -209,11 +210,13 @@ def stopped_result(spec: TrialSpec) -> TrialResult:
 
 @solver
 def trial_solver(pool: RunnerPool, specs: dict[str, TrialSpec], image_detail: str = "low") -> Solver:
-    """Run the sample's trial (its id is the trial id) with the task's model."""
+    """Run the sample's trial (its id is the trial id) with the task's model (only on a provider
+    that hands over the whole reply: :func:`.providers.check_provider`)."""
 
     async def solve(state: TaskState, generate: Generate) -> TaskState:
         spec = specs[str(state.sample_id)]
         model = get_model()
+        check_provider(model)  # before the trial starts: nothing is sent on a provider that is refused
         try:
             loop: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
         except RuntimeError:  # Inspect on trio

@@ -20,6 +20,7 @@ from ...plugins import Plugins, load_plugins
 from ...report.cells import attacked
 from ...runner import ScenarioRunner
 from ...scenario import load_scenario
+from .providers import check_active_model
 from .scorers import CELL, catalog_scorers
 from .solver import RunnerPool, trial_solver
 
@@ -63,7 +64,10 @@ def scenario_task(scenario: str | None, trials: int | None = None, seed: int | N
     """The Inspect task of ``scenario`` (a shipped name or a path), with ``--set``-style overrides.
 
     ``plugins`` (library use, tests) replaces the installed plugins (:func:`~safeembodai_core.plugins.load_plugins`).
+    A model of a provider that cannot show the whole reply is refused here when ``inspect eval`` has
+    set it already, else by the solver (:mod:`.providers`).
     """
+    check_active_model()
     plugins = plugins or load_plugins()
     loaded = load_scenario(scenario_path(scenario), _overrides(trials, seed, max_steps, set), plugins.registry)
     runner = ScenarioRunner(loaded, plugins)
