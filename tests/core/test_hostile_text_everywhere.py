@@ -32,12 +32,15 @@ EVIL = ("\x1b[31mred\x1b[0m\u202eevil\u202c\x9b2J\u200b\U000e0041<script>alert(1
 #: The same, fit for a name (no slash: names make trial ids and file names).
 EVIL_NAME = "=cmd\x1b[2J\u202e<b>arm</b>![x](x)\u200b|"
 #: Characters no terminal line may carry.
-INVISIBLE = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069\ufeff\U000e0000-\U000e007f]")
+INVISIBLE = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u200b-\u200f\u202a-\u202e\u2066-\u2069\ufeff"
+                       "\U000e0000-\U000e007f]")
 
 
 def clean_terminal(text: str, what: str) -> None:
     found = INVISIBLE.search(text)
-    assert found is None, f"{what}: {found.group()!r} reached the terminal near {text[max(0, found.start() - 60):found.end() + 20]!r}"
+    if found is not None:
+        near = text[max(0, found.start() - 60):found.end() + 20]
+        pytest.fail(f"{what}: {found.group()!r} reached the terminal near {near!r}")
 
 
 def cli(*args: str, cwd: Path, env: dict[str, str] | None = None, ok: bool = True) -> str:
