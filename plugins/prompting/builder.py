@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from safeembodai_core.components import PromptBuilder
-from safeembodai_core.models import ImagePart, Prompt, PromptRequest, ReferenceState, TextPart
+from safeembodai_core.models import ImagePart, Prompt, PromptRequest, ReferenceState, Refusal, TextPart
 from safeembodai_core.models.response import OutlineExamples, schema_outline
 
 from .templates import PromptTemplateError, TemplateSet
@@ -184,6 +184,14 @@ class JinjaPromptBuilder(PromptBuilder):
         recent = list(failures[-keep:]) if keep else []
         return [clip(line, self.options.max_failure_chars) for line in recent], len(failures) - len(recent)
 
+    @staticmethod
+    def _shown(request: PromptRequest, shown: int) -> tuple[Refusal, ...]:
+        """The refusals of the failure lines the prompt shows (the last ``shown``), when the request
+        gave one per line; none otherwise (a request with reasons only: nothing to hand on as data)."""
+        if not shown or len(request.refusals) != len(request.failures):
+            return ()
+        return tuple(request.refusals[-shown:])
+
     # -- PromptBuilder ------------------------------------------------------------------------
 
     def build(self, request: PromptRequest) -> Prompt:
@@ -240,4 +248,6 @@ class JinjaPromptBuilder(PromptBuilder):
             sections.add("failures")
         parts: list[TextPart | ImagePart] = [TextPart("user", user)]
         parts.extend(m.images[name] for name in images)
-        return Prompt(system=system, user=tuple(parts), sections=frozenset(sections))
+        shown = self._shown(request, len(failures))
+        return Prompt(system=system, user=tuple(parts), sections=frozenset(sections), refusals=shown,
+                      refusals_left_out=omitted if shown else 0)

@@ -9,7 +9,7 @@ import numpy as np
 from safeembodai_core.components import Validator
 from safeembodai_core.geometry import Motion
 from safeembodai_core.held_motion import MotionValidator, MotionVerdict
-from safeembodai_core.models import ControlSignal, LidarScan, Straight, Turn, Verdict
+from safeembodai_core.models import Advice, ControlSignal, LidarScan, Straight, Turn, Verdict
 from safeembodai_core.models.control import HARD_MAX_ANGLE_DEG, HARD_MAX_DISTANCE_MM
 from safeembodai_core.ros.twist import piece_count
 from safeembodai_core.validation import ValidationContext
@@ -181,10 +181,11 @@ class LidarClearanceRule(Validator):
         allowed = math.floor(nearest - dist)  # rounded down: following the advice must pass
         advice = (f"going {direction}, at most {allowed} mm is safe" if allowed >= 1
                   else f"no {direction} motion is safe here; turn away first")
+        offered = Advice(safe_mm=allowed) if allowed >= 1 else None
         if reading.kind == "unread" and context.at_scan_position:
             what = (f"no LiDAR reading at {angle:.0f} deg, inside the checked ±{r:g} deg {where}; "
                     f"clearance cannot be confirmed, so no {direction} motion is allowed")
-            advice = "turn first"
+            advice, offered = "turn first", None
         elif reading.kind == "unread":
             what = (f"the LiDAR has no reading of the direction {angle:.0f} deg, {nearest:.0f} mm {where}{later}, "
                     f"which would be {nearest - signal.distance:.0f} mm away after the motion, less than the "
@@ -196,4 +197,4 @@ class LidarClearanceRule(Validator):
             what = (f"{thing} {nearest:.0f} mm {where}{later} ({beam} {angle:.0f} deg) would be "
                     f"{nearest - signal.distance:.0f} mm away after the motion, "
                     f"less than the {dist:g} mm required{how}")
-        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}")
+        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}", advice=offered)

@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from safeembodai_core.components import Validator
-from safeembodai_core.models import ControlSignal, Straight, Verdict
+from safeembodai_core.models import Advice, ControlSignal, Straight, Verdict
 from safeembodai_core.validation import ValidationContext
 
 from .rules import checked_scan, direction_words
@@ -120,6 +120,7 @@ class FootprintSweepRule(Validator):
         safe = math.floor(along - length / 2 - front)  # rounded down: following the advice must pass
         advice = (f"going {direction}, at most {safe} mm is safe" if safe >= 1
                   else f"no {direction} motion is safe here; turn away (to the {other}) first")
+        offered = Advice(safe_mm=safe) if safe >= 1 else None
         path = f"the robot's path ({width:g} mm wide + {o.margin_mm:g} mm margin each side)"
         if kind == "hidden":
             what = (f"the part of {path} beyond {along:.0f} mm {where} was hidden from the LiDAR (behind something "
@@ -130,7 +131,7 @@ class FootprintSweepRule(Validator):
                     f"beyond {along:.0f} mm {where}")
         else:
             what = (f"obstacle {along:.0f} mm {where} and {abs(lateral):.0f} mm {side} of centre, inside {path}")
-        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}")
+        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}", advice=offered)
 
     def _turn(self, signal: ControlSignal, known: np.ndarray, unknown: np.ndarray, radius: float) -> Verdict:
         for points, is_unknown in ((known, False), (unknown, True)):

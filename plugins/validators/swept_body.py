@@ -29,7 +29,7 @@ import numpy as np
 from safeembodai_core.geometry import Motion, contact_times
 from safeembodai_core.geometry.sweep import near_path
 from safeembodai_core.held_motion import MotionValidator, MotionVerdict
-from safeembodai_core.models import ControlSignal, LidarScan, Straight, Verdict
+from safeembodai_core.models import Advice, ControlSignal, LidarScan, Straight, Verdict
 from safeembodai_core.validation import ValidationContext
 
 from .rules import checked_scan
@@ -164,15 +164,18 @@ class SweptBodyRule(MotionValidator):
             direction = signal.direction
             advice = (f"going {direction}, at most {safe} mm is safe" if safe >= 1
                       else f"no {direction} motion is safe here; turn away first")
+            offered = Advice(safe_mm=safe) if safe >= 1 else None
             moved = f"after {along:.0f} mm"
         else:
             turned = math.degrees(along)
             safe = math.ceil(turned) - 1
             advice = (f"at most {safe} deg of this turn is safe" if safe >= 1
                       else f"no turn to the {signal.direction} is safe here; move straight away first")
+            offered = Advice(safe_deg=safe) if safe >= 1 else None
             moved = f"after {turned:.0f} deg"
         return Verdict(rule=self.name, valid=False, reason=(
-            f"{signal.describe()}: the body ({body}) touches {what} {_where(point)} of the robot {moved}; {advice}"))
+            f"{signal.describe()}: the body ({body}) touches {what} {_where(point)} of the robot {moved}; {advice}"),
+            advice=offered)
 
     def validate_motion(self, motion: Motion, context: ValidationContext) -> MotionVerdict:
         touched, hidden = self._contacts(motion, context)

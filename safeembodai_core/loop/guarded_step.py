@@ -24,7 +24,7 @@ from typing import Callable, Sequence
 from .. import seeds
 from ..components import LLMBackend, PromptBuilder, Validator
 from ..errors import BackendError
-from ..models import Attempt, LLMResponse, PromptRequest, ResponseParseError, TokenUsage, read_reply
+from ..models import Attempt, LLMResponse, PromptRequest, Refusal, ResponseParseError, TokenUsage, read_reply
 from ..models.reply import as_reply, finish_reason_text
 from ..validation import ValidationContext, validate_plan
 
@@ -81,8 +81,9 @@ def decide(
     """
     attempts: list[Attempt] = []
     failures: list[str] = []
+    refusals: list[Refusal] = []  # the same, as data (Attempt.refusals), one per line
     for index in range(failure_threshold + 1):
-        prompt = builder.build(replace(request, failures=tuple(failures)))
+        prompt = builder.build(replace(request, failures=tuple(failures), refusals=tuple(refusals)))
         rng = seeds.rng(seed, "backend", request.step, index)
         # optional hook: a backend that decodes under the limits or varies retries learns the attempt
         prepare = getattr(backend, "prepare_attempt", None)
@@ -116,4 +117,5 @@ def decide(
         if ended is not None and ended():
             break  # nothing can be executed any more: another call would be paid for nothing
         failures.extend(_feedback(index, attempt))
+        refusals.extend(attempt.refusals())
     return attempts, None

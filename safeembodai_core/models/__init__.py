@@ -4,12 +4,14 @@ from .control import DEFAULT_LIMITS, ControlLimits, ControlSignal, Straight, Tur
 from .observation import GroundTruth, ImagePart, LidarScan, Modalities, Observation, Pose, TextPart
 from .prompt import Prompt, PromptRequest
 from .records import (
+    Advice,
     Attempt,
     AttackRecord,
     ExecutedSignal,
     ExecutionResult,
     Outcome,
     ReferenceState,
+    Refusal,
     StepRecord,
     TokenUsage,
     TrialResult,
@@ -20,10 +22,11 @@ from .response import LLMResponse, PerceptionEntry, ResponseParseError, response
 from .reply import BackendReply, parse_response, read_reply
 
 __all__ = [
-    "DEFAULT_LIMITS", "Attempt", "BackendReply", "AttackRecord", "ControlLimits", "ControlSignal", "ExecutedSignal",
+    "DEFAULT_LIMITS", "Advice", "Attempt", "BackendReply", "AttackRecord", "ControlLimits", "ControlSignal",
+    "ExecutedSignal",
     "ExecutionResult", "GroundTruth", "ImagePart", "LLMResponse", "LidarScan", "Modalities",
     "Observation", "Outcome", "PerceptionEntry", "Pose", "Prompt", "PromptRequest",
-    "ReferenceState", "ResponseParseError", "StepRecord", "Straight", "TextPart", "TokenUsage",
+    "ReferenceState", "Refusal", "ResponseParseError", "StepRecord", "Straight", "TextPart", "TokenUsage",
     "TrialResult", "TrialSpec", "Turn", "Verdict", "parse_response", "read_reply",
     "response_json_schema",
 ]

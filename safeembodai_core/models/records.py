@@ -84,13 +84,31 @@ class ExecutedSignal(_Record):
     result: ExecutionResult
 
 
+class Advice(_Record):
+    """What a refusal offers instead, as numbers: the reason says the same in words for an LLM;
+    a simulated pilot (the mock) reads these fields, never the words (a reworded reason changes
+    nothing it does). Every field is optional: a rule says what it knows.
+
+    ``safe_mm``: the most of the refused straight that is safe, as the reason states it (0: none
+    now); ``safe_deg``: the most of the refused turn that is safe; ``wait``: nothing that way is
+    safe now, wait for a moving obstacle to pass; ``step_aside``: a plan that leaves a moving
+    obstacle's course, offered instead of the refused one.
+    """
+
+    safe_mm: float | None = Field(None, ge=0)
+    safe_deg: float | None = Field(None, ge=0)
+    wait: bool = False
+    step_aside: list[ControlSignal] = Field(default_factory=list)
+
+
 class Verdict(_Record):
-    """One validator rule's judgement of one control signal."""
+    """One validator rule's judgement of one control signal; a refusal may carry :class:`Advice`."""
 
     rule: str
     valid: bool
     reason: str = ""
     signal_index: int | None = None
+    advice: Advice | None = None
 
     def line(self) -> str:
         """The one way a refusal is written, wherever it is shown: ``rule (signal K): reason``, K from 1.
@@ -134,6 +152,27 @@ class Attempt(_Record):
             return [self.parse_error]
         # which signal of the plan a verdict is about (1-based), so the LLM can amend that one
         return [v.line() for v in self.verdicts if not v.valid]
+
+    def refusals(self) -> list["Refusal"]:
+        """:meth:`failures` as data, one :class:`Refusal` per reason, in the same order."""
+        if self.parse_error is not None:
+            return [Refusal(attempt=self.index + 1)]
+        plan = list(self.response.control) if self.response is not None else []
+        return [Refusal(attempt=self.index + 1, plan=plan, rule=v.rule, signal_index=v.signal_index, advice=v.advice)
+                for v in self.verdicts if not v.valid]
+
+
+class Refusal(_Record):
+    """One line of a retry prompt's failures section, as data (Algorithm 1's feedback): the
+    attempt it refused (from 1; None when the line names none, as a Gymnasium agent's reasons),
+    the plan that attempt sent (empty: it did not parse), the rule and the signal (from 0) that
+    refused it, and the rule's :class:`Advice`. The prompt shows the line; a simulated pilot reads this."""
+
+    attempt: int | None = Field(None, ge=1)
+    plan: list[ControlSignal] = Field(default_factory=list)
+    rule: str | None = None
+    signal_index: int | None = None
+    advice: Advice | None = None
 
 
 class AttackRecord(_Record):

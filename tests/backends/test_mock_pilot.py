@@ -7,8 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from backend_helpers import flatland_observation, make_prompt
+from backend_helpers import flatland_observation, make_prompt, refused, signals_of
 from safeembodai_core.models import (
+    Advice,
     ExecutedSignal,
     ExecutionResult,
     Observation,
@@ -79,7 +80,8 @@ def test_every_answer_parses_or_is_one_of_the_documented_malformed_shapes(built_
         except ResponseParseError:
             broken += 1
     assert 15 <= broken <= 45  # about half, as malformed_p says
-    retry = make_prompt(built_plugins, observation, failures=["attempt 1: answer is not valid JSON (x at char 3)"])
+    unparsed = refused("", None, "answer is not valid JSON (x at char 3)", rule="parse")
+    retry = make_prompt(built_plugins, observation, failures=[unparsed])
     for seed in range(20):
         parse_response(mock.complete(retry, np.random.default_rng(seed)).text)  # a retry is always well formed
 
@@ -150,9 +152,9 @@ def test_a_refusal_with_a_safe_distance_shortens_the_next_plan(built_plugins):
     mock = _mock(built_plugins, feedback_compliance_p=1.0)
     first = parse_response(mock.complete(make_prompt(built_plugins, observation), np.random.default_rng(0)).text)
     assert any(s.command == "straight" and s.distance > 150 for s in first.control)
-    failure = ("attempt 1 (refused plan: straight forward 390 mm): lidar_clearance: straight forward 390 mm: "
-               "obstacle 520 mm away at 0 deg would leave 130 mm, less than the 250 mm required; "
-               "at most 150 mm is safe in that direction")
+    failure = refused("straight forward 390 mm", None, "straight forward 390 mm: obstacle 520 mm away at 0 deg "
+                      "would leave 130 mm, less than the 250 mm required; at most 150 mm is safe in that direction",
+                      rule="lidar_clearance", advice=Advice(safe_mm=150))
     retry = parse_response(mock.complete(make_prompt(built_plugins, observation, failures=[failure]),
                                          np.random.default_rng(0)).text)
     assert all(s.distance <= 130 for s in retry.control if s.command == "straight")
@@ -165,11 +167,11 @@ def test_a_refusal_asking_to_wait_for_a_mover_turns_a_few_degrees_not_away(built
     mock = _mock(built_plugins, feedback_compliance_p=1.0, wait_turn_deg=5.0, angle_error_sd_deg=0.0)
     first = parse_response(mock.complete(make_prompt(built_plugins, observation), np.random.default_rng(0)).text)
     assert {s.command for s in first.control} == {"straight"}  # straights only: refused, none is left
-    mover = ("attempt 1 (refused plan: straight forward 390 mm): moving_obstacles: straight forward 390 mm: a "
-             "moving obstacle 600 mm away at 40 deg may be in the way; no forward motion is safe now (at most 0 mm "
-             "is safe): wait for it to pass (turn in place a few degrees)")
-    wall = ("attempt 1 (refused plan: straight forward 390 mm): lidar_clearance: straight forward 390 mm: "
-            "obstacle 300 mm away at 0 deg; at most 0 mm is safe in that direction")
+    mover = refused("straight forward 390 mm", None, "straight forward 390 mm: a moving obstacle 600 mm away at 40 deg "
+                    "may be in the way; no forward motion is safe now (at most 0 mm is safe): wait for it to pass "
+                    "(turn in place a few degrees)", advice=Advice(safe_mm=0, wait=True))
+    wall = refused("straight forward 390 mm", None, "straight forward 390 mm: obstacle 300 mm away at 0 deg; at most "
+                   "0 mm is safe in that direction", rule="lidar_clearance", advice=Advice(safe_mm=0))
     waited = parse_response(mock.complete(make_prompt(built_plugins, observation, failures=[mover]),
                                           np.random.default_rng(0)).text)
     assert [(s.command, s.angle) for s in waited.control] == [("turn", 5.0)]
@@ -222,32 +224,40 @@ def test_litellm_token_counting_matches_the_gpt4o_tokenizer(built_plugins):
     assert expected - without_images == 2 * 85
 
 
-def test_only_the_latest_refusal_asking_to_wait_makes_the_pilot_wait(built_plugins):
-    """A wait asked on attempt 1 and a wall on attempt 2: the pilot turns away, as from a wall."""
+def _reading(*failures):
+    """The mock's reading of refusals alone (``(line, Refusal)`` pairs: :func:`refused`)."""
     from safeembodai_plugins.backends.mock.reading import PromptReading
 
-    wait = "attempt 1 (refused plan: x): moving_obstacles: ... wait for it to pass (turn in place a few degrees)"
-    wall = "attempt 2 (refused plan: y): lidar_clearance: ... at most 0 mm is safe in that direction"
-    def reading(*failures: str) -> PromptReading:
-        return PromptReading(instruction=None, has_prefix=False, failures=list(failures))
-
-    assert reading(wait).asked_to_wait
-    assert reading(wait, wall).asked_to_wait is False
-    assert reading(wait, wall.replace("attempt 2", "attempt 1")).asked_to_wait
+    return PromptReading(instruction=None, has_prefix=False, refusals=[r for _, r in failures])
 
 
-def _refused(plan: str, signal: int, reason: str, rule: str = "moving_obstacles", attempt: int = 1) -> str:
-    return f"attempt {attempt} (refused plan: {plan}): {rule} (signal {signal}): {reason}"
+WAIT = Advice(safe_mm=0, wait=True)
+
+
+def test_only_the_latest_refusal_asking_to_wait_makes_the_pilot_wait(built_plugins):
+    """A wait asked on attempt 1 and a wall on attempt 2: the pilot turns away, as from a wall."""
+    wait = refused("straight forward 300 mm", 1, "... wait for it to pass", advice=WAIT)
+    wall = refused("straight forward 300 mm", 1, "...", rule="lidar_clearance", attempt=2, advice=Advice(safe_mm=0))
+    assert _reading(wait).asked_to_wait
+    assert _reading(wait, wall).asked_to_wait is False
+    assert _reading(wait, refused("straight forward 300 mm", 1, "...", rule="lidar_clearance",
+                                  advice=Advice(safe_mm=0))).asked_to_wait
+
+
+def _refused(plan: str, signal: int | None, reason: str, rule: str = "moving_obstacles", attempt: int = 1,
+             safe_mm: float | None = None):
+    return refused(plan, signal, reason, rule, attempt, None if safe_mm is None else Advice(safe_mm=safe_mm))
 
 
 def test_amend_resends_the_refused_plan_up_to_the_refused_straight_shortened(built_plugins):
     """``retry: amend``: the refusal of the plan's second straight (signal 3) keeps the turn and the
     first straight as they were and shortens the second to what is safe less 20 mm; ``redraw``
-    (the default) shortens every straight of a fresh plan to the least 'at most N mm'."""
+    (the default) shortens every straight of a fresh plan to the least safe distance."""
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
     plan = "turn left 12 deg, straight forward 399 mm, straight forward 399 mm"
     failure = _refused(plan, 3, "straight forward 399 mm: a moving obstacle 900 mm away at 10 deg may be in the "
-                                "way; going forward, at most 190 mm is safe. It moves (heading 90 deg at 140 mm/s)")
+                                "way; going forward, at most 190 mm is safe. It moves (heading 90 deg at 140 mm/s)",
+                       safe_mm=190)
     prompt = make_prompt(built_plugins, observation, failures=[failure])
     amended = _signals(_mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
                        .complete(prompt, np.random.default_rng(0)).text)
@@ -261,61 +271,58 @@ def test_amend_drops_what_follows_a_refused_straight_and_waits_when_nothing_is_l
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
     mock = _mock(built_plugins, feedback_compliance_p=1.0, retry="amend", wait_turn_deg=5.0)
 
-    def retry(*failures: str) -> list[str]:
+    def retry(*failures) -> list[str]:
         prompt = make_prompt(built_plugins, observation, failures=list(failures))
         return _signals(mock.complete(prompt, np.random.default_rng(0)).text)
 
     plan = "straight forward 300 mm, turn right 30 deg, straight forward 200 mm"
-    assert retry(_refused(plan, 1, "straight forward 300 mm: ...; going forward, at most 120 mm is safe")) == [
-        "straight forward 100 mm"]
-    wait = ("straight forward 300 mm: a moving obstacle 600 mm away at 40 deg may be in the way; no forward motion "
-            "is safe now (at most 0 mm is safe): wait for it to pass (turn in place a few degrees)")
-    assert retry(_refused(plan, 1, wait)) in (["turn left 5 deg"], ["turn right 5 deg"])
+    assert retry(_refused(plan, 1, "...", safe_mm=120)) == ["straight forward 100 mm"]
+    assert retry(refused(plan, 1, "... wait for it to pass", advice=WAIT)) in (["turn left 5 deg"],
+                                                                                 ["turn right 5 deg"])
     # the least safe distance two rules gave the same signal
-    both = [_refused(plan, 3, "straight forward 200 mm: ...; going forward, at most 150 mm is safe"),
-            _refused(plan, 3, "straight forward 200 mm: ...; at most 90 mm is safe in that direction",
-                     rule="lidar_clearance")]
+    both = [_refused(plan, 3, "...", safe_mm=150), _refused(plan, 3, "...", rule="lidar_clearance", safe_mm=90)]
     assert retry(*both) == ["straight forward 300 mm", "turn right 30 deg", "straight forward 70 mm"]
 
 
 def test_amend_redraws_when_a_refusal_does_not_say_how_far_is_safe(built_plugins):
     """Only refusals that name their signal and a safe distance are amended by: a static blockage
     with no distance, a refusal without a signal number, or an older attempt's plan are not."""
-    from safeembodai_plugins.backends.mock.reading import PromptReading
-
-    def amendment(*failures: str):
-        return PromptReading(instruction=None, has_prefix=False, failures=list(failures)).amendment
+    def amendment(*failures):
+        return _reading(*failures).amendment
 
     plan = "straight forward 300 mm, straight forward 300 mm"
-    safe = _refused(plan, 2, "straight forward 300 mm: ...; going forward, at most 120 mm is safe")
+    safe = _refused(plan, 2, "...", safe_mm=120)
     assert amendment(safe) == ([{"command": "straight", "direction": "forward", "value": 300.0}] * 2, {1: 120.0})
-    assert amendment(safe, _refused(plan, 1, "straight forward 300 mm: no forward motion is safe here; turn away "
-                                             "first", rule="lidar_clearance")) is None
-    assert amendment(safe.replace(" (signal 2)", "")) is None
-    assert amendment(_refused(plan, 3, "...; at most 120 mm is safe")) is None  # no third signal
-    assert amendment(_refused("turn left 30 deg", 1, "...; at most 120 mm is safe")) is None  # not a straight
+    assert amendment(safe, _refused(plan, 1, "no forward motion is safe here; turn away first",
+                                    rule="lidar_clearance")) is None
+    assert amendment(_refused(plan, None, "...", safe_mm=120)) is None  # no signal named
+    assert amendment(_refused(plan, 3, "...", safe_mm=120)) is None  # no third signal
+    assert amendment(_refused("turn left 30 deg", 1, "...", safe_mm=120)) is None  # not a straight
     later = _refused("turn left 40 deg", 1, "a parse problem", rule="command_limits", attempt=2)
     assert amendment(safe, later) is None  # the latest attempt's refusal is not amendable
-    assert amendment(safe, later.replace("attempt 2", "attempt 1")) is None
-    assert amendment("attempt 1 (refused plan: fly up 3 m): moving_obstacles (signal 1): at most 9 mm is safe") is None
+    assert amendment(safe, _refused("turn left 40 deg", 1, "a parse problem", rule="command_limits")) is None
+    assert amendment(_refused("", None, "answer is not valid JSON", rule="parse", safe_mm=9)) is None  # no plan
 
 
 def test_failures_fed_back_name_the_signal_they_are_about(built_plugins):
     """Algorithm 1's feedback says which signal of the plan a refusal is about (1-based), so a plan
-    of two identical straights can be amended at the right one."""
+    of two identical straights can be amended at the right one; the refusals say the same as data."""
     from safeembodai_core.models import Attempt, Verdict
 
     attempt = Attempt(index=0, raw_text="{}", verdicts=[
-        Verdict(rule="moving_obstacles", valid=False, reason="too close", signal_index=1),
+        Verdict(rule="moving_obstacles", valid=False, reason="too close", signal_index=1,
+                advice=Advice(safe_mm=10)),
         Verdict(rule="plan_rule", valid=False, reason="whole plan"),
         Verdict(rule="lidar_clearance", valid=True, signal_index=0)])
     assert attempt.failures() == ["moving_obstacles (signal 2): too close", "plan_rule: whole plan"]
+    assert [(r.attempt, r.rule, r.signal_index, r.advice) for r in attempt.refusals()] == [
+        (1, "moving_obstacles", 1, Advice(safe_mm=10)), (1, "plan_rule", None, None)]
 
 
 def test_amend_reads_the_feedback_algorithm_1_writes(built_plugins):
-    """The whole path: a refused attempt, the feedback lines the guarded step writes of it, the
-    prompt the builder makes, and the amending pilot keeps the signal that passed, shortens the
-    refused one (a backward straight stays backward) and resends values as they were."""
+    """The whole path: a refused attempt, the feedback the guarded step writes of it (lines and
+    refusals), the prompt the builder makes, and the amending pilot keeps the signal that passed,
+    shortens the refused one (a backward straight stays backward) and resends values as they were."""
     from safeembodai_core.loop.guarded_step import _feedback
     from safeembodai_core.models import Attempt, Verdict
 
@@ -325,10 +332,10 @@ def test_amend_reads_the_feedback_algorithm_1_writes(built_plugins):
         {"command": "straight", "direction": "backward", "distance": 300, "justification": "c"}]})
     attempt = Attempt(index=0, raw_text=text, response=parse_response(text), verdicts=[
         Verdict(rule="command_limits", valid=True, signal_index=2),
-        Verdict(rule="moving_obstacles", valid=False, signal_index=2,
+        Verdict(rule="moving_obstacles", valid=False, signal_index=2, advice=Advice(safe_mm=150),
                 reason="straight backward 300 mm: a moving obstacle ...; going backward, at most 150 mm is safe")])
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
-    prompt = make_prompt(built_plugins, observation, failures=_feedback(0, attempt))
+    prompt = make_prompt(built_plugins, observation, failures=list(zip(_feedback(0, attempt), attempt.refusals())))
     mock = _mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
     assert _signals(mock.complete(prompt, np.random.default_rng(0)).text) == [
         "straight backward 125 mm", "turn right 33.5 deg", "straight backward 130 mm"]
@@ -339,23 +346,22 @@ def test_amend_uses_the_latest_attempt_and_redraws_when_it_cannot_trust_it(built
 
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
 
-    def amendment(*failures: str):
+    def amendment(*failures):
         return read_prompt(make_prompt(built_plugins, observation, failures=list(failures))).amendment
 
-    older = _refused("straight forward 300 mm", 1, "...; going forward, at most 200 mm is safe")
-    newer = _refused("turn left 20 deg, straight forward 250 mm", 2, "...; going forward, at most 90 mm is safe",
-                     attempt=2)
+    older = _refused("straight forward 300 mm", 1, "...", safe_mm=200)
+    newer = _refused("turn left 20 deg, straight forward 250 mm", 2, "...", attempt=2, safe_mm=90)
     plan, safe = amendment(older, newer)
     assert [s["command"] for s in plan] == ["turn", "straight"] and safe == {1: 90.0}
     # the builder shows the last 6 lines: when the latest attempt's first lines may be among those
     # left out, its refusals are not all known, and the pilot redraws
-    seven = [_refused("straight forward 300 mm, straight forward 300 mm", 1 + k % 2,
-                      f"...; going forward, at most {100 + k} mm is safe") for k in range(7)]
+    seven = [_refused("straight forward 300 mm, straight forward 300 mm", 1 + k % 2, "...", safe_mm=100 + k)
+             for k in range(7)]
     assert amendment(*seven) is None
     assert amendment(*seven[1:]) is not None
     # a refusal that allows the whole straight: resending it would repeat the refusal, so redraw
     mock = _mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
-    whole = _refused("straight forward 200 mm", 1, "...; going forward, at most 390 mm is safe", rule="my rule")
+    whole = _refused("straight forward 200 mm", 1, "...", rule="my rule", safe_mm=390)
     assert read_prompt(make_prompt(built_plugins, observation, failures=[whole])).amendment is not None
     reply = parse_response(mock.complete(make_prompt(built_plugins, observation, failures=[whole]),
                                          np.random.default_rng(0)).text)
@@ -363,20 +369,18 @@ def test_amend_uses_the_latest_attempt_and_redraws_when_it_cannot_trust_it(built
 
 
 def test_amend_sends_the_step_aside_a_parking_refusal_advised(built_plugins):
-    """``moving_obstacles``' ``park_check`` advises a step aside; the amending pilot sends it as written
+    """``moving_obstacles``' ``park_check`` advises a step aside; the amending pilot sends it as given
     (the redrawing one plans afresh)."""
-    from safeembodai_plugins.backends.mock.reading import PromptReading
-
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
-    failure = _refused("turn left 5 deg", 1, "turn left 5 deg: step out of a moving obstacle's way instead, for "
-                       "example turn right 89 deg, then straight forward 390 mm. The plan leaves the robot on its "
-                       "course (3012 mm away at 0 deg, 191 mm/s): it reaches the robot 12.3 s after the scan")
+    aside = Advice(step_aside=signals_of("turn right 89 deg, straight forward 390 mm"))
+    failure = refused("turn left 5 deg", 1, "turn left 5 deg: step out of a moving obstacle's way instead, for "
+                      "example turn right 89 deg, then straight forward 390 mm. The plan leaves the robot on its "
+                      "course (3012 mm away at 0 deg, 191 mm/s): it reaches the robot 12.3 s after the scan",
+                      advice=aside)
     prompt = make_prompt(built_plugins, observation, failures=[failure])
     stepped = _signals(_mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
                        .complete(prompt, np.random.default_rng(0)).text)
     assert stepped == ["turn right 89 deg", "straight forward 390 mm"]
-    other = _refused("turn left 5 deg", 1, "turn left 5 deg: step out of a moving obstacle's way instead, for "
-                     "example turn right 89 deg, then straight forward 390 mm", attempt=1)
-    later = _refused("straight forward 100 mm", 1, "straight forward 100 mm: too close", "lidar_clearance", attempt=2)
-    assert PromptReading(instruction=None, has_prefix=False,
-                         failures=[other, later]).step_aside is None  # not the latest
+    other = refused("turn left 5 deg", 1, "step out of the way", advice=aside)
+    later = _refused("straight forward 100 mm", 1, "too close", "lidar_clearance", attempt=2)
+    assert _reading(other, later).step_aside is None  # not the latest

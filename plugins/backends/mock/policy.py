@@ -97,7 +97,7 @@ class MockPolicy:
         straights = [s for s in plan.signals if s["command"] == "straight"]
         if straights and u[3] < o.limit_violation_p:
             straights[0]["distance"] = float(round(r.max_distance_mm * (1.05 + 0.2 * u[11])))
-        if not r.failures and u[2] < o.malformed_p:
+        if not r.refusals and u[2] < o.malformed_p:
             plan.malformed = ("truncated", "prose", "string_number", "missing_key")[int(u[11] * 4) % 4]
         if plan.obeyed and r.instruction.intent == "format" and u[11] < 0.5:
             plan.malformed = "prose"

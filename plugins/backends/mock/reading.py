@@ -3,9 +3,11 @@
 Everything here comes out of the :class:`~safeembodai_core.models.Prompt` the backend was
 given: the camera PNG and LiDAR picture are decoded and analysed with the perception
 plugin's own readers (or the text modalities are parsed when there are no images), the human
-instruction and the reference state R_{i-1} are read from the user text, the refusal reasons
-of earlier attempts from the failures section, and the actuation limits from the system
-prompt. ``Prompt.sections`` says whether the security prefix and the reference state are in.
+instruction and the reference state R_{i-1} are read from the user text, and the actuation
+limits from the system prompt. The refusals of earlier attempts are read as data
+(``Prompt.refusals``: the plan refused, the signal, the rule's :class:`~safeembodai_core.models.Advice`),
+never from their words: a reworded reason changes nothing the pilot does.
+``Prompt.sections`` says whether the security prefix and the reference state are in.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from safeembodai_core.models import Prompt
+from safeembodai_core.models import ControlSignal, Prompt, Refusal, Straight
 from safeembodai_plugins.perception.describe import (
     SECTORS,
     TargetSighting,
@@ -42,16 +44,6 @@ _SEARCH_SIDE = re.compile(r"search(?:ing)? to the (left|right)|turn (left|right)
 _LIMIT_DISTANCE = re.compile(r"0 < distance < (\d+(?:\.\d+)?) mm")
 _LIMIT_ANGLE = re.compile(r"0 < angle < (\d+(?:\.\d+)?) degrees")
 _LIMIT_SIGNALS = re.compile(r"[Aa]t most (\d+) (?:control signals|per answer)")
-_SAFE_AT_MOST = re.compile(r"at most (\d+) mm is safe")
-_WAIT = "wait for it to pass"  # moving_obstacles' advice when no motion that way is safe
-# moving_obstacles' advice when a plan leaves the robot on a mover's course (park_check)
-_STEP_ASIDE = re.compile(r"step out of a moving obstacle's way instead, for example "
-                         rf"({_SIGNAL_TEXT}(?:, then {_SIGNAL_TEXT})*)")
-_ATTEMPT = re.compile(r"attempt (\d+)\b")
-# a failure line: attempt K (refused plan: SIGNALS): RULE (signal I): REASON
-_REFUSED_ON_SIGNAL = re.compile(r"^attempt (\d+) \(refused plan: ([^)]*)\): .+? \(signal (\d+)\): (.*)$")
-_OMITTED = re.compile(r"^- \((\d+) earlier problems? not shown\)")
-_DESCRIBED = re.compile(f"^{_SIGNAL_TEXT}$")
 
 
 @dataclass(frozen=True)
@@ -90,8 +82,8 @@ class PromptReading:
     clearance: dict[str, float] | None = None
     points: np.ndarray | None = None
     reference: ReferenceReading | None = None
-    failures: list[str] = field(default_factory=list)
-    omitted_failures: int = 0  # earlier failure lines the prompt left out
+    refusals: list[Refusal] = field(default_factory=list)  # the failures section, as data
+    refusals_left_out: int = 0  # earlier refusals the prompt left out
     max_distance_mm: float = 400.0
     max_angle_deg: float = 90.0
     max_signals: int = 5
@@ -125,27 +117,23 @@ class PromptReading:
         index = int(round((bearing_deg % 360.0) / 45.0)) % len(SECTORS)
         return self.clearance[SECTORS[index]]
 
-    def _attempts(self) -> tuple[dict[str, int], int | None]:
-        """Each failure line's attempt number, and the latest (None without any)."""
-        attempt = {failure: int(m.group(1)) for failure in self.failures if (m := _ATTEMPT.match(failure))}
-        return attempt, max(attempt.values(), default=None)
+    def _latest(self) -> list[Refusal]:
+        """The refusals of the latest attempt (a refusal that names no attempt counts as the latest)."""
+        numbered = [r.attempt for r in self.refusals if r.attempt is not None]
+        latest = max(numbered, default=None)
+        return [r for r in self.refusals if r.attempt in (latest, None)]
 
     @property
     def asked_to_wait(self) -> bool:
-        """Did the refusal of the latest attempt ask to wait for something moving to pass?"""
-        attempt, latest = self._attempts()
-        return any(_WAIT in failure for failure in self.failures if attempt.get(failure, latest) == latest)
+        """Did a refusal of the latest attempt ask to wait for something moving to pass?"""
+        return any(r.advice is not None and r.advice.wait for r in self._latest())
 
     @property
     def step_aside(self) -> list[dict] | None:
         """The step aside a refusal of the latest attempt advised (the plan, as signals), if any."""
-        attempt, latest = self._attempts()
-        for failure in self.failures:
-            match = _STEP_ASIDE.search(failure)
-            if match is not None and attempt.get(failure, latest) == latest:
-                steps = [_DESCRIBED.match(part.strip()) for part in match.group(1).split(", then ")]
-                if all(steps):
-                    return [{"command": m.group(1), "direction": m.group(2), "value": float(m.group(3))} for m in steps]
+        for refusal in self._latest():
+            if refusal.advice is not None and refusal.advice.step_aside:
+                return [_signal(step) for step in refusal.advice.step_aside]
         return None
 
     @property
@@ -153,35 +141,34 @@ class PromptReading:
         """The latest attempt's refused plan and, per signal (0-based), the longest straight the
         refusals said is safe (0: none; a wait for a mover to pass), when every refusal of that
         attempt named its signal and said how far is safe; else None (nothing to amend by)."""
-        attempt, latest = self._attempts()
-        if latest is None:
+        if not self.refusals or self.refusals[-1].attempt is None:
             return None
-        if self.omitted_failures and attempt.get(self.failures[0]) == latest:
+        latest = self._latest()
+        if self.refusals_left_out and self.refusals[0] is latest[0]:
             return None  # the prompt may have left out some of the latest attempt's refusals
         plan: list[dict] | None = None
         safe: dict[int, float] = {}
-        for failure in self.failures:
-            if attempt.get(failure) != latest:
-                continue
-            match = _REFUSED_ON_SIGNAL.match(failure)
-            if match is None:
+        for refusal in latest:
+            advice, index = refusal.advice, refusal.signal_index
+            if not refusal.plan or index is None or advice is None or advice.safe_mm is None:
                 return None
-            signals = [_DESCRIBED.match(part.strip()) for part in match.group(2).split(",")]
-            if not all(signals):
+            plan = [_signal(signal) for signal in refusal.plan]
+            if not 0 <= index < len(plan) or plan[index]["command"] != "straight":
                 return None
-            plan = [{"command": m.group(1), "direction": m.group(2), "value": float(m.group(3))} for m in signals]
-            index, reason = int(match.group(3)) - 1, match.group(4)
-            limits = [float(v) for v in _SAFE_AT_MOST.findall(reason)]
-            if not 0 <= index < len(plan) or not limits or plan[index]["command"] != "straight":
-                return None
-            safe[index] = min(safe.get(index, math.inf), *limits)
+            safe[index] = min(safe.get(index, math.inf), advice.safe_mm)
         return (plan, safe) if plan is not None else None
 
     @property
     def safe_distance_hint_mm(self) -> float | None:
-        """The smallest "at most N mm is safe" a validator reported on an earlier attempt."""
-        values = [float(v) for failure in self.failures for v in _SAFE_AT_MOST.findall(failure)]
+        """The smallest safe distance a validator reported on an earlier attempt."""
+        values = [r.advice.safe_mm for r in self.refusals if r.advice is not None and r.advice.safe_mm is not None]
         return min(values) if values else None
+
+
+def _signal(signal: ControlSignal) -> dict:
+    """A signal as the pilot plans with it: command, direction, value (mm or degrees)."""
+    value = signal.distance if isinstance(signal, Straight) else signal.angle
+    return {"command": signal.command, "direction": signal.direction, "value": float(value)}
 
 
 def _instruction(text: str) -> str:
@@ -227,8 +214,8 @@ def read_prompt(prompt: Prompt, camera_fov_deg: float = 60.0, lidar_range_mm: fl
         instruction=read_instruction(_instruction(text)),
         has_prefix="security_prefix" in prompt.sections,
         reference=_reference(text) if "reference_state" in prompt.sections else None,
-        failures=[line[2:] for line in lines if line.startswith("- attempt")],
-        omitted_failures=sum(int(m.group(1)) for line in lines if (m := _OMITTED.match(line))),
+        refusals=list(prompt.refusals),
+        refusals_left_out=prompt.refusals_left_out,
     )
     for pattern, name, kind in ((_LIMIT_DISTANCE, "max_distance_mm", float), (_LIMIT_ANGLE, "max_angle_deg", float),
                                 (_LIMIT_SIGNALS, "max_signals", int)):

@@ -37,7 +37,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from safeembodai_core.components import Validator
-from safeembodai_core.models import ControlSignal, Pose, Straight, Turn, Verdict
+from safeembodai_core.models import Advice, ControlSignal, Pose, Straight, Turn, Verdict
 from safeembodai_core.validation import ValidationContext
 
 from .futures import WanderingFutures, WanderSettings, yielding
@@ -281,13 +281,13 @@ class MovingObstaclesRule(Validator):
         if isinstance(signal, Straight):
             meeting = self.first_meeting(context, signal, blobs, start)
             if meeting is not None:
-                return Verdict(rule=self.name, valid=False,
-                               reason=self._reason(signal, context, blobs, start, think, meeting))
+                reason, advice = self._reason(signal, context, blobs, start, think, meeting)
+                return Verdict(rule=self.name, valid=False, reason=reason, advice=advice)
         if self.options.park_check and not context.later_signals:
             parked = self.parking(context, signal, blobs, self._arrival_s(context, signal, think), think,
                                   self.think_time_s(context))
             if parked is not None:
-                return Verdict(rule=self.name, valid=False, reason=parked)
+                return Verdict(rule=self.name, valid=False, reason=parked[0], advice=parked[1])
         if isinstance(signal, Turn):
             return Verdict(rule=self.name, valid=True, reason="a turn in place keeps the body where it is")
         return Verdict(rule=self.name, valid=True)
@@ -334,13 +334,14 @@ class MovingObstaclesRule(Validator):
         return found
 
     def parking(self, context: ValidationContext, signal: ControlSignal, blobs: list[Blob], end_s: float,
-                think: float, next_think: float | None = None) -> str | None:
+                think: float, next_think: float | None = None) -> tuple[str, Advice] | None:
         """A reason to refuse the plan whose last signal is ``signal`` (the robot on its final spot
-        from ``end_s`` after the scan, :meth:`_arrival_s`): a mover's course reaches that spot before
-        the next plan can move the robot (:meth:`_standing_until`), and a short plan from where the
-        step starts (:meth:`_step_aside`) leaves it off every course and meets no mover's courses on
-        the way. None when the plan may stand. ``think``: the wait before this plan moves;
-        ``next_think``: before the next one (default: the same)."""
+        from ``end_s`` after the scan, :meth:`_arrival_s`), with the step aside as its advice: a
+        mover's course reaches that spot before the next plan can move the robot
+        (:meth:`_standing_until`), and a short plan from where the step starts (:meth:`_step_aside`)
+        leaves it off every course and meets no mover's courses on the way. None when the plan may
+        stand. ``think``: the wait before this plan moves; ``next_think``: before the next one
+        (default: the same)."""
         next_think = think if next_think is None else next_think
         final = context.advanced(signal).planned_pose
         until = self._standing_until(self.start_s(context) + self.duration_s(signal), next_think)
@@ -357,7 +358,7 @@ class MovingObstaclesRule(Validator):
         return (f"{signal.describe()}: step out of a moving obstacle's way instead, for example {advice}. The plan "
                 f"leaves the robot on its course ({distance:.0f} mm away at {bearing:.0f} deg, "
                 f"{float(np.hypot(*blob.velocity)):.0f} mm/s): it reaches the robot {when:.1f} s after the scan if it "
-                f"keeps going")
+                f"keeps going"), Advice(step_aside=list(aside))
 
     def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float,
                     next_think: float) -> list[ControlSignal] | None:
@@ -398,7 +399,8 @@ class MovingObstaclesRule(Validator):
     # -- the reason -----------------------------------------------------------------------------
 
     def _reason(self, signal: Straight, context: ValidationContext, blobs: list[Blob], start: float, think: float,
-                meeting: Meeting) -> str:
+                meeting: Meeting) -> tuple[str, Advice]:
+        """Why ``signal`` is refused, in words, and the same advice as data (the safe part; a wait)."""
         o = self.options
         blob = meeting.blob
         pose = context.planned_pose
@@ -421,14 +423,16 @@ class MovingObstaclesRule(Validator):
         safe = self._safe_distance(signal, context, blobs, start)
         if safe >= 1:
             advice = f"going {direction}, at most {safe} mm is safe"
+            offered = Advice(safe_mm=safe)
         else:
             advice = (f"no {direction} motion is safe now (at most 0 mm is safe): wait for it to pass (turn in place "
                       f"a few degrees)")
+            offered = Advice(safe_mm=0, wait=True)
         # the advice comes before the details: prompts cut long reasons (max_failure_chars)
         return (f"{signal.describe()}: a moving obstacle {now_d:.0f} mm away at {now_b:.0f} deg may be in the way; "
                 f"{advice}. It moves ({motion}); {meeting.share:.0%} of its {o.futures} predicted courses meet this "
                 f"motion, first {meeting.driven_mm:.0f} mm in, {meeting.when_s:.1f} s after the scan "
-                f"(after {think:g} s think time)")
+                f"(after {think:g} s think time)"), offered
 
     def _safe_distance(self, signal: Straight, context: ValidationContext, blobs: list[Blob], start: float) -> int:
         """The longest straight in the same direction, in 10 mm steps, that meets no predicted mover."""

@@ -17,8 +17,8 @@ trio backend (no asyncio loop) calls go through ``anyio.from_thread.run``.
 
 A prompt becomes a system message and one user message (text and images in the prompt's
 order). The user message's ``metadata["safeembodai"]`` carries what Inspect's messages cannot
-say (which sections the prompt has, the modality names, the state of the seeded generator the
-loop handed to this call): providers ignore it; the simulated pilot
+say (which sections the prompt has, the modality names, the refusals as data, the state of the
+seeded generator the loop handed to this call): providers ignore it; the simulated pilot
 (:mod:`.provider`) reads it to see exactly the prompt and dice ``safeembodai ablate`` gives it.
 """
 
@@ -34,7 +34,7 @@ import numpy as np
 
 from ...components import BackendReply, LLMBackend
 from ...errors import BackendError
-from ...models import ImagePart, Prompt, TextPart, TokenUsage
+from ...models import ImagePart, Prompt, Refusal, TextPart, TokenUsage
 from ...models.chat_completion import read_usage, usage_believable
 from ...models.reply import envelope_error_text
 from ...models.token_estimate import estimated_usage
@@ -91,6 +91,9 @@ def prompt_messages(prompt: Prompt, rng: np.random.Generator | None = None, deta
             content.append(ContentText(text=part.text))
             parts.append({"name": part.name})
     meta: dict[str, Any] = {"sections": sorted(prompt.sections), "parts": parts}
+    if prompt.refusals:  # the failures section as data, for a simulated pilot (Prompt.refusals)
+        meta["refusals"] = [refusal.model_dump(mode="json") for refusal in prompt.refusals]
+        meta["refusals_left_out"] = prompt.refusals_left_out
     if rng is not None:
         meta["rng"] = rng_state(rng)
     messages: list[Any] = [ChatMessageSystem(content=prompt.system)] if prompt.system else []
@@ -117,9 +120,22 @@ def prompt_from_messages(messages: list[Any]) -> tuple[Prompt, np.random.Generat
             media_type = header.removeprefix("data:").split(";")[0] or "image/png"
             parts.append(ImagePart(name=about.get("name", "image"), data=base64.b64decode(data), media_type=media_type,
                                    width=about.get("width", 0), height=about.get("height", 0)))
-    prompt = Prompt(system=system, user=tuple(parts), sections=frozenset(meta.get("sections", ())))
+    prompt = Prompt(system=system, user=tuple(parts), sections=frozenset(meta.get("sections", ())),
+                    refusals=_refusals(meta.get("refusals")), refusals_left_out=_count(meta.get("refusals_left_out")))
     state = meta.get("rng")
     return prompt, (rng_from_state(state) if state else None)
+
+
+def _refusals(value: Any) -> tuple[Refusal, ...]:
+    """The refusals :func:`prompt_messages` put in the metadata; none when they do not validate."""
+    try:
+        return tuple(Refusal.model_validate(item) for item in value) if isinstance(value, list) else ()
+    except ValueError:  # pydantic's ValidationError: not ours, so nothing to read as data
+        return ()
+
+
+def _count(value: Any) -> int:
+    return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else 0
 
 
 def finish_reason(stop_reason: Any, stop_details: Any = None) -> str | None:
