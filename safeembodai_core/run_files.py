@@ -14,6 +14,8 @@ from pathlib import Path
 
 from .errors import SafeEmbodAIError
 
+#: Where a run folder keeps the Rerun recordings of its trials, when someone exported them there.
+RECORDINGS_DIR = "recordings"
 #: A run folder whose ``bags/`` holds this file records a ROS 2 bag per trial as it ends (its text:
 #: the storage, ``mcap`` or ``sqlite3``); ``ablate --bags`` writes it.
 BAGS_DIR = "bags"

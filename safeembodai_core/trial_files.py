@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from .errors import SafeEmbodAIError
-from .run_files import BAGS_DIR, trial_file_name
+from .run_files import BAGS_DIR, RECORDINGS_DIR, trial_file_name
 
 #: The most files a trial's bag folder may hold (rosbag2: the storage file and metadata.yaml).
 MAX_BAG_FILES = 16
@@ -32,6 +32,12 @@ def trajectory_file(run_dir: str | Path, trial_id: str) -> Path:
 def bag_file(run_dir: str | Path, trial_id: str) -> Path:
     """Where the bag of ``trial_id`` goes in a run folder that records bags."""
     return Path(run_dir) / BAGS_DIR / trial_file_name(trial_id)
+
+
+def recording_file(run_dir: str | Path, trial_id: str) -> Path:
+    """Where the Rerun recording of ``trial_id`` goes in a run folder (``safeembodai export RUN
+    --format rrd --out RUN/recordings``), for ``view`` to link."""
+    return Path(run_dir) / RECORDINGS_DIR / (trial_file_name(trial_id) + ".rrd")
 
 
 class TrialFiles(ABC):

@@ -1,17 +1,18 @@
 """``safeembodai export RUN``: a run's trials as ROS 2 bags (MCAP or SQLite), for Foxglove, RViz
-and ``ros2 bag``.
+and ``ros2 bag``, or as Rerun recordings (``--format rrd``: the room in 3D).
 
 The run folder keeps answers, verdicts and commands but not sensor readings, so each trial is
 replayed from its recorded answers (:mod:`safeembodai_core.loop.replay`, no LLM called) and must
 agree with its record step by step; the bag is then written as a trial recorded with ``ablate
---bags`` writes it (:mod:`safeembodai_core.ros.bag_export`).
+--bags`` writes it (:mod:`safeembodai_core.ros.bag_export`), the recording by
+:mod:`safeembodai_core.rerun_export`.
 """
 
 from __future__ import annotations
 
 import click
 
-FORMATS = {"mcap": "mcap", "sqlite": "sqlite3", "sqlite3": "sqlite3"}
+FORMATS = {"mcap": "mcap", "sqlite": "sqlite3", "sqlite3": "sqlite3", "rrd": "rrd"}
 
 
 @click.command("export")
@@ -19,11 +20,13 @@ FORMATS = {"mcap": "mcap", "sqlite": "sqlite3", "sqlite3": "sqlite3"}
 @click.option("--trial", "trials", multiple=True, metavar="ID",
               help="Full trial id (environment/arm/condition/index); repeatable. Default: every trial with a result.")
 @click.option("--format", "form", type=click.Choice(sorted(FORMATS)), default="mcap", show_default=True,
-              help="rosbag2 storage: mcap (Foxglove opens the .mcap inside) or sqlite3.")
+              help="rosbag2 storage: mcap (Foxglove opens the .mcap inside) or sqlite3; or rrd, a Rerun recording "
+                   "(the rerun extra).")
 @click.option("--out", "out", type=click.Path(), required=True,
-              help="The bag folder (one --trial), or a folder to put one bag per trial in.")
+              help="The bag folder or .rrd file (one --trial), or a folder to put one per trial in.")
 def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
-    """Write the trials of RUN as ROS 2 bags: scan, camera, pose, markers, commands and the LLM's words."""
+    """Write the trials of RUN as ROS 2 bags (scan, camera, pose, markers, commands and the LLM's words)
+    or Rerun recordings (the same, in 3D)."""
     from pathlib import Path
 
     from rich.console import Console
@@ -31,6 +34,7 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
 
     from ..errors import SafeEmbodAIError, StateStoreError
     from ..loop.replay import replay_trial
+    from ..rerun_export import import_rerun, write_recording
     from ..ros.bag_export import write_bag
     from ..run_files import trial_file_name
     from ..runner import ScenarioRunner
@@ -69,14 +73,18 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
         if len(chosen) > 1 or not trials:
             if target.exists() and not target.is_dir():
                 raise SafeEmbodAIError(f"--out {out} is a file: give a folder for several bags")
-            paths = {t: target / trial_file_name(t) for t in chosen}
+            suffix = ".rrd" if form == "rrd" else ""
+            paths = {t: target / (trial_file_name(t) + suffix) for t in chosen}
         else:
             paths = {chosen[0]: target}
         for trial_id, path in paths.items():
             if path.exists():
-                raise SafeEmbodAIError(f"{path} exists: choose a new --out (a bag is never written over)")
+                raise SafeEmbodAIError(f"{path} exists: choose a new --out (nothing is written over)")
+        if form == "rrd":
+            import_rerun()  # before any replay: a missing extra is said at once
         with Progress(console=console, transient=True) as progress:
-            task = progress.add_task("replaying and writing bags", total=len(paths))
+            task = progress.add_task("replaying and writing " + ("recordings" if form == "rrd" else "bags"),
+                                     total=len(paths))
             for trial_id, path in paths.items():
                 spec = specs[trial_id]
                 records = read(f"the steps of {trial_id}", lambda: runner.state.steps(trial_id))
@@ -84,8 +92,11 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
                     raise SafeEmbodAIError(f"trial {trial_id} has no recorded step in {run_dir}")
                 capture, replayed, _ = replay_trial(runner, spec, records)
                 environment = runner.environment(spec.environment)
-                messages = runner.bag_messages(spec, capture, records, results.get(trial_id), environment.robot)
-                write_bag(path, messages, FORMATS[form])
+                if form == "rrd":
+                    write_recording(path, spec, records, results.get(trial_id), capture, environment.robot)
+                else:
+                    messages = runner.bag_messages(spec, capture, records, results.get(trial_id), environment.robot)
+                    write_bag(path, messages, FORMATS[form])
                 progress.advance(task)
                 console.print(f"{terminal_markup(trial_id)} -> {terminal_markup(str(path))}")
     finally:

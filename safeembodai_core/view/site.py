@@ -14,6 +14,7 @@ from typing import Any
 
 from ..logs import get_logger
 from ..runner import trajectory_file
+from ..trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
 from .runs import CellRow, RunSummary, broken, find_runs, running, signature, summarise, trial_page
@@ -22,6 +23,12 @@ from .trial_steps import replayed_prompts, step_views
 log = get_logger(__name__)
 #: Bumped whenever what the manifest keeps of a run changes: an older manifest is rendered anew.
 MANIFEST_VERSION = 2
+
+
+#: A trial's Rerun recording (``RUN/recordings/<trial>.rrd``) is copied into the site when it is one
+#: (its first bytes) and at most this large.
+RRD_MAGIC = b"RRF2"
+MAX_RECORDING_BYTES = 64 * 1024 * 1024
 
 
 def _manifest(site: Site) -> dict[str, Any]:
@@ -129,6 +136,11 @@ def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: Run
     if picture is not None:
         site.write(f"{base}/img/{name}.png", picture)
         trajectory = f"../img/{name}.png"
+    recorded = read_run_file(recording_file(folder, spec.trial_id), MAX_RECORDING_BYTES)
+    recording = None
+    if recorded is not None and recorded.startswith(RRD_MAGIC):  # a Rerun recording, nothing else
+        site.write(f"{base}/recordings/{name}.rrd", recorded)
+        recording = f"../recordings/{name}.rrd"
     site.write(f"{base}/trials/{name}.html",
                render("trial.html.j2", run=summary, result=result, steps=steps, trajectory=trajectory,
-                      missing=missing, refresh=0))
+                      recording=recording, missing=missing, refresh=0))
