@@ -31,6 +31,7 @@ from pydantic import TypeAdapter, ValidationError
 from .components import BuildContext, Environment, LLMBackend, RobotSpec
 from .guard_reports import GuardReport, LimitReport, TwistReport
 from .loop import Defences, LoopSettings, TrialParts, run_trial
+from .loop.trial import DEFAULT_INSTRUCTION
 from .models import (
     DEFAULT_LIMITS,
     ControlLimits,
@@ -129,8 +130,8 @@ class Guard:
         context = ValidationContext(scan=scan, robot=self.robot, limits=self.limits, start_pose=start,
                                     sim_time_s=time_s, answer_s=answer_time_s, history=tuple(p for p in self.history
                                                                       if time_s is not None and p.sim_time_s < time_s))
-        if since_scan is not None:  # the robot has moved on from where the scan was taken: judge from there
-            moved = _pose(since_scan)
+        moved = _pose(since_scan)
+        if moved is not None:  # the robot has moved on from where the scan was taken: judge from there
             context = replace(context, offset=(moved.x_mm, moved.y_mm, moved.heading_deg))
         if scan is not None and start is not None and time_s is not None and (
                 not self.history or time_s > self.history[-1].sim_time_s):
@@ -314,7 +315,7 @@ def run_guarded_trial(
         attackers=_components(plugins, "attacker", attackers, seed),
     )
     settings = LoopSettings(max_steps=max_steps, defences=defences, limits=limits,
-                            **({"instruction": instruction} if instruction else {}))
+                            instruction=instruction or DEFAULT_INSTRUCTION)
     spec = TrialSpec(trial_id=trial_id, environment=type(parts.environment).__name__, arm="custom",
                      condition="custom", seed=seed)
     result = run_trial(spec, parts, settings, plugins)

@@ -18,17 +18,38 @@ See ``docs/plugin_hooks.md`` for one section per hook, and ``docs/plugins.md`` t
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import pluggy
+
+if TYPE_CHECKING:  # the contracts' types, without importing them at run time
+    import click
+    from pydantic import BaseModel
+
+    from .components import BuildContext
+    from .metrics import Metric
+    from .models import Observation, StepRecord, TrialResult, TrialSpec
 
 PROJECT = "safeembodai"
 
 hookspec = pluggy.HookspecMarker(PROJECT)
 hookimpl = pluggy.HookimplMarker(PROJECT)
 
-#: The ``register`` callable passed to registry hooks.
-Register = Callable[..., None]
+
+class Register(Protocol):
+    """The ``register`` callable passed to the component registry hooks
+    (:meth:`~safeembodai_core.registry.ComponentRegistry.registrar`).
+
+    ``options`` defaults to a model that takes no options; ``description`` to ``""``.
+    """
+
+    def __call__(self, name: str, factory: Callable[[Any, BuildContext], Any], *,
+                 options: type[BaseModel] = ..., description: str = ...) -> None: ...
+
+
+#: The ``register`` callable passed to :func:`register_metrics`
+#: (:meth:`~safeembodai_core.metrics.catalog.CatalogBuilder.registrar`).
+RegisterMetric = Callable[["Metric"], None]
 
 
 # --- Component registries: world and robot ---------------------------------------------------
@@ -109,7 +130,7 @@ def register_llm_backends(register: Register) -> None:
 
 
 @hookspec
-def register_metrics(register: Register) -> None:
+def register_metrics(register: RegisterMetric) -> None:
     """Add metrics to the catalog every report reads (``metrics.json``/``.csv``, report.md, figures,
     the terminal summary, the Inspect scorers).
 
@@ -125,7 +146,7 @@ def register_metrics(register: Register) -> None:
 
 
 @hookspec
-def register_commands(cli: Any) -> None:
+def register_commands(cli: click.Group) -> None:
     """Add commands to the ``safeembodai`` command line.
 
     :param cli: the root :class:`click.Group`; decorate functions with ``@cli.command()``.
@@ -136,7 +157,7 @@ def register_commands(cli: Any) -> None:
 
 
 @hookspec
-def before_trial(spec: Any) -> None:
+def before_trial(spec: TrialSpec) -> None:
     """Called before a trial's world is reset.
 
     :param spec: the :class:`~safeembodai_core.models.TrialSpec` (cell, index, seed).
@@ -144,7 +165,7 @@ def before_trial(spec: Any) -> None:
 
 
 @hookspec
-def before_step(spec: Any, step: int, observation: Any) -> None:
+def before_step(spec: TrialSpec, step: int, observation: Observation) -> None:
     """Called at the start of step ``step`` (1-based), after the sensors were read and before any
     attacker or the LLM sees them.
 
@@ -155,7 +176,7 @@ def before_step(spec: Any, step: int, observation: Any) -> None:
 
 
 @hookspec
-def after_step(spec: Any, record: Any) -> None:
+def after_step(spec: TrialSpec, record: StepRecord) -> None:
     """Called after step ``record.step`` was executed and recorded in the state store.
 
     :param spec: the trial's :class:`~safeembodai_core.models.TrialSpec`.
@@ -164,7 +185,7 @@ def after_step(spec: Any, record: Any) -> None:
 
 
 @hookspec
-def on_step_error(spec: Any, step: int, error: BaseException) -> None:
+def on_step_error(spec: TrialSpec, step: int, error: Exception) -> None:
     """Called when a step fails with an exception (backend outage, plugin error, ...), before the
     trial ends with status ``error``.
 
@@ -175,7 +196,7 @@ def on_step_error(spec: Any, step: int, error: BaseException) -> None:
 
 
 @hookspec
-def after_trial(spec: Any, result: Any) -> None:
+def after_trial(spec: TrialSpec, result: TrialResult) -> None:
     """Called when a trial has ended and its result was stored.
 
     :param spec: the trial's :class:`~safeembodai_core.models.TrialSpec`.

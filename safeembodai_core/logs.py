@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import logging
 import sys
-from typing import Any
+from typing import Any, TextIO, cast
 
 import structlog
+from structlog.typing import EventDict, WrappedLogger
 
 from .redaction import MASK, mask_values, redact, register_secret
 from .text_safety import terminal_text
@@ -21,7 +22,7 @@ from .text_safety import terminal_text
 __all__ = ["MASK", "configure_logging", "get_logger", "mask_values", "redact", "register_secret"]
 
 
-def _redact_processor(logger: Any, method: str, event: dict[str, Any]) -> dict[str, Any]:
+def _redact_processor(logger: WrappedLogger, method: str, event: EventDict) -> EventDict:
     return redact(event)
 
 
@@ -35,7 +36,7 @@ def _visible_controls(value: Any) -> Any:
     return value
 
 
-def _terminal_safe_processor(logger: Any, method: str, event: dict[str, Any]) -> dict[str, Any]:
+def _terminal_safe_processor(logger: WrappedLogger, method: str, event: EventDict) -> EventDict:
     """Logged values can quote an LLM's answer: ESC, NUL and bidi controls are shown, not sent."""
     return _visible_controls(event)
 
@@ -78,6 +79,7 @@ def configure_logging(level: str = "warning", json_output: bool = False) -> None
             renderer,
         ],
         wrapper_class=structlog.make_filtering_bound_logger(numeric),
-        logger_factory=structlog.PrintLoggerFactory(file=_CurrentStderr()),
+        # structlog only writes and flushes its file: the stand-in needs no more of TextIO
+        logger_factory=structlog.PrintLoggerFactory(file=cast(TextIO, _CurrentStderr())),
         cache_logger_on_first_use=False,
     )

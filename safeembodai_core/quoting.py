@@ -52,6 +52,7 @@ def quote_untrusted(value: Any, max_chars: int | None = None) -> str:
     text = redact(str(value))  # before clipping: a cut must never leave part of a secret readable
     clipped = max_chars is not None and len(text) > max_chars
     if clipped:
+        assert max_chars is not None  # clipped implies a limit
         text = text[: max(0, max_chars)]
     literal = _STILL_UNSAFE.sub(_escape, json.dumps(text, ensure_ascii=False))
     return literal + CLIPPED if clipped else literal

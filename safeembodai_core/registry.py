@@ -19,6 +19,7 @@ from .errors import ComponentError, PluginError, SafeEmbodAIError
 
 if TYPE_CHECKING:
     from .components import BuildContext
+    from .hookspecs import Register
 
 #: component kind -> registry hook name
 KINDS: dict[str, str] = {
@@ -88,7 +89,7 @@ class ComponentRegistry:
     def __init__(self) -> None:
         self._items: dict[tuple[str, str], ComponentInfo] = {}
 
-    def registrar(self, kind: str, plugin: str) -> Callable[..., None]:
+    def registrar(self, kind: str, plugin: str) -> Register:
         """The ``register`` callable handed to ``plugin``'s registry hook for ``kind``."""
 
         def register(

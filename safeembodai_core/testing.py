@@ -194,7 +194,8 @@ class ReplayBackend(LLMBackend):
     def __init__(self, *answers: str) -> None:
         if not answers:
             raise ValueError("ReplayBackend needs at least one answer")
-        self.answers, self.calls, self.prompts = list(answers), 0, []
+        self.answers, self.calls = list(answers), 0
+        self.prompts: list[Any] = []
 
     def complete(self, prompt: Any, rng: np.random.Generator) -> BackendReply:
         self.calls += 1

@@ -39,6 +39,6 @@ def trial_ending(result: TrialResult, steps: list[StepRecord]) -> str:
                         f"{item.signal.describe()} -> {what}")
         extra = record.truth.extra
         if extra.get("collision"):
-            what = extra.get("collision_detail") or "while the robot waited"
-            return f"{extra['collision']} collision before step {record.step}: {what}"
+            when = extra.get("collision_detail") or "while the robot waited"
+            return f"{extra['collision']} collision before step {record.step}: {when}"
     return "the environment ended it; no collision on record"

@@ -25,7 +25,8 @@ from .robot import RobotSpec
 
 _UNKNOWN_RAY_STEP_MM = 50.0
 _EDGE_EPS = 1e-9
-_KINDS = ("return", "free_bound", "unread")
+SectorKind = Literal["return", "free_bound", "unread"]
+_KINDS: tuple[SectorKind, ...] = ("return", "free_bound", "unread")
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,7 @@ class SectorReading:
 
     distance_mm: float
     bearing_deg: float
-    kind: Literal["return", "free_bound", "unread"]
+    kind: SectorKind
 
 
 @dataclass(frozen=True)

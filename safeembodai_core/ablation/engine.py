@@ -131,8 +131,8 @@ class Ablation:
             if resume and not self.store.persistent:
                 raise AblationError(f"state store {scenario.state.use!r} keeps no results across runs: "
                                     "resuming needs a persistent store such as sqlite")
-            self.store_file = (Path(self.store.path) if isinstance(getattr(self.store, "path", None), (str, Path))
-                               else None)
+            store_path = getattr(self.store, "path", None)  # a store kept in a file says where
+            self.store_file = Path(store_path) if isinstance(store_path, (str, Path)) else None
             self.store_identity = self._identity()
             self.ledger = self._check_ledger() if resume else set()
         except BaseException:

@@ -70,12 +70,13 @@ def _show_plugin_traces(level: str) -> None:
     import logging
 
     import structlog
+    from structlog.typing import EventDict, WrappedLogger
 
     threshold = getattr(logging, level.upper())
     names = {"debug": logging.DEBUG, "info": logging.INFO, "warning": logging.WARNING, "warn": logging.WARNING,
              "error": logging.ERROR, "exception": logging.ERROR, "critical": logging.CRITICAL}
 
-    def keep(logger, method: str, event: dict) -> dict:
+    def keep(logger: WrappedLogger, method: str, event: EventDict) -> EventDict:
         if event.get("event") != "hook.call" and names.get(method, logging.CRITICAL) < threshold:
             raise structlog.DropEvent
         return event

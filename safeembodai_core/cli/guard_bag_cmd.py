@@ -66,7 +66,8 @@ def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None, from
         if not chosen and isinstance(trial.get("arm"), dict) and trial["arm"].get("safety_validation"):
             chosen, source = list(trial["arm"].get("validators") or []), "recorded in the bag"
         if isinstance(trial.get("robot"), dict):
-            sizes = {k: float(v) for k, v in trial["robot"].items() if k in ("radius_mm", "width_mm", "length_mm")}
+            sizes: dict[str, Any] = {k: float(v) for k, v in trial["robot"].items()
+                                     if k in ("radius_mm", "width_mm", "length_mm")}
             if not all(math.isfinite(v) and 0 < v <= 10_000 for v in sizes.values()):
                 raise ValueError(f"robot sizes must be positive and finite millimetres, got {sizes}")
             robot = RobotSpec(**sizes)

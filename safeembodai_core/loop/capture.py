@@ -17,6 +17,7 @@ from typing import Any
 from ..components import Environment, Perception, PromptBuilder, WorldSnapshot
 from ..models import ControlSignal, ExecutionResult, Modalities, Observation, Pose, Prompt
 from ..models.observation import ImagePart, LidarScan
+from ..robot import RobotSpec
 
 
 @dataclass(frozen=True)
@@ -95,7 +96,7 @@ class _CapturingEnvironment(Environment):
         return getattr(self._inner, name)
 
     @property
-    def robot(self):  # type: ignore[override]
+    def robot(self) -> RobotSpec:  # type: ignore[override]  # read-only here: the wrapped environment's robot
         return self._inner.robot
 
     def reset(self, seed: int) -> Observation:

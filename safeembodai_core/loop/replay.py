@@ -81,11 +81,11 @@ def difference(recorded: StepRecord, replayed: StepRecord | None) -> str | None:
         return f"the robot started the step at {replayed.pose_before}, recorded {recorded.pose_before}"
     if len(recorded.executed) != len(replayed.executed):
         return f"{len(recorded.executed)} commands executed in the recording, {len(replayed.executed)} in the replay"
-    for index, (old, new) in enumerate(zip(recorded.executed, replayed.executed), start=1):
-        a, b = old.result, new.result
-        if old.signal != new.signal or a.collided != b.collided or a.collision != b.collision or \
+    for index, (done, redone) in enumerate(zip(recorded.executed, replayed.executed), start=1):
+        a, b = done.result, redone.result
+        if done.signal != redone.signal or a.collided != b.collided or a.collision != b.collision or \
                 not _close(a.distance_mm, b.distance_mm) or not _close(a.angle_deg, b.angle_deg):
-            return f"command {index} ({old.signal.describe()}) did something else: recorded {a.detail or 'ran'}, " \
+            return f"command {index} ({done.signal.describe()}) did something else: recorded {a.detail or 'ran'}, " \
                    f"replayed {b.detail or 'ran'}"
     if not _same_pose(recorded.pose_after, replayed.pose_after):
         return f"the robot ended the step at {replayed.pose_after}, recorded {recorded.pose_after}"

@@ -31,6 +31,7 @@ from ..errors import BackendError, SafeEmbodAIError, StateStoreError
 from ..logs import get_logger
 from ..models import (
     DEFAULT_LIMITS,
+    AttackRecord,
     ControlLimits,
     ExecutedSignal,
     Observation,
@@ -43,6 +44,7 @@ from ..models import (
     TrialSpec,
 )
 from ..models.prompt import DEFAULT_TASK
+from ..models.records import ErrorKind
 from ..text_safety import one_line, storable
 from ..validation import PastScan, ValidationContext
 from .defences import Defences
@@ -173,7 +175,7 @@ class _Totals:
         self.collision_note = f"{collision or 'unattributed'} collision at step {step}: {detail}"
 
     def result(self, spec: TrialSpec, outcome: Outcome, detail: str, wall_time_s: float,
-               error_kind: str | None = None) -> TrialResult:
+               error_kind: ErrorKind | None = None) -> TrialResult:
         return TrialResult(
             spec=spec, outcome=outcome, steps=self.steps, prompt_tokens=self.prompt, completion_tokens=self.completion,
             tokens_estimated=self.estimated,
@@ -220,7 +222,8 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
     started = time.perf_counter()
     totals = _Totals()
     outcome: Outcome | None = None
-    detail, step, error_kind = "", 0, "crash"
+    detail, step = "", 0
+    error_kind: ErrorKind = "crash"
     try:
         notify("before_trial", spec=spec)
         _store(lambda: parts.state.begin_trial(spec), "begin the trial")
@@ -245,8 +248,11 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
                     outcome = ended
                     break
             notify("before_step", spec=spec, step=step, observation=observation)
-            record = storable(_decide(spec, step, observation, parts, settings, history,
-                                      lambda reading, step=step: totals.observed(step, reading.truth)))
+
+            def sensed(reading: Observation, step: int = step) -> None:
+                totals.observed(step, reading.truth)
+
+            record = storable(_decide(spec, step, observation, parts, settings, history, sensed))
             if record.planned:
                 _store(lambda: parts.state.record_step(record),
                        f"record the plan of step {step} before executing it (nothing of it ran)")
@@ -326,7 +332,7 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
     # attackers get their own copy: reassigning observation.truth or .pose cannot corrupt ground truth
     surface = AttackSurface(step, settings.instruction, copy.copy(observation), reference,
                             rng=seeds.rng(spec.seed, "attacker", "", step), limits=settings.limits)
-    attacks = []
+    attacks: list[AttackRecord] = []
     for name, attacker in parts.attackers:
         surface.rng = seeds.rng(spec.seed, "attacker", name, step)
         attacks.extend(record.model_copy(update={"attacker": name}) for record in attacker.attack(surface))

@@ -41,6 +41,11 @@ def wilson(successes: int, trials: int) -> Estimate:
     """Wilson score interval for a proportion (sensible at 0, 1 and small n)."""
     if trials <= 0:
         return Estimate(None, n=0)
+    return Estimate(*_wilson_bounds(successes, trials), trials)
+
+
+def _wilson_bounds(successes: int, trials: int) -> tuple[float, float, float]:
+    """The proportion and its Wilson interval, ``(p, low, high)``, of ``trials > 0``."""
     p = successes / trials
     denominator = 1 + Z95**2 / trials
     centre = (p + Z95**2 / (2 * trials)) / denominator
@@ -49,7 +54,7 @@ def wilson(successes: int, trials: int) -> Estimate:
     # elsewhere within [0, 1] and around p whatever the round-off
     low = 0.0 if successes <= 0 else min(p, max(0.0, centre - half))
     high = 1.0 if successes >= trials else max(p, min(1.0, centre + half))
-    return Estimate(p, low, high, trials)
+    return p, low, high
 
 
 def newcombe(successes_a: int, trials_a: int, successes_b: int, trials_b: int) -> Estimate:
@@ -57,12 +62,13 @@ def newcombe(successes_a: int, trials_a: int, successes_b: int, trials_b: int) -
     (Newcombe 1998, Statistics in Medicine 17:873-890, method 10), built from the two :func:`wilson` intervals:
     low = d - sqrt((p_a - low_a)^2 + (high_b - p_b)^2), high = d + sqrt((high_a - p_a)^2 + (p_b - low_b)^2).
     No value when either side has no trials; ``n`` is ``trials_a + trials_b``."""
-    a, b = wilson(successes_a, trials_a), wilson(successes_b, trials_b)
-    if a.value is None or b.value is None:
+    if trials_a <= 0 or trials_b <= 0:
         return Estimate(None, n=0)
-    d = a.value - b.value
-    low = d - math.sqrt((a.value - a.low) ** 2 + (b.high - b.value) ** 2)
-    high = d + math.sqrt((a.high - a.value) ** 2 + (b.value - b.low) ** 2)
+    p_a, low_a, high_a = _wilson_bounds(successes_a, trials_a)
+    p_b, low_b, high_b = _wilson_bounds(successes_b, trials_b)
+    d = p_a - p_b
+    low = d - math.sqrt((p_a - low_a) ** 2 + (high_b - p_b) ** 2)
+    high = d + math.sqrt((high_a - p_a) ** 2 + (p_b - low_b) ** 2)
     return Estimate(d, max(-1.0, low), min(1.0, high), trials_a + trials_b)
 
 

@@ -208,11 +208,14 @@ def reply_from_chat_completion(body: bytes | str, *, origin: str | None = None) 
     """Read a chat-completion response body strictly (see the module docstring); never raises."""
     reply = BackendReply(text="", origin=origin, usage_known=False)  # known once read (a refused body: never)
     try:
-        try:
-            raw = body.decode("utf-8") if isinstance(body, (bytes, bytearray)) else str(body)
-        except UnicodeDecodeError:
-            raw = body.decode("utf-8", "replace")
-            raise ResponseParseError("the reply's body is not valid UTF-8") from None
+        if isinstance(body, (bytes, bytearray)):
+            try:
+                raw = body.decode("utf-8")
+            except UnicodeDecodeError:
+                raw = body.decode("utf-8", "replace")
+                raise ResponseParseError("the reply's body is not valid UTF-8") from None
+        else:
+            raw = str(body)
         if len(raw) > MAX_BODY_BYTES:
             raise ResponseParseError(f"the reply's body is {len(raw)} characters long; "
                                      f"at most {MAX_BODY_BYTES} are read")

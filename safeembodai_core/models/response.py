@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import json
 import math
-from typing import Any, Literal, get_args
+from typing import Any, Literal, cast, get_args
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
@@ -175,6 +175,7 @@ def schema_outline(limits: ControlLimits = DEFAULT_LIMITS, examples: OutlineExam
         if limit is None or examples == "zero":
             return 0
         if examples == "seeded":
+            assert rng is not None  # refused above
             return _drawn(limit, rng)
         if examples == "varied":
             fractions = VARIED_FRACTIONS[command_of[name]]
@@ -191,12 +192,12 @@ def schema_outline(limits: ControlLimits = DEFAULT_LIMITS, examples: OutlineExam
         if "enum" in node:
             return "|".join(str(v) for v in node["enum"])
         if "oneOf" in node or "anyOf" in node:
-            options = node.get("oneOf") or node.get("anyOf")
+            options = cast("list[dict[str, Any]]", node.get("oneOf") or node.get("anyOf"))  # one is there
             if examples == "varied":  # turn, straight, turn, straight
                 turn, straight = sorted(options, key=lambda option: "Turn" not in option.get("$ref", ""))
                 return [outline(turn), outline(straight), outline(turn), outline(straight)]
             return [outline(option) for option in options]
-        kind = node.get("type")
+        kind: Any = node.get("type")  # the schema's JSON, as written
         if kind == "object":
             return {name: number(name) if sub.get("type") in ("number", "integer") else outline(sub)
                     for name, sub in node.get("properties", {}).items()}

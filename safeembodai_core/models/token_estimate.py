@@ -32,7 +32,7 @@ def message_tokens(messages: list[dict[str, Any]]) -> int:
     for message in messages:
         total += PER_MESSAGE
         content = message["content"]
-        parts = [{"type": "text", "text": content}] if isinstance(content, str) else content
+        parts: list[dict[str, Any]] = [{"type": "text", "text": content}] if isinstance(content, str) else content
         for part in parts:
             if part["type"] == "text":
                 total += round(len(part["text"]) / CHARS_PER_TOKEN)

@@ -86,9 +86,12 @@ def metric_figure(cells: list[CellMetrics], metric: Metric | str, note: str | No
                 if estimate is not None and estimate.value is not None:
                     xs.append(x)
                     values.append(estimate.value)
-                    bounded = estimate.low is not None and estimate.high is not None
-                    lows.append(estimate.value - estimate.low if bounded else math.nan)  # nan: no error bar
-                    highs.append(estimate.high - estimate.value if bounded else math.nan)
+                    if estimate.low is not None and estimate.high is not None:
+                        lows.append(estimate.value - estimate.low)
+                        highs.append(estimate.high - estimate.value)
+                    else:  # nan: no error bar
+                        lows.append(math.nan)
+                        highs.append(math.nan)
                     if estimate.n < MIN_N_FOR_INTERVAL:
                         few.append((x, estimate.value, estimate.n))
                 theirs = paper_value(theirs_metric, environment, arm, condition) if theirs_metric else None

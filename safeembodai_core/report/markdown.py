@@ -193,6 +193,7 @@ def _per_100(estimate: Estimate | None, signed: bool = False) -> str:
     """A proportion (or a difference of two) as a rate per 100 trials with its interval: ``15.0 [5.2, 36.0]``."""
     if estimate is None or estimate.value is None:
         return "n/a"
+    assert estimate.low is not None and estimate.high is not None  # a proportion's estimate has both bounds
     value, low, high = (round(100 * x, 1) + 0.0 for x in (estimate.value, estimate.low, estimate.high))  # no -0.0
     return f"{value:{'+' if signed else ''}.1f} [{low:.1f}, {high:.1f}]"
 
@@ -258,7 +259,8 @@ def defences_table(cells: list[Cell], facts: dict[str, TrialFacts] | None, store
         if facts is None:
             refusals = kinds = "not read"
         else:
-            rules, by_kind = Counter(), Counter()
+            rules: Counter[str] = Counter()
+            by_kind: Counter[str] = Counter()
             for result in scored:
                 trial = facts.get(result.spec.trial_id, TrialFacts())
                 rules.update(trial.refusals)

@@ -52,7 +52,8 @@ def comparison_rows(cells: list[CellMetrics], catalog: Sequence[Metric] | None =
             ours = m.estimates.get(ours_metric)
             if theirs is None or ours is None or ours.value is None:
                 continue
-            inside = None if ours.low is None else ours.low - _ROUNDING <= theirs <= ours.high + _ROUNDING
+            inside = (None if ours.low is None or ours.high is None
+                      else ours.low - _ROUNDING <= theirs <= ours.high + _ROUNDING)
             rows.append({"environment": m.environment, "arm": m.arm, "condition": m.condition, "metric": metric,
                          "ours_metric": ours_metric, "ours": ours.value, "low": ours.low, "high": ours.high,
                          "n": ours.n, "paper": theirs, "inside": inside})

@@ -33,12 +33,12 @@ log = get_logger(__name__)
 
 
 def _row(cell: Cell, catalog: tuple[Metric, ...], rates: CollisionRates, facts: dict[str, step_facts.TrialFacts] | None,
-         release: ReleaseReadings | None = None, asked: bool = False) -> dict[str, object]:
+         release: ReleaseReadings | None = None, asked: bool = False) -> dict[str, Any]:
     m, scored = cell.metrics, cell.scored
     steps = sum(r.steps for r in scored)
-    row: dict[str, object] = {"environment": m.environment, "arm": m.arm, "condition": m.condition,
-                              "trials": m.trials, "errors": cell.errors, "crashed": cell.crashed,
-                              "s_max": m.s_max, "s_max_from": m.s_max_from}
+    row: dict[str, Any] = {"environment": m.environment, "arm": m.arm, "condition": m.condition,
+                           "trials": m.trials, "errors": cell.errors, "crashed": cell.crashed,
+                           "s_max": m.s_max, "s_max_from": m.s_max_from}
     row.update({f"outcome_{k}": v for k, v in m.outcomes.items()})
     row.update({f"errors_{k}": v for k, v in sorted(cell.error_kinds.items())})
     for entry in catalog:
@@ -49,10 +49,10 @@ def _row(cell: Cell, catalog: tuple[Metric, ...], rates: CollisionRates, facts: 
     row["collisions_struck"] = sum(r.collisions_struck for r in scored)
     row["trials_collided_self"], row["trials_collided_struck"] = rates.self_trials, rates.struck_trials
     row["self_collision_reference_arm"] = rates.reference
-    for name, estimate in (("self_collision_rate", rates.self_rate), ("struck_collision_rate", rates.struck_rate),
-                           ("self_collision_rate_diff", rates.self_difference)):
-        if estimate is not None:
-            row[name], row[f"{name}_low"], row[f"{name}_high"] = estimate.value, estimate.low, estimate.high
+    for name, rate in (("self_collision_rate", rates.self_rate), ("struck_collision_rate", rates.struck_rate),
+                       ("self_collision_rate_diff", rates.self_difference)):
+        if rate is not None:
+            row[name], row[f"{name}_low"], row[f"{name}_high"] = rate.value, rate.low, rate.high
     row["steps_total"], row["attacked_steps"] = steps, sum(r.attacked_steps for r in scored)
     row["attack_rate"] = row["attacked_steps"] / steps if steps else None
     if facts is not None:
@@ -64,9 +64,9 @@ def _row(cell: Cell, catalog: tuple[Metric, ...], rates: CollisionRates, facts: 
                 row[f"attacked_steps_{kind}"] = row.get(f"attacked_steps_{kind}", 0) + count
     if asked:  # the release's readings, beside ours (None when the stored steps could not be read)
         for name, (attribute, _) in READINGS.items():
-            estimate = getattr(release, attribute) if release is not None else None
+            reading = getattr(release, attribute) if release is not None else None
             row[name], row[f"{name}_low"], row[f"{name}_high"], row[f"{name}_n"] = (
-                (estimate.value, estimate.low, estimate.high, estimate.n) if estimate is not None else (None,) * 4)
+                (reading.value, reading.low, reading.high, reading.n) if reading is not None else (None,) * 4)
     return row
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, Sequence, cast
 
 import numpy as np
 
@@ -124,7 +124,7 @@ class LaserScan:
 
     def to_lidar_scan(self) -> LidarScan:
         """The scan as the rules read it (module docstring)."""
-        ranges = self.ranges
+        ranges = cast("np.ndarray", self.ranges)  # __post_init__ made it an array
         with np.errstate(invalid="ignore"):
             returned = np.isfinite(ranges) & (ranges >= self.range_min) & (ranges <= self.range_max)
             free = np.isposinf(ranges) | (np.isfinite(ranges) & (ranges > self.range_max))

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 from ..models import Straight, Turn
 from .laser_scan import finite_number
@@ -101,8 +101,8 @@ def arc_signals(twist: Twist, duration_s: float, step_mm: float = STEP_MM,
     if pieces > MAX_PIECES:
         raise ValueError(f"the arc of {distance:.0f} mm and {abs(angle):.0f} degrees needs {pieces} pieces, more than "
                          f"{MAX_PIECES}: judge a shorter hold (longest_judged_s)")
-    direction = "forward" if twist.linear_x >= 0 else "backward"
-    side = "left" if angle >= 0 else "right"
+    direction: Literal["forward", "backward"] = "forward" if twist.linear_x >= 0 else "backward"
+    side: Literal["left", "right"] = "left" if angle >= 0 else "right"
 
     def turn(degrees: float) -> list[Straight | Turn]:
         return [Turn(command="turn", direction=side, angle=abs(degrees))] if abs(degrees) > 1e-9 else []

@@ -22,12 +22,15 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 from yaml.events import AliasEvent
 
 from ..errors import ScenarioError
+
+if TYPE_CHECKING:
+    from yaml._yaml import Mark as _LibyamlMark  # libyaml's marks, which the stubs allow on an event
 
 MAX_BYTES = 1024 * 1024
 MAX_NODES = 100_000
@@ -101,11 +104,11 @@ class BoundedLoader(yaml.SafeLoader):
         self._deepest = 0
         self._anchored: dict[int, tuple[int, int, int]] = {}  # id(node) -> (nodes, text, height), once complete
 
-    def _refuse(self, mark: yaml.Mark, problem: str) -> ScenarioError:
+    def _refuse(self, mark: yaml.Mark | _LibyamlMark, problem: str) -> ScenarioError:
         return ScenarioError(f"{self.source}:{mark.line + 1}: {problem}" if self.with_lines
                              else f"{self.source}: {problem}")
 
-    def _count(self, nodes: int, text: int, deepest: int, mark: yaml.Mark, what: str) -> None:
+    def _count(self, nodes: int, text: int, deepest: int, mark: yaml.Mark | _LibyamlMark, what: str) -> None:
         self._nodes += nodes
         self._text += text
         if self._nodes > MAX_NODES:
@@ -116,8 +119,9 @@ class BoundedLoader(yaml.SafeLoader):
             raise self._refuse(mark, f"nested deeper than {MAX_DEPTH} levels{what} (the limit for a scenario)")
         self._deepest = max(self._deepest, deepest)
 
-    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
         event = self.peek_event()
+        assert event.start_mark is not None  # the parser marks every event it makes
         if isinstance(event, AliasEvent):
             target = self.anchors.get(event.anchor)
             if target is not None:
@@ -151,7 +155,7 @@ class BoundedLoader(yaml.SafeLoader):
             raise yaml.constructor.ConstructorError(None, None, f"invalid {node.tag.rpartition(':')[2]}: {error}",
                                                     node.start_mark) from None
 
-    def construct_yaml_int(self, node: yaml.Node) -> int:
+    def construct_yaml_int(self, node: yaml.ScalarNode) -> int:
         try:  # the length check first: base-60 integers (1:2:3) cost quadratic time in their length
             value = super().construct_yaml_int(node) if len(str(node.value)) <= 4 * MAX_INT_DIGITS else _INT_BOUND
         except ValueError:

@@ -92,7 +92,7 @@ def _default_component(field: str) -> Any:
     """The component a scenario gets for ``field`` when it names none (``perception: images``), as
     ``{use: name}``; ``{}`` for a field that is no component."""
     info = Scenario.model_fields.get(field)
-    default = info.get_default(call_default_factory=True) if info is not None else None
+    default: Any = info.get_default(call_default_factory=True) if info is not None else None
     return {"use": default.use} if hasattr(default, "use") else {}
 
 

@@ -8,11 +8,12 @@ only changed runs), and the pages ask the browser to reload every ``refresh`` se
 from __future__ import annotations
 
 import functools
+import io
 import os
 import threading
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, BinaryIO, Callable, cast
 from urllib.parse import unquote, urlsplit
 
 from ..logs import get_logger
@@ -28,7 +29,7 @@ class _Handler(SimpleHTTPRequestHandler):
 
     allowed_hosts: frozenset[str] = frozenset()
 
-    def send_head(self):  # type: ignore[override]
+    def send_head(self) -> io.BytesIO | BinaryIO | None:
         host = (self.headers.get("Host") or "").lower()
         if host not in self.allowed_hosts:
             self.send_error(421, "Misdirected Request")
@@ -64,7 +65,7 @@ class SiteServer:
 
     def __init__(self, folder: Path, rebuild: Callable[[], Any], host: str = "127.0.0.1", port: int = 8000,
                  interval_s: float = 2.0) -> None:
-        handler = type("SiteHandler", (_Handler,), {})
+        handler = cast("type[_Handler]", type("SiteHandler", (_Handler,), {}))
         self.httpd = ThreadingHTTPServer((host, port), functools.partial(handler, directory=str(folder)))
         bound_host, bound_port = self.httpd.server_address[:2]
         names = {host, str(bound_host)} | ({"localhost", "127.0.0.1", "[::1]"}
@@ -77,7 +78,7 @@ class SiteServer:
     @property
     def url(self) -> str:
         host, port = self.httpd.server_address[:2]
-        return f"http://{host}:{port}/index.html"
+        return f"http://{str(host)}:{port}/index.html"  # a bound AF_INET(6) host is text
 
     def start(self) -> "SiteServer":
         for target in (self.httpd.serve_forever, self._watch):

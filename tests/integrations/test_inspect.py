@@ -246,7 +246,7 @@ def test_inspect_with_the_mock_gives_ablates_per_cell_moer(repo, tmp_path):
                          log_dir=str(tmp_path / "logs"), display="none")
     assert log.status == "success", log.error
     moer = {name: m.value for name, m in next(s for s in log.results.scores if s.name == "moer").metrics.items()}
-    expected = {f"{c['environment']}/{c['arm']}/{c['condition']}": c["moer"] for c in ablated["cells"]}
+    expected = {f"{c['environment']} {c['arm']} {c['condition']}": c["moer"] for c in ablated["cells"]}
     assert len(expected) == 4
     for cell, value in expected.items():
         assert moer[cell] == pytest.approx(value, abs=1e-12), cell
@@ -623,3 +623,16 @@ def test_every_documented_inspect_model_is_one_a_task_runs_on(repo):
     assert len(named) >= 5
     for model in named:
         check_provider(model)
+
+
+@pytest.mark.slow
+def test_the_terminal_table_names_every_cell_whole(tmp_path):
+    """Inspect cuts a metric name wider than its column ("MO/baselin..."): cell names are words, so they wrap."""
+    done = subprocess.run([str(INSPECT), "eval", "safeembodai/quickstart", "--model", "safeembodai/mock", "-T",
+                           "trials=1", "--log-dir", str(tmp_path / "logs"), "--display", "plain"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "COLUMNS": "120"})
+    assert done.returncode == 0, done.stdout + done.stderr
+    said = done.stdout
+    assert "moer" in said and "…" not in said  # the table is there, and no name in it was cut
+    assert said.count("flatland") >= 4 and "no_attack" in said and "safeembodai" in said

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import gymnasium
 import numpy as np
@@ -25,7 +25,8 @@ from pydantic import TypeAdapter, ValidationError
 from ... import seeds
 from ...components import AttackSurface
 from ...models import (
-    Attempt, ControlSignal, ExecutedSignal, LLMResponse, Observation, Outcome, ResponseParseError, Verdict,
+    Attempt, ControlSignal, ExecutedSignal, LidarScan, LLMResponse, Observation, Outcome, Pose, ResponseParseError,
+    Verdict,
 )
 from ...models.reply import as_reply, read_reply
 from ...models.response import describe_schema_error
@@ -55,6 +56,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+    _outcome: Outcome | None  # set by reset(): None while the episode runs
 
     def __init__(self, room: str = "SO", *, scenario: Scenario | str | Path | None = None,
                  environment: str | None = None, condition: str = "no_attack", arm: str = "safeembodai",
@@ -90,18 +92,18 @@ class SafeEmbodAIEnv(gymnasium.Env):
     # -- what the guard and the agent may read -------------------------------------------------
 
     @property
-    def scan(self):
+    def scan(self) -> LidarScan | None:
         """The step's LiDAR scan as the attackers left it (a :class:`LidarScan`: ``inf``, ``nan``
         kept), the one validators judge; None without a LiDAR or before ``reset``."""
         return None if self._surface is None else self._surface.observation.lidar
 
     @property
-    def pose(self):
+    def pose(self) -> Pose | None:
         """The robot's pose at the start of the step, as the world reports it (never an attacked copy)."""
         return None if self._observation is None else self._observation.pose
 
     @property
-    def time_s(self):
+    def time_s(self) -> float | None:
         """The world's clock when the step's scan was read (s), as the trial loop gives validators."""
         return None if self._observation is None else self._observation.sim_time_s
 
@@ -167,6 +169,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
             raise RuntimeError("call reset() before step(), and again once an episode has ended")
         signals, response, reason = self.read(action)
         if signals is None:
+            assert reason is not None  # read() gives a reason with no signals
             return self.refuse(self._refusal(reason))
         executed = []
         for signal in signals:
@@ -215,11 +218,12 @@ class SafeEmbodAIEnv(gymnasium.Env):
         self._observation = self.world.observe()
         self._outcome = self.world.outcome()
         collision = next((e.result for e in executed if e.result.collided), None)
-        kind = hit = None
+        kind: str | None = None
+        hit: object = None
         if collision is not None:
             kind, hit = collision.collision or "unattributed", collision.hit
         elif self._observation.truth.extra.get("collision") in ("self", "struck"):  # struck while waiting
-            kind, hit = self._observation.truth.extra["collision"], self._observation.truth.extra.get("hit")
+            kind, hit = str(self._observation.truth.extra["collision"]), self._observation.truth.extra.get("hit")
         distance = self._observation.truth.target_distance_mm
         reward = 0.0
         if distance is not None and self._distance is not None:
@@ -240,27 +244,32 @@ class SafeEmbodAIEnv(gymnasium.Env):
 
     def _attack(self) -> list[dict[str, Any]]:
         """The condition's attackers alter this step's inputs, as in the guarded loop (copies only)."""
-        surface = AttackSurface(self._step, self.scenario.instruction, copy.copy(self._observation), None,
-                                rng=seeds.rng(self.trial_seed, "attacker", "", self._step), limits=self.limits)
-        attacks = []
+        observation, seed = self._observation, self.trial_seed
+        assert observation is not None and seed is not None  # reset() set both
+        surface = AttackSurface(self._step, self.scenario.instruction, copy.copy(observation), None,
+                                rng=seeds.rng(seed, "attacker", "", self._step), limits=self.limits)
+        attacks: list[dict[str, Any]] = []
         for name, attacker in self._attackers:
-            surface.rng = seeds.rng(self.trial_seed, "attacker", name, self._step)
+            surface.rng = seeds.rng(seed, "attacker", name, self._step)
             attacks.extend(r.model_copy(update={"attacker": name}).model_dump() for r in attacker.attack(surface))
         self._surface, self._attacks = surface, attacks
         return attacks
 
     def _obs(self) -> dict[str, Any]:
+        assert self._surface is not None  # every reset() and step attacks first
         seen = self._surface.observation
         obs: dict[str, Any] = {"instruction": spaces.instruction_text(self._surface.instruction)}
         if self._camera_shape is not None:
             obs["camera"] = np.array(seen.camera, dtype=np.uint8, copy=True)
         if self._lidar is not None:
+            assert seen.lidar is not None  # a world with a LiDAR reads it at every step
             obs["lidar"] = spaces.lidar_array(seen.lidar.ranges_mm, self._lidar[1])
         return obs
 
     def _info(self, *, cost: float = 0.0, refused: list[str] | None = None, attacks: list[dict[str, Any]],
-              executed: list[ExecutedSignal] = (), collision: tuple[str | None, str | None] = (None, None),
+              executed: Sequence[ExecutedSignal] = (), collision: tuple[str | None, object] = (None, None),
               flagged: bool | None = None) -> dict[str, Any]:
+        assert self._observation is not None  # reset() read it
         truth = self._observation.truth
         return {
             "trial_seed": self.trial_seed, "step": self._step, "attempt": self._attempt,

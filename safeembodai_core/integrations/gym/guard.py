@@ -15,7 +15,7 @@ straight to the unwrapped env, so wrappers between the two would not see it.
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import Any, Sequence, cast
 
 import gymnasium
 
@@ -44,7 +44,7 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
         return self.env.reset(**kwargs)
 
     def step(self, action: Any):
-        base: SafeEmbodAIEnv = self.env.unwrapped
+        base = cast(SafeEmbodAIEnv, self.env.unwrapped)  # checked in __init__
         signals, _, _ = base.read(action)
         if signals is None:  # not even the actuation contract: the env refuses it itself
             return self.env.step(action)

@@ -152,11 +152,10 @@ def as_action(signals: list[ControlSignal]) -> tuple[dict[str, Any], ...]:
     """Control signals as a ``commands`` action (the inverse of :func:`command_dicts`)."""
     items = []
     for s in signals:
-        straight = isinstance(s, Straight)
         items.append({
-            "command": 0 if straight else 1,
+            "command": 0 if isinstance(s, Straight) else 1,
             "direction": DIRECTIONS[s.command].index(s.direction),
-            "distance": np.float32(s.distance if straight else 1.0),
+            "distance": np.float32(s.distance if isinstance(s, Straight) else 1.0),
             "angle": np.float32(s.angle if isinstance(s, Turn) else 1.0),
         })
     return tuple(items)

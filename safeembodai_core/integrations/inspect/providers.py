@@ -33,7 +33,7 @@ except ImportError:  # a later Inspect that moved it: a plain error, with the sa
     _Refusal = RuntimeError  # type: ignore[assignment,misc]
 
 
-class ProviderRefused(_Refusal, SafeEmbodAIError):  # type: ignore[misc,valid-type]
+class ProviderRefused(_Refusal, SafeEmbodAIError):
     """A task was asked to run on a provider that cannot show the solver the whole reply."""
 
     def __init__(self, message: str) -> None:

@@ -49,6 +49,12 @@ def scenario_path(scenario: str | None) -> Path:
                            f"the current folder: pass a path with -T scenario=PATH")
 
 
+def cell_label(spec: Any) -> str:
+    """A cell's name as Inspect shows it: ``MO baseline no_attack`` -- words, so that Inspect's terminal
+    table wraps a long name at its spaces instead of cutting it ("MO/baselin..." for every cell)."""
+    return f"{spec.environment} {spec.arm} {spec.condition}"
+
+
 def _overrides(trials: int | None, seed: int | None, max_steps: int | None,
                set: str | Iterable[str] | None) -> list[str]:
     extra = [f"{key}={value}" for key, value in (("trials", trials), ("seed", seed), ("max_steps", max_steps))
@@ -74,7 +80,7 @@ def scenario_task(scenario: str | None, trials: int | None = None, seed: int | N
     specs = {spec.trial_id: spec for spec in runner.specs()}
     samples = [
         Sample(id=spec.trial_id, input=loaded.instruction,
-               metadata={CELL: f"{spec.environment}/{spec.arm}/{spec.condition}", "environment": spec.environment,
+               metadata={CELL: cell_label(spec), "environment": spec.environment,
                          "arm": spec.arm, "condition": spec.condition, "index": spec.index, "seed": spec.seed})
         for spec in specs.values()
     ]

@@ -1,0 +1,30 @@
+"""The core type-checks: ``mypy safeembodai_core`` finds no error, with the configuration of
+``[tool.mypy]`` in pyproject.toml (pydantic's plugin, unused ``type: ignore`` comments reported).
+
+The integrations are checked against the libraries' own types, so the extras they import must be
+installed (CI installs them all); without one the test is skipped, naming it.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+
+import pytest
+
+pytest.importorskip("mypy", reason='needs the dev extra: pip install -e ".[dev]"')
+
+#: The extras whose libraries the core imports, by the module it imports.
+EXTRAS = {"gymnasium": "gym", "inspect_ai": "inspect", "ray": "ray"}
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(660)  # mypy's own limit below, not the suite's default
+def test_mypy_finds_no_error_in_the_core(repo):
+    missing = [f"{extra} ({module})" for module, extra in EXTRAS.items() if importlib.util.find_spec(module) is None]
+    if missing:
+        pytest.skip(f"mypy needs the types of the extras the core imports; not installed: {', '.join(missing)}")
+    run = subprocess.run([sys.executable, "-m", "mypy", "safeembodai_core"], cwd=repo, capture_output=True,
+                         text=True, timeout=600)
+    assert run.returncode == 0, f"mypy safeembodai_core exited {run.returncode}:\n{run.stdout}{run.stderr}"
