@@ -47,7 +47,9 @@ class BuildContext:
     for per-trial components (0 for environments, which get it in ``reset``, state stores and
     ``Guard``'s rules), ``label`` the key of this use (the scenario's ``label:``, else the
     registered name; None only when built without a context), ``run_dir`` the run folder (None
-    outside ``safeembodai run`` / ``ablate``). See ``docs/plugin_hooks.md``.
+    outside ``safeembodai run`` / ``ablate``), ``only_to_describe`` True when the component is built
+    only to describe itself or quote a price (``ablate --dry-run``, ``--max-cost``): it will make no
+    call, so a backend needs no key then. See ``docs/plugin_hooks.md``.
     """
 
     component: str
@@ -55,6 +57,7 @@ class BuildContext:
     seed: int = 0
     label: str | None = None  # the key of this use of the component: its label, else the name
     run_dir: str | None = None
+    only_to_describe: bool = False
 
 
 @dataclass(frozen=True)

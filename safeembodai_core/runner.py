@@ -115,8 +115,10 @@ class ScenarioRunner:
         self._outputs = outputs
         self._cache: Any = None  # the response cache, opened with the first trial of a cacheable backend
 
-    def build(self, kind: str, ref: ComponentRef, seed: int = 0) -> Any:
-        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir, label=ref.key)
+    def build(self, kind: str, ref: ComponentRef, seed: int = 0, only_to_describe: bool = False) -> Any:
+        """Component ``ref`` of ``kind`` (``only_to_describe``: :class:`BuildContext`'s flag)."""
+        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir, label=ref.key,
+                               only_to_describe=only_to_describe)
         return self.plugins.registry.build(kind, ref.use, ref.options, context)
 
     @property

@@ -100,3 +100,19 @@ def test_a_dry_run_estimates_calls_tokens_and_cost_and_sends_nothing(fake_server
     assert prompt > 100 and answer_tokens > 10
     cost = sum(litellm.cost_per_token(model="gpt-4o", prompt_tokens=8 * prompt, completion_tokens=8 * answer_tokens))
     assert f"every trial uses its step budget: 8 calls, {8 * (prompt + answer_tokens):,} tokens, ${cost:,.2f}" in out
+
+
+def test_a_dry_run_prices_a_known_model_without_a_key_and_says_when_a_price_is_unknown(fake_server, tmp_path):
+    """Deciding before paying needs no key: the price is litellm's table's, read offline."""
+    path = _scenario(tmp_path, fake_server)
+    env = {k: v for k, v in os.environ.items() if k not in ("SAFEEMBODAI_TEST_KEY", "OPENAI_API_KEY")}
+    done = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(path), "--dry-run"],
+                          capture_output=True, text=True, timeout=300, env={**env, "COLUMNS": "200"})
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "every trial uses its step budget: 8 calls" in done.stdout and ", $" in done.stdout
+    assert "not set" not in done.stdout and not fake_server.requests
+    unknown = subprocess.run([sys.executable, "-m", "safeembodai_core", "ablate", str(path), "--dry-run", "--set",
+                              "backend.options.model=openai/a-model-nobody-priced"],
+                             capture_output=True, text=True, timeout=300, env={**env, "COLUMNS": "200"})
+    assert unknown.returncode == 0, unknown.stderr[-2000:]
+    assert "knows no price" in unknown.stdout and ", $" not in unknown.stdout

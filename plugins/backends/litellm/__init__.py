@@ -13,8 +13,8 @@ Retries of a step can differ from its first attempt: each attempt sends its own 
 -- at temperature 0 a seed changes nothing, and a greedy retry repeats the refused answer word
 for word. What an attempt sent is recorded in its ``Attempt.sampling``.
 
-The API key is read from the environment when the backend is built and is never stored in
-options, logs, records or reports. litellm is imported by the implementation module only.
+The API key is read from the environment when the backend is built (not when it is built only to
+quote a price: ``BuildContext.only_to_describe``) and is never stored in options, logs, records or reports. litellm is imported by the implementation module only.
 Every option is documented in ``docs/backends.md``.
 """
 
@@ -22,13 +22,15 @@ from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
 
-from .options import LiteLLMOptions, LocalModelOptions, _api_key, _LiteLLMOptions
+from .options import NO_KEY, LiteLLMOptions, LocalModelOptions, _api_key, _LiteLLMOptions
 
 
 def _factory(name: str, local: bool = False):
     def build(options: _LiteLLMOptions, context):
         from .client import LiteLLMBackend
 
+        if context is not None and context.only_to_describe:  # a price or a description: no call, no key
+            return LiteLLMBackend(name, options, NO_KEY)
         return LiteLLMBackend(name, options, _api_key(name, options, local))
 
     return build
