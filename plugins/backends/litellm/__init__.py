@@ -14,8 +14,9 @@ Retries of a step can differ from its first attempt: each attempt sends its own 
 for word. What an attempt sent is recorded in its ``Attempt.sampling``.
 
 The API key is read from the environment when the backend is built (not when it is built only to
-quote a price: ``BuildContext.only_to_describe``) and is never stored in options, logs, records or reports. litellm is imported by the implementation module only.
-Every option is documented in ``docs/backends.md``.
+quote a price: ``BuildContext.only_to_describe``) and is never stored in options, logs, records or
+reports. litellm is imported by the implementation module only. Every option is documented in
+``docs/backends.md``.
 """
 
 from __future__ import annotations
