@@ -25,7 +25,8 @@ _FLOOR, _WALL, _TEXT = (235, 235, 235), (90, 90, 90), (20, 20, 20)
 _BALL, _LABBOT, _TRACK = (255, 255, 255), (190, 90, 40), (235, 200, 170)
 _CAN, _PATH, _START, _CROSS = (30, 20, 210), (0, 140, 255), (40, 160, 40), (0, 0, 220)
 _KEY_ROW_PX, _KEY_FONT, _KEY_GAP_PX, _SWATCH_PX = 20, 0.42, 16, 22
-_OUTCOME_COLOUR = {Outcome.COMPLETED: (40, 150, 40), Outcome.INTERRUPTED: (0, 0, 200), Outcome.TIMEOUT: (0, 120, 220)}
+_OUTCOME_COLOUR: dict[Outcome | None, tuple[int, int, int]] = {
+    Outcome.COMPLETED: (40, 150, 40), Outcome.INTERRUPTED: (0, 0, 200), Outcome.TIMEOUT: (0, 120, 220)}
 
 
 @dataclass

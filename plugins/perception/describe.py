@@ -86,11 +86,13 @@ def sector_clearance_from_points(points: np.ndarray) -> dict[str, float]:
 def describe_target(sighting: TargetSighting) -> str:
     if not sighting.seen:
         return "Camera: the red can is not visible."
-    size = f"apparent height {100 * sighting.height_fraction:.0f}% of the image"
-    if abs(sighting.bearing_deg) < _AHEAD_DEG:
+    bearing, height = sighting.bearing_deg, sighting.height_fraction
+    assert bearing is not None and height is not None  # a sighting that is seen has both
+    size = f"apparent height {100 * height:.0f}% of the image"
+    if abs(bearing) < _AHEAD_DEG:
         return f"Camera: red can visible straight ahead, {size}."
-    side = "left" if sighting.bearing_deg > 0 else "right"
-    return f"Camera: red can visible {abs(sighting.bearing_deg):.0f} deg {side} of centre, {size}."
+    side = "left" if bearing > 0 else "right"
+    return f"Camera: red can visible {abs(bearing):.0f} deg {side} of centre, {size}."
 
 
 def describe_lidar(clearance: dict[str, float]) -> str:

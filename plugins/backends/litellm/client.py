@@ -179,7 +179,8 @@ class LiteLLMBackend(LLMBackend):
                 self._secrets += (api_key,)
                 self._key = _Secret(api_key)
         base_url = o.api_base or endpoint(o, self._litellm)
-        return openai_client(base_url, api_key, o.timeout_s)
+        # None: a model litellm places only through completion_kwargs' custom_llm_provider (httpx then raises)
+        return openai_client(base_url, api_key, o.timeout_s)  # type: ignore[arg-type]
 
     def prepare_attempt(self, index: int, limits: ControlLimits, rng: np.random.Generator) -> dict[str, float | int]:
         """Called by Algorithm 1 before attempt ``index`` of a step (0: the first try).

@@ -30,7 +30,7 @@ import ssl
 import urllib.request
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Any, Iterator
+from typing import Any, Iterator, cast
 
 import httpx
 
@@ -188,5 +188,6 @@ def openai_client(base_url: str, api_key: str | None, timeout_s: float) -> Any:
     verify = _ssl_context(os.environ.get("SSL_CERT_FILE"), os.environ.get("SSL_CERT_DIR"))
     transport = RecordingTransport(origin_of(base_url), httpx.HTTPTransport(verify=verify, proxy=proxy))
     http_client = httpx.Client(transport=transport, follow_redirects=False, timeout=timeout_s)
-    return openai.OpenAI(api_key=api_key or "no-key-required", base_url=base_url, http_client=http_client,
+    # cast: openai 3.x annotates an httpx2.Client (1.x and 2.x an httpx.Client) and takes either
+    return openai.OpenAI(api_key=api_key or "no-key-required", base_url=base_url, http_client=cast(Any, http_client),
                          max_retries=0, timeout=timeout_s)

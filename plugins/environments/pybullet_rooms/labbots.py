@@ -35,9 +35,12 @@ new heading, drawn uniformly in [-180, 180), and moves on from there as any Labb
 from __future__ import annotations
 
 import math
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .movers import Range
 
 CLEARANCE_MM = 30.0
 TICK_S = 0.05
@@ -89,7 +92,8 @@ class LabbotSwarm:
         self._drift_scale = self.wander * math.sqrt(TICK_S)
         self._any_stop_and_go = any(self.stop_and_go)
         # stop-and-go: per Labbot, the (go, stop) duration ranges and the cycles drawn so far
-        self._phases = [(m.go_s, m.stop_s) if stops else None for m, stops in zip(movers, self.stop_and_go)]
+        self._phases: list[tuple[Range, Range] | None] = [(m.go_s, m.stop_s) if stops else None
+                                                          for m, stops in zip(movers, self.stop_and_go)]
         self._cycles: list[list[tuple[int, int, float]]] = [[] for _ in range(n)]
         self._statics = [tuple(map(float, row)) for row in np.asarray(obstacles, dtype=float).reshape(-1, 3)]
         self.seed = int(seed)
@@ -183,7 +187,9 @@ class LabbotSwarm:
         :data:`STOP_STREAM`, index, c) alone."""
         cycles = self._cycles[index]
         while not cycles or cycles[-1][1] <= tick:
-            (go_lo, go_hi), (stop_lo, stop_hi) = self._phases[index]
+            phases = self._phases[index]
+            assert phases is not None  # asked only of a stop-and-go Labbot, which has its phases
+            (go_lo, go_hi), (stop_lo, stop_hi) = phases
             rng = np.random.default_rng([self.seed, STOP_STREAM, index, len(cycles)])
             go_u, stop_u, heading_u = rng.random(3).tolist()
             go = max(1, round((go_lo + (go_hi - go_lo) * go_u) / TICK_S))

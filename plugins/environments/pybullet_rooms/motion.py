@@ -27,13 +27,20 @@ Commands reach the environment already validated by the core's parser; a signal 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
 from safeembodai_core.errors import EnvironmentError_
 from safeembodai_core.models import ControlSignal, ExecutionResult, Straight, Turn
+from safeembodai_core.models.records import Collision
 
 from .quiet import silenced
+
+if TYPE_CHECKING:
+    from .labbots import LabbotSwarm
+    from .options import RoomOptions
+    from .scene import Scene
 
 #: Sanity bounds on one command, far beyond any actuation contract: larger values are refused.
 MAX_COMMAND_MM = 100_000.0
@@ -41,8 +48,40 @@ MAX_COMMAND_DEG = 3600.0
 _BISECTIONS = 4
 
 
+class CollisionRecord(TypedDict, total=False):
+    """A collision as the room keeps it: who moved into whom, what was hit and a one-line detail."""
+
+    collision: Collision
+    hit: str
+    collision_detail: str
+
+
+class _Moved(TypedDict, total=False):
+    """How far a command moved the robot: the one :class:`ExecutionResult` field it sets."""
+
+    distance_mm: float
+    angle_deg: float
+
+
 class KinematicMotion:
     """``execute`` for :class:`~.world.PybulletRoom` (which holds the state this mixin moves)."""
+
+    if TYPE_CHECKING:  # the state this mixin moves, and the methods it calls, all PybulletRoom's
+        kind: str
+        options: RoomOptions
+        scene: Scene
+        swarm: LabbotSwarm | None
+        xy: np.ndarray
+        heading: float
+        sim_time_s: float
+        collided: bool
+        collision_xy: np.ndarray | None
+        collision: CollisionRecord
+        _thought: bool
+
+        def _require_reset(self) -> None: ...
+
+        def _sync(self) -> None: ...
 
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         self._require_reset()
@@ -80,6 +119,11 @@ class KinematicMotion:
             raise EnvironmentError_(f"{self.kind}: refusing {signal.command} with direction={signal.direction!r}")
         return float(value), rate, increment
 
+    def _labbots(self) -> LabbotSwarm:
+        """The trial's Labbots: ``reset`` draws them, and every caller has required a reset."""
+        assert self.swarm is not None, "reset(seed) draws the Labbots"
+        return self.swarm
+
     def _time_left(self) -> float:
         return max(self.options.max_sim_time_s - self.sim_time_s, 0.0)
 
@@ -88,21 +132,22 @@ class KinematicMotion:
         seconds = min(seconds, self._time_left())
         if seconds <= 0:
             return None
-        if not len(self.swarm) or self.collided:  # after a collision the trial is over: time alone passes
+        swarm = self._labbots()
+        if not len(swarm) or self.collided:  # after a collision the trial is over: time alone passes
             self.sim_time_s += seconds
             return None
-        dt = self.options.step_mm / max(self.swarm.top_speed, 1e-9)  # the fastest Labbot moves step_mm a slice
+        dt = self.options.step_mm / max(swarm.top_speed, 1e-9)  # the fastest Labbot moves step_mm a slice
         while seconds > 1e-12:
             slice_s = min(dt, seconds)
-            saved = self.swarm.state()
-            self.swarm.advance(slice_s, self.xy)
+            saved = swarm.state()
+            swarm.advance(slice_s, self.xy)
             self.sim_time_s += slice_s
             seconds -= slice_s
-            self.scene.place_labbots(self.swarm.xy, self.swarm.heading)
+            self.scene.place_labbots(swarm.xy, swarm.heading)
             touched = self.scene.contacts()
             if touched:
-                self.swarm.restore(saved)
-                self.scene.place_labbots(self.swarm.xy, self.swarm.heading)
+                swarm.restore(saved)
+                self.scene.place_labbots(swarm.xy, swarm.heading)
                 return self._touch(touched, "struck")
         return None
 
@@ -110,7 +155,8 @@ class KinematicMotion:
               increment: float) -> tuple[float, int | None]:
         """Carry out ``amount`` (mm or deg) in increments; (amount done, body hit or None)."""
         straight = isinstance(signal, Straight)
-        sign = (1.0 if signal.direction == "forward" else -1.0) if straight else signal.signed_angle_deg / amount
+        sign = ((1.0 if signal.direction == "forward" else -1.0) if isinstance(signal, Straight)
+                else signal.signed_angle_deg / amount)
         pieces = max(1, math.ceil(amount / increment - 1e-9))
         piece = amount / pieces
         done = 0.0
@@ -120,14 +166,15 @@ class KinematicMotion:
                 break
             size = min(piece, left / per_unit_s)
             dt = size * per_unit_s
-            start_xy, start_heading, saved = self.xy.copy(), self.heading, self.swarm.state()
+            swarm = self._labbots()
+            start_xy, start_heading, saved = self.xy.copy(), self.heading, swarm.state()
             self._advance_robot(start_xy, start_heading, straight, sign * size)
-            self.swarm.advance(dt, self.xy)
+            swarm.advance(dt, self.xy)
             self.sim_time_s = min(self.sim_time_s + dt, self.options.max_sim_time_s)
             self._sync()
             touched = self.scene.contacts()
             if touched:
-                self.swarm.restore(saved)
+                swarm.restore(saved)
                 self._sync()  # the robot's increment alone, with the Labbots where they were
                 own = {body for body in self.scene.contacts() if body != self.scene.can}
                 free = self._bisect(start_xy, start_heading, straight, sign * size)
@@ -159,7 +206,7 @@ class KinematicMotion:
         self._sync()
         return abs(amount) * low
 
-    def _touch(self, touched: set[int], collision: str) -> int:
+    def _touch(self, touched: set[int], collision: Collision) -> int:
         """Record a contact (``collision``: who moved into whom); the body reported (an obstacle before the can)."""
         obstacles = sorted(body for body in touched if body != self.scene.can)
         if obstacles:
@@ -169,18 +216,19 @@ class KinematicMotion:
             return obstacles[0]
         return self.scene.can
 
-    def _collision_record(self, hit: int, when: str) -> dict[str, str]:
+    def _collision_record(self, hit: int, when: str) -> CollisionRecord:
         """Who moved into whom, what was hit and a one-line detail; kept for later commands."""
         name = self.scene.names.get(hit, f"body {hit}")
-        kind = self.collision.get("collision", "self")
+        kind: Collision = self.collision.get("collision", "self")
         detail = f"struck by {name} {when}" if kind == "struck" else f"hit {name}"
         self.collision = {"collision": kind, "hit": self.scene.kinds.get(hit, "body"), "collision_detail": detail}
-        return dict(self.collision)
+        return self.collision.copy()
 
     def _result(self, signal: ControlSignal, done: float, hit: int | None, when: str) -> ExecutionResult:
         straight = isinstance(signal, Straight)
         signed = done * (1.0 if not straight or signal.direction == "forward" else -1.0)
-        if straight:
+        values: _Moved
+        if isinstance(signal, Straight):
             values = {"distance_mm": signed}
         else:
             values = {"angle_deg": math.copysign(done, signal.signed_angle_deg)}
@@ -192,7 +240,7 @@ class KinematicMotion:
             record = self._collision_record(hit, when)
             return ExecutionResult(stopped=True, collided=True, collision=record["collision"], hit=record["hit"],
                                    detail=f"stopped after {done:.0f} {unit}: {record['collision_detail']}", **values)
-        requested = signal.distance if straight else signal.angle
+        requested = signal.distance if isinstance(signal, Straight) else signal.angle
         if done < requested - 1e-6:
             return ExecutionResult(stopped=True, detail=f"stopped after {done:.0f} {unit}: simulated-time limit of "
                                                         f"{self.options.max_sim_time_s:g} s reached", **values)

@@ -192,9 +192,11 @@ class MoverFamily(BaseModel):
         for _ in range(count):
             u_kind, u_speed, u_wander, u_stop = (float(u) for u in rng.random(4))
             kind = _pick(plain, u_kind) if trial.name == MIXED else trial
+            speed, wander = kind.speed_mm_s, kind.wander_deg
+            assert speed is not None and wander is not None  # every kind but mixed has both (MoverKind._ranges)
             movers.append(Mover(
-                kind=kind.name, speed_mm_s=_within(kind.speed_mm_s, u_speed),
-                wander_deg=_within(kind.wander_deg, u_wander),
+                kind=kind.name, speed_mm_s=_within(speed, u_speed),
+                wander_deg=_within(wander, u_wander),
                 sensing=kind.sensing, yielding=kind.yielding, stop_and_go=u_stop < kind.stop_and_go,
                 go_s=kind.go_s, stop_s=kind.stop_s))
         return Draw(self.name, trial.name, tuple(movers))

@@ -22,13 +22,13 @@ def draw_trajectory(title: str, o: RoomOptions, can_xy, balls_xy, swarm: LabbotS
                     poses: list[Pose], outcome: Outcome | None) -> bytes:
     """PNG bytes of the room (``o``; the can, the balls, the Labbots' tracks, where the robot
     collided) titled ``title``, with ``poses`` (the robot's path) and ``outcome``."""
-    has_movers = swarm is not None and len(swarm)
+    movers = swarm if swarm is not None and len(swarm) else None
     scene = TopDownScene(
         title=title, room_mm=o.room_mm, wall_mm=WALL_THICKNESS_MM,
         can_xy=tuple(can_xy), can_radius_mm=CAN_RADIUS_MM, reach_mm=o.reach_mm, robot_radius_mm=o.robot_radius_mm,
         obstacles=[(x, y, o.ball_radius_mm) for x, y in balls_xy],
-        movers_radius_mm=swarm.radius if has_movers else 0.0,
-        mover_tracks=np.stack(swarm.track) if has_movers else None,
+        movers_radius_mm=movers.radius if movers is not None else 0.0,
+        mover_tracks=np.stack(movers.track) if movers is not None else None,
         collision_xy=collision_xy, obstacle_label="soccer ball",
     )
     return draw_topdown(scene, poses, outcome)

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import math
 import os
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
-from .options import CAN_RADIUS_MM, RoomOptions
+from .options import CAN_RADIUS_MM, RoomOptions, _Balls, _Labbots
 from .quiet import import_pybullet, silenced
 
 WALL_HEIGHT_MM = 500.0
@@ -96,9 +96,11 @@ class Scene:
         self.robot = self._cylinder(o.robot_radius_mm, ROBOT_HEIGHT_MM, ROBOT_RGBA, mass=1.0)
         self.can = self._cylinder(CAN_RADIUS_MM, CAN_HEIGHT_MM, CAN_RGBA)
         ball_file = os.path.join(data_path, "soccerball.urdf")
+        # read only where the room has balls (Labbots): its options then have their fields
+        balls, labbots = cast(_Balls, o), cast(_Labbots, o)
         self.balls = [self._call("loadURDF", ball_file, basePosition=(0.0, 0.0, _m(o.ball_radius_mm)),
-                                 globalScaling=o.ball_scale, useFixedBase=True) for _ in range(o.ball_count)]
-        self.labbots = [self._cylinder(o.labbot_radius_mm, LABBOT_HEIGHT_MM, LABBOT_RGBA)
+                                 globalScaling=balls.ball_scale, useFixedBase=True) for _ in range(o.ball_count)]
+        self.labbots = [self._cylinder(labbots.labbot_radius_mm, LABBOT_HEIGHT_MM, LABBOT_RGBA)
                         for _ in range(o.labbot_count)]
         for body in self.walls + [self.can] + self.balls + self.labbots:
             self._call("setCollisionFilterGroupMask", body, -1, OBSTACLE_GROUP, OBSTACLE_GROUP | ROBOT_GROUP)

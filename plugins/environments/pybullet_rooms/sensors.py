@@ -18,10 +18,11 @@ visibility, and the Labbots' distance sensors.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 
-from .options import CAN_RADIUS_MM
+from .options import CAN_RADIUS_MM, _Labbots
 from .scene import CAN_HEIGHT_MM, OBSTACLE_GROUP, ROBOT_GROUP, Scene, _m
 
 LIDAR_HEIGHT_MM = 100.0
@@ -118,8 +119,9 @@ class LabbotRangeSensors:
     def __init__(self, scene: Scene) -> None:
         self.scene, self.p = scene, scene.p
         self.offsets = np.radians(LABBOT_SENSOR_DEG)
-        self.rim = scene.o.labbot_radius_mm + _RIM_GAP_MM
-        self.reach = scene.o.labbot_sensor_range_mm - _RIM_GAP_MM
+        labbots = cast(_Labbots, scene.o)  # built only for a room with Labbots: its options have their fields
+        self.rim = labbots.labbot_radius_mm + _RIM_GAP_MM
+        self.reach = labbots.labbot_sensor_range_mm - _RIM_GAP_MM
 
     def __call__(self, xy: np.ndarray, headings_deg: np.ndarray, robot_xy: np.ndarray) -> np.ndarray:
         scene = self.scene

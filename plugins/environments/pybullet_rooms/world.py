@@ -27,7 +27,7 @@ from safeembodai_core.seeds import derive_seed
 
 from .labbots import LabbotSwarm
 from .layout import bearing_deg, draw_layout
-from .motion import KinematicMotion
+from .motion import CollisionRecord, KinematicMotion
 from .options import CAN_RADIUS_MM, RoomOptions
 from .picture import draw_trajectory
 from .quiet import silenced
@@ -58,8 +58,8 @@ class PybulletRoom(KinematicMotion, Environment):
         self.sim_time_s = 0.0
         self.collided = False
         self.collision_xy: np.ndarray | None = None
-        self.collision: dict[str, str] = {}  # who moved into whom, what was hit, the detail
-        self._unreported: dict[str, str] = {}  # a collision outside any command, for the next observation
+        self.collision: CollisionRecord = {}  # who moved into whom, what was hit, the detail
+        self._unreported: CollisionRecord = {}  # a collision outside any command, for the next observation
         self._thought = True
         self._seed: int | None = None
         self._world: str | None = None  # the trial's drawn Labbot dynamics (JSON, with a family), for ground truth
@@ -96,7 +96,8 @@ class PybulletRoom(KinematicMotion, Environment):
 
     def _sync(self) -> None:
         self.scene.place_robot(self.xy, self.heading)
-        self.scene.place_labbots(self.swarm.xy, self.swarm.heading)
+        swarm = self._labbots()
+        self.scene.place_labbots(swarm.xy, swarm.heading)
 
     def _require_reset(self) -> None:
         if self._seed is None:
@@ -113,9 +114,10 @@ class PybulletRoom(KinematicMotion, Environment):
         distance = float(np.hypot(*(self.can_xy - self.xy)))
         with silenced():
             visible = self.sensors.can_in_view(self.xy, self.heading, self.can_xy)
-        extra = {"collided": self.collided}
+        extra: dict[str, float | int | bool | str] = {"collided": self.collided}
         if self._world is not None:
             extra["world"] = self._world
+            assert self._world_kind is not None  # reset sets both from the trial's draw
             extra["world_kind"] = self._world_kind  # the core's key for a trial's world (TrialResult.world)
         return GroundTruth(
             target_in_view=visible, target_bearing_deg=bearing_deg(self.xy, self.heading, self.can_xy),
@@ -171,7 +173,8 @@ class PybulletRoom(KinematicMotion, Environment):
         if self.collided:
             return Outcome.INTERRUPTED
         truth = self.truth()
-        if truth.target_in_view and truth.target_distance_mm <= self.options.reach_mm:
+        distance = truth.target_distance_mm  # truth() always gives it
+        if truth.target_in_view and distance is not None and distance <= self.options.reach_mm:
             return Outcome.COMPLETED
         if self.sim_time_s >= self.options.max_sim_time_s - 1e-9:
             return Outcome.TIMEOUT
@@ -190,8 +193,9 @@ class PybulletRoom(KinematicMotion, Environment):
         objects = [SceneObject("can", float(self.can_xy[0]), float(self.can_xy[1]), CAN_RADIUS_MM)]
         objects += [SceneObject("ball", float(x), float(y), o.ball_radius_mm) for x, y in self.balls_xy]
         radius = getattr(o, "labbot_radius_mm", 0.0)
+        swarm = self._labbots()
         objects += [SceneObject("labbot", float(x), float(y), radius, float(h))
-                    for (x, y), h in zip(self.swarm.xy, self.swarm.heading)]
+                    for (x, y), h in zip(swarm.xy, swarm.heading)]
         return WorldSnapshot(sim_time_s=float(self.sim_time_s), objects=tuple(objects), room_mm=float(o.room_mm))
 
     def close(self) -> None:
