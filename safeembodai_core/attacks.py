@@ -25,12 +25,35 @@ steps. Draw anything else you need after ``fires``, the same count whether or no
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Sequence
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from . import seeds
+
 if TYPE_CHECKING:
-    from .components import AttackSurface
+    import numpy as np
+
+    from .components import Attacker, AttackSurface
+    from .models import AttackRecord
+
+
+def attack_stream(seed: int, key: str, step: int) -> "np.random.Generator":
+    """The random stream attacker ``key`` draws from at ``step`` of the trial seeded ``seed`` -- the
+    pairing rule (module docstring): never the arm. ``key`` "" is the surface's own before any attacker."""
+    return seeds.rng(seed, "attacker", key, step)
+
+
+def run_attackers(surface: "AttackSurface", attackers: Sequence[tuple[str, "Attacker"]], seed: int,
+                  step: int) -> "list[AttackRecord]":
+    """Let every attacker at ``surface`` in turn, each with its own :func:`attack_stream`; their records,
+    tagged with the attacker's key. The one way the trial loop, ``fresh_scan`` and the Gymnasium env
+    attack a step, so that they attack alike."""
+    records: "list[AttackRecord]" = []
+    for key, attacker in attackers:
+        surface.rng = attack_stream(seed, key, step)
+        records.extend(record.model_copy(update={"attacker": key}) for record in attacker.attack(surface))
+    return records
 
 
 class AttackSchedule(BaseModel):

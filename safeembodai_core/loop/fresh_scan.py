@@ -19,7 +19,7 @@ import math
 from dataclasses import replace
 from typing import Any, Callable
 
-from .. import seeds
+from ..attacks import attack_stream, run_attackers
 from ..components import AttackSurface, Environment
 from ..errors import EnvironmentError_
 from ..models import Observation
@@ -68,10 +68,8 @@ def fresh_context(context: ValidationContext, observation: Observation, *, parts
     # on the step (the camera frame too) and changes the LiDAR as it did there
     attacked = AttackSurface(step, instruction, replace(observation, lidar=reading.lidar, pose=reading.pose,
                                                         truth=reading.truth, sim_time_s=time_s),
-                             reference, rng=seeds.rng(seed, "attacker", "", step), limits=limits)
-    for key, attacker in parts.attackers:
-        attacked.rng = seeds.rng(seed, "attacker", key, step)
-        attacker.attack(attacked)  # its records belong to the step's observation, already kept
+                             reference, rng=attack_stream(seed, "", step), limits=limits)
+    run_attackers(attacked, parts.attackers, seed, step)  # its records belong to the step's observation, kept
     history = context.history
     if context.scan is not None and observation.pose is not None and observation.sim_time_s < time_s:
         history = history + (PastScan(context.scan, observation.pose, observation.sim_time_s),)

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Literal
 
 
-from .. import seeds
+from ..attacks import attack_stream, run_attackers
 from ..components import (
     Attacker, AttackSurface, Environment, LLMBackend, Perception, PromptBuilder, StateStore, Validator,
 )
@@ -31,7 +31,6 @@ from ..errors import BackendError, SafeEmbodAIError, StateStoreError
 from ..logs import get_logger
 from ..models import (
     DEFAULT_LIMITS,
-    AttackRecord,
     ControlLimits,
     ExecutedSignal,
     Observation,
@@ -331,11 +330,8 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
                         f"read the reference state of step {step}") if defences.state_management else None)
     # attackers get their own copy: reassigning observation.truth or .pose cannot corrupt ground truth
     surface = AttackSurface(step, settings.instruction, copy.copy(observation), reference,
-                            rng=seeds.rng(spec.seed, "attacker", "", step), limits=settings.limits)
-    attacks: list[AttackRecord] = []
-    for name, attacker in parts.attackers:
-        surface.rng = seeds.rng(spec.seed, "attacker", name, step)
-        attacks.extend(record.model_copy(update={"attacker": name}) for record in attacker.attack(surface))
+                            rng=attack_stream(spec.seed, "", step), limits=settings.limits)
+    attacks = run_attackers(surface, parts.attackers, spec.seed, step)
     request = PromptRequest(
         instruction=surface.instruction, modalities=parts.perception.perceive(surface.observation), step=step,
         security_prefix=defences.prefix_variant, reference_state=surface.reference_state,

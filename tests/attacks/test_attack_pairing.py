@@ -51,3 +51,19 @@ def test_a_labelled_second_copy_of_an_attacker_draws_its_own_stream(cell):
     steps = cell(scenario, "arm", "attack")[1]
     counts = [len(s.attacks) for s in steps]
     assert 2 in counts and 1 in counts  # the two copies do not always agree
+
+
+def test_the_attacker_streams_are_drawn_in_one_place(repo):
+    """The pairing rule (trial seed, attacker key, step: never the arm) is written once, in
+    ``attacks.attack_stream``; the loop, ``fresh_scan`` and the Gymnasium env call it through
+    ``run_attackers``. A second copy could drift and unpair the arms."""
+    import re
+
+    written = [path.relative_to(repo).as_posix()
+               for folder in ("safeembodai_core", "plugins") for path in (repo / folder).rglob("*.py")
+               if re.search(r"""rng\([^)]*["']attacker["']""", path.read_text(encoding="utf-8"))]
+    assert written == ["safeembodai_core/attacks.py"]
+    users = [path.relative_to(repo).as_posix() for path in (repo / "safeembodai_core").rglob("*.py")
+             if "run_attackers(" in path.read_text(encoding="utf-8")]
+    assert sorted(users) == ["safeembodai_core/attacks.py", "safeembodai_core/integrations/gym/env.py",
+                             "safeembodai_core/loop/fresh_scan.py", "safeembodai_core/loop/trial.py"]

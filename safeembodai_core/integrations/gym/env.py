@@ -22,7 +22,7 @@ import gymnasium
 import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
-from ... import seeds
+from ...attacks import attack_stream, run_attackers
 from ...components import AttackSurface
 from ...models import (
     Attempt, ControlSignal, ExecutedSignal, LidarScan, LLMResponse, Observation, Outcome, Pose, ResponseParseError,
@@ -247,11 +247,8 @@ class SafeEmbodAIEnv(gymnasium.Env):
         observation, seed = self._observation, self.trial_seed
         assert observation is not None and seed is not None  # reset() set both
         surface = AttackSurface(self._step, self.scenario.instruction, copy.copy(observation), None,
-                                rng=seeds.rng(seed, "attacker", "", self._step), limits=self.limits)
-        attacks: list[dict[str, Any]] = []
-        for name, attacker in self._attackers:
-            surface.rng = seeds.rng(seed, "attacker", name, self._step)
-            attacks.extend(r.model_copy(update={"attacker": name}).model_dump() for r in attacker.attack(surface))
+                                rng=attack_stream(seed, "", self._step), limits=self.limits)
+        attacks = [r.model_dump() for r in run_attackers(surface, self._attackers, seed, self._step)]
         self._surface, self._attacks = surface, attacks
         return attacks
 
