@@ -28,7 +28,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
-from .components import BuildContext, Environment, LLMBackend, RobotSpec
+from .components import BuildContext, Environment, LLMBackend, RobotSpec, as_llm_backend
 from .guard_reports import GuardReport, LimitReport, TwistReport
 from .loop import Defences, LoopSettings, TrialParts, run_trial
 from .loop.trial import DEFAULT_INSTRUCTION
@@ -78,7 +78,8 @@ def _components(plugins: Plugins, kind: str, items: Iterable[Any], seed: int = 0
             context = BuildContext(r.use, kind, seed=seed, label=r.key)
             built.append((r.key, plugins.registry.build(kind, r.use, r.options, context)))
         else:
-            built.append((getattr(item, "name", type(item).__name__), item))
+            built.append((getattr(item, "name", type(item).__name__), as_llm_backend(item) if kind == "llm_backend"
+                          else item))
     return built
 
 

@@ -298,6 +298,56 @@ class LLMBackend(ABC):
         """Release connections."""
 
 
+class _DeclaredBackend(LLMBackend):
+    """An object with a ``complete`` that does not subclass :class:`LLMBackend`, with every optional
+    method declared: the object's own where it has one, else the class's default (:func:`as_llm_backend`)."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        concurrency = getattr(inner, "concurrency", 1)
+        self.concurrency = concurrency if isinstance(concurrency, int) and not isinstance(concurrency, bool) else 1
+
+    def _own(self, name: str) -> Any:
+        method = getattr(self.inner, name, None)
+        return method if callable(method) else None
+
+    def complete(self, prompt: Prompt, rng: np.random.Generator) -> "BackendReply":
+        return self.inner.complete(prompt, rng)
+
+    def prepare_attempt(self, index: int, limits: ControlLimits, rng: np.random.Generator) -> dict[str, Any] | None:
+        own = self._own("prepare_attempt")
+        return own(index=index, limits=limits, rng=rng) if own else None
+
+    def cache_request(self, prompt: Prompt) -> dict[str, Any] | None:
+        own = self._own("cache_request")
+        return own(prompt) if own else None
+
+    def cost(self, prompt_tokens: int, completion_tokens: int) -> float | None:
+        own = self._own("cost")
+        return own(prompt_tokens, completion_tokens) if own else None
+
+    def preflight(self) -> None:
+        own = self._own("preflight")
+        if own:
+            own()
+
+    def close(self) -> None:
+        own = self._own("close")
+        if own:
+            own()
+
+
+def as_llm_backend(backend: Any) -> LLMBackend:
+    """``backend`` as an :class:`LLMBackend`: itself when it is one; an object that only has a
+    ``complete`` (a duck-typed plugin's, a test's) wrapped so that the core calls declared methods
+    only. Raises ``TypeError`` for an object without a callable ``complete``."""
+    if isinstance(backend, LLMBackend):
+        return backend
+    if not callable(getattr(backend, "complete", None)):
+        raise TypeError(f"an LLM backend needs a complete(prompt, rng) method; got {type(backend).__name__}")
+    return _DeclaredBackend(backend)
+
+
 @dataclass
 class AttackSurface:
     """The inputs of one step as an attacker sees them; attackers mutate it in place.

@@ -163,7 +163,12 @@ class ComponentRegistry:
 
             context = BuildContext(component=name, kind=kind)
         try:
-            return info.factory(options, context)
+            built = info.factory(options, context)
+            if kind == "llm_backend":  # every optional method declared (the core calls them, no getattr)
+                from .components import as_llm_backend
+
+                built = as_llm_backend(built)
+            return built
         except SafeEmbodAIError:  # a reported, user-facing problem (a locked database, a missing file)
             raise
         except Exception as error:  # a plugin bug: name the plugin, keep the cause for --debug

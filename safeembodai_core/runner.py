@@ -55,10 +55,8 @@ def preflight(scenario: Scenario, plugins: Plugins) -> int:
         plugins.metrics
         backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
         try:
-            check = getattr(backend, "preflight", None)
-            if callable(check):
-                check()
-            suggested = getattr(backend, "concurrency", 1)
+            backend.preflight()
+            suggested = backend.concurrency
         finally:
             backend.close()
     except SafeEmbodAIError as error:

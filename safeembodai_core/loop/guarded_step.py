@@ -85,9 +85,8 @@ def decide(
     for index in range(failure_threshold + 1):
         prompt = builder.build(replace(request, failures=tuple(failures), refusals=tuple(refusals)))
         rng = seeds.rng(seed, "backend", request.step, index)
-        # optional hook: a backend that decodes under the limits or varies retries learns the attempt
-        prepare = getattr(backend, "prepare_attempt", None)
-        sampling = prepare(index=index, limits=request.limits, rng=rng) if callable(prepare) else None
+        # a backend that decodes under the limits or varies retries learns the attempt (None: nothing prepared)
+        sampling = backend.prepare_attempt(index=index, limits=request.limits, rng=rng)
         started = time.perf_counter()
         try:
             reply = as_reply(backend.complete(prompt, rng))

@@ -25,7 +25,7 @@ from typing import Any, Callable, Literal
 
 from ..attacks import attack_stream, run_attackers
 from ..components import (
-    Attacker, AttackSurface, Environment, LLMBackend, Perception, PromptBuilder, StateStore, Validator,
+    Attacker, AttackSurface, Environment, LLMBackend, as_llm_backend, Perception, PromptBuilder, StateStore, Validator,
 )
 from ..errors import BackendError, SafeEmbodAIError, StateStoreError
 from ..logs import get_logger
@@ -67,6 +67,9 @@ class TrialParts:
     backend: LLMBackend
     validators: list[tuple[str, Validator]] = field(default_factory=list)
     attackers: list[tuple[str, Attacker]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.backend = as_llm_backend(self.backend)  # its optional methods declared: the loop calls them
 
 
 @dataclass(frozen=True)
@@ -188,14 +191,11 @@ class _Totals:
         )
 
 
-def _cost(backend: Any, result: TrialResult) -> float | None:
+def _cost(backend: LLMBackend, result: TrialResult) -> float | None:
     """What the trial's tokens cost at the backend's list price; None when it knows none (or its
     ``cost`` fails: a price is a report's convenience, never a reason to lose a trial)."""
-    price = getattr(backend, "cost", None)
-    if not callable(price):  # a backend that does not subclass LLMBackend
-        return None
     try:
-        cost = price(result.prompt_tokens, result.completion_tokens)
+        cost = backend.cost(result.prompt_tokens, result.completion_tokens)
     except Exception as error:
         log.warning("trial.unpriced", trial=result.spec.trial_id, error=one_line(f"{type(error).__name__}: {error}"))
         return None

@@ -69,7 +69,7 @@ def test_validation_context_attack_surface_and_build_context_are_spelt_out(repo)
                 f"{cls.__name__}.{name} has no row in docs/plugin_hooks.md")
     assert "`(x_mm, y_mm, heading_deg)`" in hooks and "scan frame" in hooks  # the offset's order and frame
     assert "`LidarScan(ranges_mm, max_range_mm)`" in hooks
-    assert "`BuildContext(component, kind, seed=0, label=None, run_dir=None)`" in hooks
+    assert "`BuildContext(component, kind, seed=0, label=None, run_dir=None, only_to_describe=False)`" in hooks
     assert "`safeembodai ablate --out DIR`" in hooks
 
 
