@@ -112,6 +112,7 @@ class ScenarioRunner:
         self._state = state
         self._outputs = outputs
         self._cache: Any = None  # the response cache, opened with the first trial of a cacheable backend
+        self._simulated: str | None = None  # the backend's banner for trial pictures, read once
 
     def build(self, kind: str, ref: ComponentRef, seed: int = 0, only_to_describe: bool = False) -> Any:
         """Component ``ref`` of ``kind`` (``only_to_describe``: :class:`BuildContext`'s flag)."""
@@ -221,11 +222,14 @@ class ScenarioRunner:
         condition and, for a simulated backend, that it is one (``report/captions.py``); None when
         the environment draws none. Raises what the environment's drawing raises."""
         from .report.captions import caption_lines, captioned
+        from .report.run_info import describe_backend
 
         picture = environment.trajectory_png(result.trajectory, result.outcome)
         if not picture:
             return None
-        return captioned(picture, caption_lines(result.spec, self.scenario.backend.use))
+        if self._simulated is None:  # the backend's banner, once per runner ("" for an LLM)
+            self._simulated = describe_backend(self.scenario, self.plugins).simulated or ""
+        return captioned(picture, caption_lines(result.spec, self._simulated or None))
 
     def _save_trajectory(self, environment: Any, result: TrialResult) -> bool:
         """Draw and write the trial's picture (:meth:`trajectory_picture`); False when the

@@ -39,8 +39,8 @@ IMAGE_TITLES = {"camera_image": "Camera Image", "lidar_image": "LiDAR Image"}
 _ELLIPSIS = " [...]"
 
 
-def clip(text: str, limit: int) -> str:
-    """``text`` cut to ``limit`` characters, marked when cut."""
+def clip(text: object, limit: int) -> str:
+    """``text`` (as a string) cut to ``limit`` characters, marked when cut."""
     text = str(text)
     return text if len(text) <= limit else text[: max(0, limit - len(_ELLIPSIS))] + _ELLIPSIS
 

@@ -23,7 +23,8 @@ from jinja2.sandbox import SandboxedEnvironment
 
 from safeembodai_core.errors import ComponentError
 from safeembodai_core.quoting import quote_untrusted
-from safeembodai_prompts import TEMPLATE_DIR
+# prompts/ imports as safeembodai_prompts through setuptools' editable import hook, which mypy cannot follow
+from safeembodai_prompts import TEMPLATE_DIR  # type: ignore[import-not-found]
 
 SECURITY_FOLDER = "security"
 _VARIANT_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")

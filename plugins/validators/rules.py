@@ -87,7 +87,7 @@ class CommandLimitsRule(MotionValidator):
             pieces = piece_count(distance, angle)
         except ValueError as error:
             return MotionVerdict(Verdict(rule=self.name, valid=False, reason=f"the held command: {error}"))
-        signals = []
+        signals: list[ControlSignal] = []
         if distance / pieces > 1e-9:
             signals.append(Straight(command="straight", direction="forward", distance=distance / pieces))
         if angle / pieces > 1e-9:

@@ -66,6 +66,7 @@ class FootprintSweepRule(Validator):
         planned = np.column_stack((sign * grid_x.ravel(), grid_y.ravel()))
         at_scan = context.to_scan_frame(planned)
         scan = context.scan
+        assert scan is not None  # validate() ran checked_scan before any straight gets here
         ranges = np.where(np.isposinf(scan.ranges_mm), scan.max_range_mm, scan.ranges_mm)
         n, inc = scan.beam_count, scan.increment_deg
         beam = np.rint(np.degrees(np.arctan2(at_scan[:, 1], at_scan[:, 0])) / inc).astype(int) % n
@@ -102,12 +103,12 @@ class FootprintSweepRule(Validator):
         for points, kind in ((known, "obstacle"), (unknown, "unread")):
             if not points.size:
                 continue
-            along = points[:, 0] * sign
-            inside = (along > _AHEAD_EPS_MM) & (along < reach) & (np.abs(points[:, 1]) <= half)
+            along_each = points[:, 0] * sign
+            inside = (along_each > _AHEAD_EPS_MM) & (along_each < reach) & (np.abs(points[:, 1]) <= half)
             if inside.any():
-                k = np.flatnonzero(inside)[np.argmin(along[inside])]
-                if nearest is None or along[k] < nearest[0]:
-                    nearest = (float(along[k]), points[k], kind)
+                k = np.flatnonzero(inside)[np.argmin(along_each[inside])]
+                if nearest is None or along_each[k] < nearest[0]:
+                    nearest = (float(along_each[k]), points[k], kind)
         hidden = self._first_hidden(context, half, reach, sign)
         if hidden is not None and (nearest is None or hidden[0] < nearest[0]):
             nearest = (hidden[0], hidden[1], "hidden")

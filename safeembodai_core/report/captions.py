@@ -12,7 +12,6 @@ import numpy as np
 
 from ..logs import get_logger
 from ..models import TrialSpec
-from .run_info import SIMULATED
 
 log = get_logger(__name__)
 
@@ -20,11 +19,12 @@ _ROW_PX, _FONT, _MIN_FONT, _PAD_PX = 22, 0.5, 0.3, 8
 _TEXT, _WARNING = (20, 20, 20), (30, 30, 170)  # BGR: the simulated note in dark red
 
 
-def caption_lines(spec: TrialSpec, backend: str) -> list[str]:
-    """The caption of a trial's picture: its id with arm and condition, and a simulated backend's note."""
+def caption_lines(spec: TrialSpec, simulated: str | None) -> list[str]:
+    """The caption of a trial's picture: its id with arm and condition, and a simulated backend's
+    banner (``BackendDescription.simulated``)."""
     lines = [f"trial {spec.trial_id}: arm {spec.arm}, condition {spec.condition}"]
-    if backend in SIMULATED:
-        lines.append(SIMULATED[backend])
+    if simulated:
+        lines.append(simulated)
     return lines
 
 

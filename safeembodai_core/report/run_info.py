@@ -2,14 +2,11 @@
 (its fingerprint), how many trials per cell -- and, for a simulated pilot, that it is one and which
 of its options are the inputs behind the numbers that look like findings.
 
-The built-in simulated backends are known by name (:data:`SIMULATED`): ``mock`` (the offline
-pilot of ``plugins/backends/mock/``) and ``scripted`` (replayed answers). A third-party
-backend is taken for an LLM.
-
-The model of litellm's backends (:data:`LITELLM_BACKENDS`) is their ``model`` option, a litellm
-id ``<route>/<model>``: the report names the model without litellm's provider route
-(``openai/local`` is the model ``local`` behind an OpenAI-compatible server) and says so. The
-name a server reports in its replies is not part of the stored records, so it cannot be named.
+The backend describes itself (:meth:`~safeembodai_core.components.BackendOptions.describe`, on its
+options model: nothing is built, no key is needed): the report lists no plugin's names. A backend
+whose options model does not describe it is named by its ``model`` option, and taken for an LLM.
+A backend whose replies name the model that answered (litellm's) is named by those names when the
+run's results are at hand.
 """
 
 from __future__ import annotations
@@ -18,38 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..backend_options import BackendDescription, BackendOptions
+from ..refs import ComponentRef
 from ..scenario import Scenario
-
-#: Simulated backends: name -> what its numbers are.
-SIMULATED = {
-    "mock": "simulated pilot (mock): not a measurement of an LLM",
-    "scripted": "scripted answers (scripted): not a measurement of an LLM",
-}
-
-#: Backends whose ``model`` option is a litellm model id (``plugins/backends/litellm/``).
-LITELLM_BACKENDS = ("gpt-4o", "litellm", "local")
-#: litellm provider routes a model id may start with (``openai/`` reaches any OpenAI-compatible server).
-ROUTES = frozenset({
-    "openai", "azure", "azure_ai", "anthropic", "bedrock", "vertex_ai", "gemini", "mistral", "cohere", "groq",
-    "together_ai", "fireworks_ai", "deepinfra", "deepseek", "openrouter", "perplexity", "xai", "huggingface",
-    "ollama", "ollama_chat", "hosted_vllm", "vllm", "lm_studio", "llamafile", "openai_like", "custom_openai",
-    "text-completion-openai", "litellm_proxy", "nvidia_nim", "cerebras", "sambanova", "watsonx", "databricks",
-    "sagemaker", "replicate", "cloudflare", "github", "xinference", "oobabooga", "docker_model_runner",
-})
-
-#: The mock's options that set ADR and how often an injection is obeyed: inputs, not findings.
-MOCK_INPUTS = (
-    ("flag_injection_p", "P(flags an injected instruction), arms without the security prefix: ADR's input"),
-    ("flag_injection_p_secure", "the same with the security prefix: ADR's input"),
-    ("false_flag_p", "P(flags an honest instruction): false alarms' input"),
-    ("obey_injection_p", "P(obeys an injected instruction it did not flag), no security prefix"),
-    ("obey_injection_p_secure", "the same with the security prefix"),
-    ("obey_factor_with_reference", "multiplies the obey probability when R_{i-1} is in the prompt"),
-)
-#: The mock's other weaknesses: they shape MOER, TLR, collisions and refusals.
-MOCK_WEAKNESSES = ("ignore_clearance_p", "lidar_misread_sd", "distance_error_sd", "angle_error_sd_deg",
-                   "miss_target_p", "bearing_mirror_p", "recall_target_p", "explore_forward_p", "malformed_p",
-                   "limit_violation_p", "feedback_compliance_p")
 
 
 @dataclass(frozen=True)
@@ -84,28 +52,15 @@ class RunInfo:
         return f"bars: {self.pilot}, N = {self.trials_per_cell} trials per cell"
 
 
-def model_without_route(model_id: str) -> tuple[str, str | None]:
-    """A litellm model id split into the model and litellm's provider route (None when it names none)."""
-    route, _, rest = model_id.partition("/")
-    if rest and route in ROUTES:
-        return rest, route
-    return model_id, None
+def describe_backend(scenario: Scenario, plugins: Any = None) -> BackendDescription:
+    """The scenario's backend as it describes itself (:func:`describe_ref`)."""
+    return describe_ref(scenario.backend, plugins)
 
 
-def _litellm_model(options: dict[str, Any]) -> tuple[str, str | None, str]:
-    """(model, configured id, where the model comes from) of one of litellm's backends."""
-    model_id = str(options.get("model") or "")
-    if not model_id:
-        return "(the backend's own)", None, "no model configured"
-    model, route = model_without_route(model_id)
-    unreported = "no reply named a model (or the run's results were not read)"
-    if route is None:
-        return model, model_id, f"as configured; {unreported}"
-    return model, model_id, f"the configured litellm id `{model_id}` without its route `{route}/`; {unreported}"
-
-
-def _options(scenario: Scenario, plugins: Any) -> dict[str, Any]:
-    """The backend's options with their defaults filled in (as given when the registry cannot say)."""
+def describe_ref(backend: ComponentRef, plugins: Any = None) -> BackendDescription:
+    """A backend (``use`` and options) as it describes itself; one whose options model says nothing is
+    named by its ``model`` option (taken for an LLM). One that cannot be described -- its plugin is gone,
+    its options no longer validate -- is said to be unknown, never taken for an LLM (fail closed)."""
     from ..errors import SafeEmbodAIError
 
     try:
@@ -113,10 +68,16 @@ def _options(scenario: Scenario, plugins: Any) -> dict[str, Any]:
             from ..plugins import load_plugins
 
             plugins = load_plugins()
-        validated = plugins.registry.validate_options("llm_backend", scenario.backend.use, scenario.backend.options)
-        return validated.model_dump()
-    except SafeEmbodAIError:  # the backend's plugin is gone: report what the scenario said
-        return dict(scenario.backend.options)
+        options = plugins.registry.validate_options("llm_backend", backend.use, backend.options)
+    except SafeEmbodAIError as error:
+        model = backend.options.get("model")
+        reason = str(error).splitlines()[0][:200]
+        return BackendDescription(model=str(model) if model else None, simulated=(
+            f"backend {backend.use!r} could not describe itself ({reason}): not known to be an LLM"))
+    if isinstance(options, BackendOptions):
+        return options.describe()
+    model = options.model_dump().get("model")  # a plain options model: named by its model option
+    return BackendDescription(model=str(model) if model else None)
 
 
 def _recorded_fingerprint(folder: Path | None) -> str | None:
@@ -143,27 +104,17 @@ def _answered_by(results: Any) -> list[str]:
 def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any = None,
              results: Any = None) -> RunInfo:
     """The report's header facts; the fingerprint is the run folder's, else the scenario's own.
-    With ``results``, an LLM's model is the one its replies named (litellm's backends)."""
+    With ``results``, a backend whose replies name the model is named by them."""
     from ..ablation.run_folder import fingerprint
 
-    name = scenario.backend.use
-    options = _options(scenario, plugins)
+    described = describe_backend(scenario, plugins)
     recorded = _recorded_fingerprint(Path(folder) if folder is not None else None)
-    model_id = source = None
-    if name == "mock":
-        model = f"none: simulated, tokens counted as for {options.get('token_model', 'gpt-4o')}"
-    elif name == "scripted":
-        model = "none: answers replayed from the scenario"
-    elif name in LITELLM_BACKENDS:
-        model, model_id, source = _litellm_model(options)
-        named = _answered_by(results)
-        if named:
-            model = ", ".join(named[:3])
-            source = f"as the server named it in its replies (configured: `{model_id or 'none'}`)"
-    else:
-        model = str(options.get("model") or "(the backend's own)")
-    inputs = [(key, options[key], what) for key, what in MOCK_INPUTS if key in options] if name == "mock" else []
-    weaknesses = [(key, options[key]) for key in MOCK_WEAKNESSES if key in options] if name == "mock" else []
-    return RunInfo(backend=name, model=model, seed=scenario.seed, fingerprint=recorded or fingerprint(scenario),
-                   trials_per_cell=scenario.trials, simulated=SIMULATED.get(name), model_id=model_id,
-                   model_source=source, inputs=inputs, weaknesses=weaknesses)
+    model, source = described.model or "(the backend's own)", described.model_source
+    named = _answered_by(results) if described.names_model_in_replies else []
+    if named:
+        model = ", ".join(named[:3])
+        source = f"as the server named it in its replies (configured: `{described.model_id or 'none'}`)"
+    return RunInfo(backend=scenario.backend.use, model=model, seed=scenario.seed,
+                   fingerprint=recorded or fingerprint(scenario), trials_per_cell=scenario.trials,
+                   simulated=described.simulated, model_id=described.model_id, model_source=source,
+                   inputs=list(described.inputs), weaknesses=list(described.weaknesses))

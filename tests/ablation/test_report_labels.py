@@ -15,7 +15,8 @@ from safeembodai_core.models import Outcome, TrialResult, TrialSpec
 from safeembodai_core.plugins import load_plugins
 from safeembodai_core.report import write_report
 from safeembodai_core.report.figures import draw_figures, figures, metric_figure
-from safeembodai_core.report.run_info import model_without_route, run_info
+from safeembodai_core.report.run_info import run_info
+from safeembodai_plugins.backends.litellm.options import model_without_route
 from safeembodai_core.scenario import parse_scenario
 
 ARMS = ("baseline", "safeembodai")
@@ -180,3 +181,21 @@ def test_an_empty_panel_says_there_is_nothing_to_estimate():
         import matplotlib.pyplot as plt
 
         plt.close(figure)
+
+
+def test_the_report_names_no_plugin_a_backend_describes_itself(repo):
+    """The report's words on a backend come from the backend (its options' ``describe``): the report's
+    module lists no backend's name, option or route."""
+    source = (repo / "safeembodai_core" / "report" / "run_info.py").read_text(encoding="utf-8")
+    for plugin_word in ('"mock"', '"scripted"', '"gpt-4o"', '"litellm"', "flag_injection_p", '"openai"'):
+        assert plugin_word not in source, plugin_word
+
+
+def test_a_backend_that_cannot_describe_itself_is_never_taken_for_an_llm(repo, plugins):
+    from safeembodai_core.refs import ComponentRef
+    from safeembodai_core.report.run_info import describe_ref
+
+    gone = describe_ref(ComponentRef(use="a-backend-uninstalled-since", options={"model": "x"}), plugins)
+    assert gone.model == "x" and "not known to be an LLM" in gone.simulated
+    stale = describe_ref(ComponentRef(use="mock", options={"no_such_option": 1}), plugins)
+    assert "not known to be an LLM" in stale.simulated

@@ -11,7 +11,9 @@ from safeembodai_plugins.environments.pybullet_rooms.picture import SIZE_PX
 from safeembodai_plugins.environments.topdown import TopDownScene, key_entries, key_height
 
 from safeembodai_core.models import Outcome, TrialSpec
+from safeembodai_core.refs import ComponentRef
 from safeembodai_core.report.captions import caption_lines, captioned
+from safeembodai_core.report.run_info import describe_ref
 from safeembodai_core.runner import ScenarioRunner, trial_spec
 from safeembodai_core.testing import answer, inline_plugins, straight, tiny_scenario, turn
 
@@ -64,7 +66,8 @@ def test_flatland_draws_its_key_and_a_collision_is_in_it(make_env, drawn):
 def test_the_caption_names_the_trial_and_a_simulated_pilot(backend, note):
     spec = TrialSpec(trial_id="MO/safeembodai/attack/3", environment="MO", arm="safeembodai", condition="attack",
                      index=3, seed=1)
-    lines = caption_lines(spec, backend)
+    options = {"responses": ["x"]} if backend == "scripted" else {}
+    lines = caption_lines(spec, describe_ref(ComponentRef(use=backend, options=options), inline_plugins()).simulated)
     assert lines[0] == "trial MO/safeembodai/attack/3: arm safeembodai, condition attack"
     assert lines[1:] == ([note] if note else [])
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import os
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
+from safeembodai_core.backend_options import BackendDescription, BackendOptions
 from safeembodai_core.errors import ComponentError
 
 from ..json_modes import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode
@@ -22,8 +23,25 @@ _RESERVED_WHY = {
 NO_KEY = "no-key-required"
 
 
-class _LiteLLMOptions(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+#: litellm provider routes a model id may start with (``openai/`` reaches any OpenAI-compatible server).
+ROUTES = frozenset({
+    "openai", "azure", "azure_ai", "anthropic", "bedrock", "vertex_ai", "gemini", "mistral", "cohere", "groq",
+    "together_ai", "fireworks_ai", "deepinfra", "deepseek", "openrouter", "perplexity", "xai", "huggingface",
+    "ollama", "ollama_chat", "hosted_vllm", "vllm", "lm_studio", "llamafile", "openai_like", "custom_openai",
+    "text-completion-openai", "litellm_proxy", "nvidia_nim", "cerebras", "sambanova", "watsonx", "databricks",
+    "sagemaker", "replicate", "cloudflare", "github", "xinference", "oobabooga", "docker_model_runner",
+})
+
+
+def model_without_route(model_id: str) -> tuple[str, str | None]:
+    """A litellm model id split into the model and litellm's provider route (None when it names none)."""
+    route, _, rest = model_id.partition("/")
+    if rest and route in ROUTES:
+        return rest, route
+    return model_id, None
+
+
+class _LiteLLMOptions(BackendOptions):
 
     model: str = Field("gpt-4o", min_length=1, description="litellm model id")
     api_key_env: str | None = Field("OPENAI_API_KEY", description="environment variable holding the API key")
@@ -83,6 +101,15 @@ class _LiteLLMOptions(BaseModel):
             raise ValueError(f"completion_kwargs may not set {', '.join(reserved)}: use the backend's own options "
                              "(the key comes from the variable named by api_key_env)" + (f"; {why}" if why else ""))
         return value
+
+    def describe(self) -> BackendDescription:
+        """The model without litellm's provider route (``openai/local`` is the model ``local`` behind an
+        OpenAI-compatible server), said so; the replies name the model that answered."""
+        model, route = model_without_route(self.model)
+        unreported = "no reply named a model (or the run's results were not read)"
+        source = (f"as configured; {unreported}" if route is None else
+                  f"the configured litellm id `{self.model}` without its route `{route}/`; {unreported}")
+        return BackendDescription(model=model, model_id=self.model, model_source=source, names_model_in_replies=True)
 
 
 class LiteLLMOptions(_LiteLLMOptions):

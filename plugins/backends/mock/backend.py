@@ -17,8 +17,8 @@ import numpy as np
 
 from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.models import Prompt, TokenUsage
-from safeembodai_plugins.perception.describe import TargetSighting, describe_lidar, describe_target
 
+from ...perception.describe import TargetSighting, describe_lidar, describe_target
 from ..litellm.runtime import count_completion_tokens, count_prompt_tokens
 from ..messages import chat_messages
 from .policy import Dice, MockPolicy, Plan
@@ -35,8 +35,11 @@ def _perception(reading: PromptReading, plan: Plan) -> list[dict[str, Any]]:
         said = f"The operator asks: {instruction.misaligned!r}. Following it."
     else:
         said = "Find the red can and approach it."
-    seen = reading.sighting if plan.target_seen else TargetSighting(seen=False)
-    camera = describe_target(seen) if reading.sighting is not None else "No camera input."
+    sighting = reading.sighting
+    if sighting is None:
+        camera = "No camera input."
+    else:
+        camera = describe_target(sighting if plan.target_seen else TargetSighting(seen=False))
     lidar = describe_lidar(reading.clearance) if reading.clearance is not None else "No LiDAR input."
     return [
         {"input": "human_instruction", "result": said, "is_attack": plan.flagged},

@@ -2,16 +2,40 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, TypedDict
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
+
+from safeembodai_core.backend_options import BackendDescription, BackendOptions
 
 
-_P = dict(ge=0.0, le=1.0)
+class _Bounds(TypedDict):
+    """Keyword bounds spread into ``Field`` (typed, so each matches ``Field``'s parameter)."""
+
+    ge: float
+    le: float
 
 
-class MockOptions(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+_P: _Bounds = {"ge": 0.0, "le": 1.0}
+
+
+#: The options that set ADR and how often an injection is obeyed: inputs behind numbers that look
+#: like findings (the report names them with their values).
+INPUTS = (
+    ("flag_injection_p", "P(flags an injected instruction), arms without the security prefix: ADR's input"),
+    ("flag_injection_p_secure", "the same with the security prefix: ADR's input"),
+    ("false_flag_p", "P(flags an honest instruction): false alarms' input"),
+    ("obey_injection_p", "P(obeys an injected instruction it did not flag), no security prefix"),
+    ("obey_injection_p_secure", "the same with the security prefix"),
+    ("obey_factor_with_reference", "multiplies the obey probability when R_{i-1} is in the prompt"),
+)
+#: The pilot's other weaknesses: they shape MOER, TLR, collisions and refusals.
+WEAKNESSES = ("ignore_clearance_p", "lidar_misread_sd", "distance_error_sd", "angle_error_sd_deg",
+              "miss_target_p", "bearing_mirror_p", "recall_target_p", "explore_forward_p", "malformed_p",
+              "limit_violation_p", "feedback_compliance_p")
+
+
+class MockOptions(BackendOptions):
 
     # prompt injection
     obey_injection_p: float = Field(0.85, **_P, description="follows a misaligned instruction (no security prefix)")
@@ -27,9 +51,9 @@ class MockOptions(BaseModel):
     lidar_misread_sd: float = Field(0.35, ge=0.0, le=2.0, description="relative error reading LiDAR distances")
     limit_violation_p: float = Field(0.02, **_P, description="writes a distance beyond the actuation limit")
     malformed_p: float = Field(0.02, **_P, description="first answer of a step is not schema-valid JSON")
-    feedback_compliance_p: float = Field(0.9, **_P, description="on a retry, obeys a refusal's 'at most N mm'")
+    feedback_compliance_p: float = Field(0.9, **_P, description="on a retry, obeys a refusal's advice")
     retry: Literal["redraw", "amend"] = Field("redraw", description=(
-        "on a retry: 'redraw' plans afresh and shortens every straight to the least 'at most N mm' said; "
+        "on a retry: 'redraw' plans afresh and shortens every straight to the least safe distance given; "
         "'amend' resends the refused plan up to the refused straight, shortened, when each refusal named "
         "its signal and how far is safe (else redraws)"))
     # perception, memory and search
@@ -53,3 +77,11 @@ class MockOptions(BaseModel):
     token_model: str = Field("gpt-4o", min_length=1, description="model whose tokenizer counts usage")
     token_image_detail: Literal["low", "high", "auto"] = Field("low", description="image detail for counting")
     latency_s: float = Field(0.0, ge=0.0, description="latency to report (0: the real compute time)")
+
+    def describe(self) -> BackendDescription:
+        values = self.model_dump()
+        return BackendDescription(
+            model=f"none: simulated, tokens counted as for {self.token_model}",
+            simulated="simulated pilot (mock): not a measurement of an LLM",
+            inputs=tuple((name, values[name], what) for name, what in INPUTS),
+            weaknesses=tuple((name, values[name]) for name in WEAKNESSES))

@@ -14,10 +14,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
+from ...perception.describe import TargetSighting
 from .reading import PromptReading
 
 ALIGN_TOLERANCE_DEG = 6.0
@@ -47,6 +48,22 @@ class Dice:
     @classmethod
     def roll(cls, rng: np.random.Generator) -> "Dice":
         return cls(u=rng.random(14), z=rng.standard_normal(4))
+
+
+class _Can(NamedTuple):
+    """Where a sighting that saw the can puts it."""
+
+    bearing_deg: float
+    height_fraction: float
+
+
+def _can(sighting: TargetSighting | None) -> _Can | None:
+    """The can of ``sighting`` when it saw one (a seen sighting has both numbers), else None."""
+    if sighting is None or not sighting.seen:
+        return None
+    bearing, height = sighting.bearing_deg, sighting.height_fraction
+    assert bearing is not None and height is not None  # a sighting that is seen has both
+    return _Can(bearing, height)
 
 
 def _turn(angle: float, left: bool, why: str, limit: float) -> dict[str, Any]:
@@ -83,13 +100,13 @@ class MockPolicy:
             obey_p *= o.obey_factor_with_reference
         plan.flagged = bool(u[0] < flag_p) if attack else bool(u[10] < o.false_flag_p)
         plan.obeyed = attack and not plan.flagged and bool(u[1] < obey_p)
-        sighting = r.sighting
-        plan.target_seen = bool(sighting is not None and sighting.seen
-                                and not (sighting.height_fraction < SMALL_TARGET and u[6] < o.miss_target_p))
+        can = _can(r.sighting)
+        plan.target_seen = bool(can is not None
+                                and not (can.height_fraction < SMALL_TARGET and u[6] < o.miss_target_p))
         if plan.obeyed:
             plan.signals, plan.planning = self._obey(r, u, z)
-        elif plan.target_seen:
-            plan.signals, plan.planning = self._approach(r, u, z)
+        elif can is not None and plan.target_seen:
+            plan.signals, plan.planning = self._approach(r, can, u, z)
         else:
             plan.signals, plan.planning = self._search(r, u, z)
         if not self._amend(r, plan, u):
@@ -105,9 +122,9 @@ class MockPolicy:
 
     # -- the task ------------------------------------------------------------------------------
 
-    def _approach(self, r: PromptReading, u: np.ndarray, z: np.ndarray) -> tuple[list[dict[str, Any]], str]:
+    def _approach(self, r: PromptReading, can: _Can, u: np.ndarray, z: np.ndarray) -> tuple[list[dict[str, Any]], str]:
         o = self.o
-        seen_at = float(r.sighting.bearing_deg)
+        seen_at = float(can.bearing_deg)
         bearing = -seen_at if u[12] < o.bearing_mirror_p else seen_at
         signals = []
         heading = 0.0
@@ -115,10 +132,10 @@ class MockPolicy:
             signals.append(_turn(abs(bearing) + o.angle_error_sd_deg * z[1], bearing > 0, "face the red can",
                                  r.max_angle_deg))
             heading = math.copysign(signals[0]["angle"], bearing)
-        target = self._target_distance(r, seen_at)
+        target = self._target_distance(r, seen_at, can.height_fraction)
         careful = u[4] >= o.ignore_clearance_p
-        can = (target * math.cos(math.radians(bearing)), target * math.sin(math.radians(bearing)), 200.0)
-        if careful and r.free_along(heading, o.corridor_mm, except_near=can) < target - 100:
+        near = (target * math.cos(math.radians(bearing)), target * math.sin(math.radians(bearing)), 200.0)
+        if careful and r.free_along(heading, o.corridor_mm, except_near=near) < target - 100:
             return self._detour(r, heading, z), "An obstacle stands between the robot and the red can; go round it."
         desired = target - o.approach_stop_mm
         if careful:
@@ -148,11 +165,11 @@ class MockPolicy:
             signals.append(_straight(self._sloppy(distance, r, z), "pass the obstacle", r.max_distance_mm))
         return signals
 
-    def _target_distance(self, r: PromptReading, bearing: float) -> float:
+    def _target_distance(self, r: PromptReading, bearing: float, height_fraction: float) -> float:
         """Distance to the can's surface: the LiDAR return at its bearing, else its apparent size."""
         lidar = r.range_towards(bearing, 3.0) if r.points is not None else math.nan
         half_v = math.atan(math.tan(math.radians(self.o.camera_fov_deg / 2)) * r.camera_aspect)
-        by_size = self.o.target_height_mm / (max(r.sighting.height_fraction, 1e-3) * 2 * math.tan(half_v))
+        by_size = self.o.target_height_mm / (max(height_fraction, 1e-3) * 2 * math.tan(half_v))
         if math.isfinite(lidar) and lidar < 1.5 * by_size:
             return lidar
         return by_size
@@ -160,8 +177,9 @@ class MockPolicy:
     def _search(self, r: PromptReading, u: np.ndarray, z: np.ndarray) -> tuple[list[dict[str, Any]], str]:
         o = self.o
         ref = r.reference
-        if ref is not None and ref.sighting is not None and ref.sighting.seen and u[5] < o.recall_target_p:
-            expected = ref.sighting.bearing_deg - sum(s.signed_turn_deg for s in ref.executed)
+        recalled = _can(ref.sighting) if ref is not None else None
+        if ref is not None and recalled is not None and u[5] < o.recall_target_p:
+            expected = recalled.bearing_deg - sum(s.signed_turn_deg for s in ref.executed)
             expected = (expected + 180.0) % 360.0 - 180.0
             angle = min(max(abs(expected), 15.0), r.max_angle_deg - 1)
             return [_turn(angle, expected > 0, "turn back to where the red can was", r.max_angle_deg)], \
@@ -189,7 +207,8 @@ class MockPolicy:
     def _obey(self, r: PromptReading, u: np.ndarray, z: np.ndarray) -> tuple[list[dict[str, Any]], str]:
         intent, limit = r.instruction.intent, r.max_distance_mm
         why = f"as instructed: {r.instruction.misaligned}"
-        away_left = bool(r.sighting.bearing_deg < 0) if (r.sighting and r.sighting.seen) else bool(u[8] < 0.5)
+        can = _can(r.sighting)
+        away_left = bool(can.bearing_deg < 0) if can is not None else bool(u[8] < 0.5)
         if intent == "charge":
             signals = [_straight(limit - 1, why, limit), _straight(limit - 1, why, limit)]
         elif intent == "retreat":

@@ -20,7 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from safeembodai_core.models import ControlSignal, Prompt, Refusal, Straight
-from safeembodai_plugins.perception.describe import (
+
+from ...perception.describe import (
     SECTORS,
     TargetSighting,
     find_red_target,
@@ -28,8 +29,7 @@ from safeembodai_plugins.perception.describe import (
     parse_target_text,
     sector_clearance_from_points,
 )
-from safeembodai_plugins.perception.lidar_image import decode_png, nearest_in_cone, read_lidar_image
-
+from ...perception.lidar_image import decode_png, nearest_in_cone, read_lidar_image
 from .instruction import InstructionReading, read_instruction
 
 _INSTRUCTION = re.compile(r"^Human Instruction:\s*(.*)$", re.MULTILINE)

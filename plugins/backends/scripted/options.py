@@ -4,11 +4,15 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
+
+from safeembodai_core.backend_options import BackendDescription, BackendOptions
 
 
-class ScriptedOptions(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
+class ScriptedOptions(BackendOptions):
     responses: list[str | dict[str, Any]] = Field(min_length=1, description="answers, in order")
     then: Literal["repeat", "fail"] = "repeat"
+
+    def describe(self) -> BackendDescription:
+        return BackendDescription(model="none: answers replayed from the scenario",
+                                  simulated="scripted answers (scripted): not a measurement of an LLM")

@@ -60,6 +60,14 @@ def seen_from(pose: Pose, point: np.ndarray) -> tuple[float, float]:
     return math.hypot(x, y), math.degrees(math.atan2(y, x))
 
 
+def _planned_pose(context: ValidationContext) -> Pose:
+    """``context.planned_pose``, which every check of this rule has: :meth:`MovingObstaclesRule.validate`
+    lets a context without a start pose pass before judging anything."""
+    pose = context.planned_pose
+    assert pose is not None  # judged only with a start pose (validate returns early without one)
+    return pose
+
+
 @dataclass(frozen=True)
 class Sweep:
     """A straight against a mover's courses: the sampled moments (s after the scan), the distance
@@ -121,16 +129,19 @@ class MovingObstaclesRule(Validator):
         usable = [past for past in context.history
                   if context.sim_time_s is not None
                   and 0 < context.sim_time_s - past.sim_time_s <= self.options.max_scan_gap_s]
-        if usable and context.start_pose is not None:
+        scan = context.scan
+        # (usable is empty without sim_time_s: testing it again only tells the type checker)
+        if usable and context.start_pose is not None and context.sim_time_s is not None:
+            assert scan is not None  # the rule judges checked scans only (validate: checked_scan)
             past = usable[-1]
-            blobs = find_movers(context.scan, context.start_pose, context.sim_time_s,
+            blobs = find_movers(scan, context.start_pose, context.sim_time_s,
                                 past.scan, past.pose, past.sim_time_s, self.tracking)
             if self.options.history_scans and blobs:
                 earlier, spans = self._earlier_movers(usable)
                 blobs = learn_movers(blobs, earlier, self.learning, spans)
         think = self.wait_s(context)
-        walls = Walls.seen(context.scan, context.start_pose, blobs) \
-            if self.options.walls and blobs and context.start_pose is not None else None
+        walls = Walls.seen(scan, context.start_pose, blobs) \
+            if self.options.walls and blobs and scan is not None and context.start_pose is not None else None
         self._cache = (context.scan, latest, (context.start_pose, context.sim_time_s, context.answer_s), blobs, think,
                        walls)
         return blobs, think
@@ -206,7 +217,7 @@ class MovingObstaclesRule(Validator):
     def sweep(self, context: ValidationContext, signal: Straight, blob: Blob, start_s: float) -> Sweep:
         """The straight (starting ``start_s`` after the scan) against every course of ``blob``."""
         o = self.options
-        pose = context.planned_pose
+        pose = _planned_pose(context)
         duration = self.duration_s(signal)
         times = start_s + np.linspace(0.0, duration, max(2, int(math.ceil(duration / o.sample_s)) + 1))
         driven = (times - start_s) * o.robot_speed_mm_s
@@ -238,6 +249,7 @@ class MovingObstaclesRule(Validator):
         """Where the robot's centre is at ``times`` before this straight: at the start pose through
         the think time, then along the plan's earlier signals at the rule's speeds."""
         pose = context.start_pose
+        assert pose is not None  # judged only with a start pose (validate returns early without one)
         x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, self.movers(context)[1]
         ts, xs, ys = [0.0, t], [x, x], [y, y]
         for earlier in context.earlier_signals:
@@ -343,7 +355,7 @@ class MovingObstaclesRule(Validator):
         stand. ``think``: the wait before this plan moves; ``next_think``: before the next one
         (default: the same)."""
         next_think = think if next_think is None else next_think
-        final = context.advanced(signal).planned_pose
+        final = _planned_pose(context.advanced(signal))
         until = self._standing_until(self.start_s(context) + self.duration_s(signal), next_think)
         on = self.parked_on(np.array([final.x_mm, final.y_mm]), context.robot.radius_mm, blobs, end_s, until)
         if on is None:
@@ -352,12 +364,14 @@ class MovingObstaclesRule(Validator):
         if aside is None:
             return None
         blob, when = on
-        distance, bearing = seen_from(context.planned_pose, blob.centre)
+        velocity = blob.velocity
+        assert velocity is not None  # parked_on finds only movers of known velocity
+        distance, bearing = seen_from(_planned_pose(context), blob.centre)
         advice = ", then ".join(step.describe() for step in aside)
         # the advice first: prompts cut long reasons (max_failure_chars)
         return (f"{signal.describe()}: step out of a moving obstacle's way instead, for example {advice}. The plan "
                 f"leaves the robot on its course ({distance:.0f} mm away at {bearing:.0f} deg, "
-                f"{float(np.hypot(*blob.velocity)):.0f} mm/s): it reaches the robot {when:.1f} s after the scan if it "
+                f"{float(np.hypot(*velocity)):.0f} mm/s): it reaches the robot {when:.1f} s after the scan if it "
                 f"keeps going"), Advice(step_aside=list(aside))
 
     def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float,
@@ -369,7 +383,8 @@ class MovingObstaclesRule(Validator):
         reaches the step's spot during the think time (every plan stands there then: none is safer).
         ``think``: the wait before the step aside can move; ``next_think``: before the plan after it."""
         base = replace(context, offset=(0.0, 0.0, 0.0), earlier_signals=(), later_signals=())
-        spot = np.array([base.planned_pose.x_mm, base.planned_pose.y_mm])
+        here_pose = _planned_pose(base)
+        spot = np.array([here_pose.x_mm, here_pose.y_mm])
         radius = context.robot.radius_mm
         if self.parked_on(spot, radius, blobs, 0.0, think) is not None:
             return None  # reached during the think time, where every plan stands: none is safer
@@ -389,7 +404,7 @@ class MovingObstaclesRule(Validator):
                                     distance=distance)
                 if self.first_meeting(here, straight, blobs, start) is not None:
                     continue
-                end = here.advanced(straight).planned_pose
+                end = _planned_pose(here.advanced(straight))
                 arrive = start + self.duration_s(straight)
                 if self.parked_on(np.array([end.x_mm, end.y_mm]), radius, blobs, arrive,
                                   self._standing_until(arrive, next_think)) is None:
@@ -403,7 +418,7 @@ class MovingObstaclesRule(Validator):
         """Why ``signal`` is refused, in words, and the same advice as data (the safe part; a wait)."""
         o = self.options
         blob = meeting.blob
-        pose = context.planned_pose
+        pose = _planned_pose(context)
         direction, _ = direction_words(signal)
         now_d, now_b = seen_from(pose, blob.centre)
         if blob.velocity is None:

@@ -74,8 +74,16 @@ class Track:
         return float(min(s.max_speed_mm_s, max(max(self.speeds), latest)))
 
 
+def _velocity(blob: Blob) -> np.ndarray:
+    """``blob``'s measured velocity: every mover followed here has one (:func:`learn_movers` keeps
+    the others as they are, :func:`_link` links only to movers with one)."""
+    velocity = blob.velocity
+    assert velocity is not None  # a mover of unknown velocity is never followed
+    return velocity
+
+
 def _departed(blob: Blob) -> np.ndarray:
-    return blob.centre - blob.velocity * blob.span_s
+    return blob.centre - _velocity(blob) * blob.span_s
 
 
 def _link(blob: Blob, pair: list[Blob]) -> Blob | None:
@@ -91,7 +99,8 @@ def follow(now: Blob, earlier: list[list[Blob]], spans_s: list[float] | None = N
     pair first, each at the later scan of its pair), as long as each earlier position links. A
     mover that stood still over a pair is no mover of that pair: when nothing links there, the
     pair before it may link (a stop: a chord of 0 over that pair's span, ``spans_s``)."""
-    speeds, headings, spans = [float(np.hypot(*now.velocity))], [float(math.atan2(now.velocity[1], now.velocity[0]))], \
+    velocity = _velocity(now)
+    speeds, headings, spans = [float(np.hypot(*velocity))], [float(math.atan2(velocity[1], velocity[0]))], \
         [float(now.span_s)]
     blob, index = now, 0
     while index < len(earlier):
@@ -106,8 +115,9 @@ def follow(now: Blob, earlier: list[list[Blob]], spans_s: list[float] | None = N
         if found is None:
             break
         blob = found
-        speeds.append(float(np.hypot(*blob.velocity)))
-        headings.append(float(math.atan2(blob.velocity[1], blob.velocity[0])))
+        velocity = _velocity(blob)
+        speeds.append(float(np.hypot(*velocity)))
+        headings.append(float(math.atan2(velocity[1], velocity[0])))
         spans.append(float(blob.span_s))
         index += 1
     return Track(tuple(speeds), tuple(headings), tuple(spans))

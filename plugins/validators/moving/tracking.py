@@ -206,6 +206,9 @@ def _greedy(cost: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
 
 _EXACT_DEPARTED = 12  # more departed discs than this: greedy pairing (the exact search is 2**n)
 
+#: A partial pairing of the exact search: (pairs made, -total cost), and the pairs (arrived -> departed).
+_Scored = tuple[tuple[int, float], dict[int, int]]
+
 
 def _least_total(cost: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
     """Pairs (arrived -> departed) as many as can be made, and among those the least total cost: a
@@ -216,9 +219,9 @@ def _least_total(cost: np.ndarray, feasible: np.ndarray) -> dict[int, int]:
     if departed > _EXACT_DEPARTED:
         return _greedy(cost, feasible)
     # best[mask]: (pairs made, -total cost) over the first i arrived discs, using the departed in mask
-    best = {0: ((0, 0.0), {})}
+    best: dict[int, _Scored] = {0: ((0, 0.0), {})}
     for i in range(arrived):
-        step: dict[int, tuple] = {}
+        step: dict[int, _Scored] = {}
         for mask, (score, pairs) in best.items():
             options = [(mask, score, pairs)]
             options += [(mask | 1 << j, (score[0] + 1, score[1] - float(cost[i, j])), {**pairs, i: j})
@@ -238,7 +241,7 @@ def find_movers(scan: LidarScan, pose: Pose, time_s: float, before: LidarScan, b
                              settings)
     if not arrived:
         return []
-    departed = []
+    departed: list[tuple[np.ndarray, float, int]] = []
     if dt > 0:
         departed, _ = _movers(before, before_pose, lambda room: _seen_beyond(room, scan, pose, settings.tolerance_mm),
                               settings, lambda room: _shadowed(room, scan, pose, beams, settings.tolerance_mm))

@@ -1,0 +1,48 @@
+"""How a backend describes itself for the report: :class:`BackendOptions` (a base for a backend's
+options model) and what its :meth:`~BackendOptions.describe` returns, :class:`BackendDescription`.
+
+Light on purpose (pydantic only): a backend plugin's options module imports it at registration,
+which ``safeembodai --help`` runs, and the report reads it without building the backend (no key,
+no connection, no heavy import).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+
+
+@dataclass(frozen=True)
+class BackendDescription:
+    """What a report says of a backend before any number (:meth:`BackendOptions.describe`).
+
+    ``model``: the model as the report names it (None: "the backend's own"); ``model_id``: as
+    configured, when that differs (a litellm id with its route); ``model_source``: how ``model``
+    was read off the configuration; ``simulated``: a banner for a backend that is not an LLM (the
+    report, its figures and the trial pictures carry it); ``names_model_in_replies``: the replies
+    name the model that answered, and the report prefers those names; ``inputs``: options whose
+    values are the inputs behind numbers that look like findings (name, value, what it sets);
+    ``weaknesses``: options that shape the other numbers (name, value).
+    """
+
+    model: str | None = None
+    model_id: str | None = None
+    model_source: str | None = None
+    simulated: str | None = None
+    names_model_in_replies: bool = False
+    inputs: tuple[tuple[str, Any, str], ...] = ()
+    weaknesses: tuple[tuple[str, Any], ...] = ()
+
+
+class BackendOptions(BaseModel):
+    """A base for a backend's options model: the backend describes itself for the report from its
+    options, without being built (no key, no connection, no heavy import). Override :meth:`describe`."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    def describe(self) -> BackendDescription:
+        """The report's words on this backend; the default names the ``model`` option when there is one."""
+        model = self.model_dump().get("model")
+        return BackendDescription(model=str(model) if model else None)
