@@ -32,7 +32,7 @@ from .models import (
     TrialResult,
     TrialSpec,
 )
-from .backend_options import BackendDescription, BackendOptions  # noqa: F401  (re-exported)
+from .descriptions import BackendDescription, BackendOptions  # noqa: F401  (re-exported)
 from .robot import RobotSpec
 from .validation import Validator
 

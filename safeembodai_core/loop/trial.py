@@ -118,6 +118,7 @@ class _Totals:
     collisions_self: int = 0
     collisions_struck: int = 0
     collision_note: str = ""  # the last collision, for an interrupted trial's detail
+    self_hit: dict[str, int] = field(default_factory=dict)  # self collisions by what was hit
     interventions: int = 0
     retries: int = 0
     attacked: int = 0
@@ -154,7 +155,7 @@ class _Totals:
             if isinstance(item.signal, Straight):
                 self.distance += abs(item.result.distance_mm)
             if item.result.collided:
-                self._collided(record.step, item.result.collision, item.result.detail)
+                self._collided(record.step, item.result.collision, item.result.detail, item.result.hit)
 
     def spent(self, usage: Any) -> None:
         """Tokens paid outside any recorded step (a step whose backend gave up): counted all the same."""
@@ -168,12 +169,17 @@ class _Totals:
         which the environment reports once, in the next observation's truth."""
         extra = truth.extra
         if extra.get("collision") in ("self", "struck"):
-            self._collided(step, extra["collision"], str(extra.get("collision_detail", "")))
+            hit = extra.get("hit")
+            self._collided(step, extra["collision"], str(extra.get("collision_detail", "")),
+                           hit if isinstance(hit, str) else None)
 
-    def _collided(self, step: int, collision: str | None, detail: str) -> None:
+    def _collided(self, step: int, collision: str | None, detail: str, hit: str | None = None) -> None:
         self.collisions += 1
         self.collisions_self += collision == "self"
         self.collisions_struck += collision == "struck"
+        if collision == "self":
+            kind = one_line(hit)[:32] if hit else "unknown"
+            self.self_hit[kind] = self.self_hit.get(kind, 0) + 1
         self.collision_note = f"{collision or 'unattributed'} collision at step {step}: {detail}"
 
     def result(self, spec: TrialSpec, outcome: Outcome, detail: str, wall_time_s: float,
@@ -182,7 +188,8 @@ class _Totals:
             spec=spec, outcome=outcome, steps=self.steps, prompt_tokens=self.prompt, completion_tokens=self.completion,
             tokens_estimated=self.estimated,
             distance_mm=self.distance, collisions=self.collisions, collisions_self=self.collisions_self,
-            collisions_struck=self.collisions_struck, interventions=self.interventions,
+            collisions_struck=self.collisions_struck, self_collisions_hit=dict(self.self_hit),
+            interventions=self.interventions,
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
             lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory,

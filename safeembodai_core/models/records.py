@@ -306,6 +306,9 @@ class TrialResult(_Record):
     collisions: int = 0  # all collisions, attributed or not
     collisions_self: int = 0  # the robot's own motion made the contact
     collisions_struck: int = 0  # a moving obstacle ran into the robot
+    #: the self collisions by what was hit (ExecutionResult.hit: wall, ball, labbot, obstacle; "unknown" where
+    #: the environment did not say); empty in runs recorded before it was kept
+    self_collisions_hit: dict[str, int] = Field(default_factory=dict)
     interventions: int = 0
     retries: int = 0
     attacked_steps: int = 0

@@ -40,6 +40,23 @@ def _model(info: RunInfo) -> str:
     return f"`{info.model}` ({info.model_source})"
 
 
+def budget_words(scenario: Scenario, info: RunInfo) -> str:
+    """The step budget, and beside it each environment's clock: a trial ends at whichever comes first."""
+    counted = "LLM attempts (the release's budget)" if scenario.budget == "attempts" else "steps"
+    words = f"{scenario.max_steps} {counted}"
+    clocks = []
+    for label, clock in info.clocks.items():
+        if clock.time_limit_s is None:
+            continue
+        think = (f", {clock.think_time_s:g} s of it passing while the LLM decides each step"
+                 if clock.think_time_s else "")
+        clocks.append(f"{_cell(label, 80)} {clock.time_limit_s:g} s{think}")
+    if clocks:
+        words += ("; a trial also ends `timeout` when its room's simulated time runs out, often before the budget: "
+                  + ", ".join(clocks))
+    return words
+
+
 def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
     lines = [f"# {markdown_cell(scenario.name, 200)}", ""]
     if scenario.description:
@@ -58,7 +75,7 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
               f"| scenario fingerprint | `{info.fingerprint}` |",
               f"| trials per cell | N = {info.trials_per_cell} ({results} trials recorded; "
               "n below counts the scored ones) |",
-              f"| step budget | {scenario.max_steps} |",
+              f"| step budget | {budget_words(scenario, info)} |",
               f"| MOER scoring | α {m.alpha:g}, β {m.beta:g}, S_max: {s_max}, safe_abort scored with "
               f"{'α' if m.safe_abort_penalty == 'alpha' else 'β'}; s_j = "
               f"{'LLM attempts (steps + retries, the release)' if m.s_j == 'attempts' else 'steps'}, s_j/S_max "
@@ -103,10 +120,11 @@ def arms_table(scenario: Scenario) -> list[str]:
         rules = "; ".join(_rule(ref) for ref in arm.validators) if arm.safety_validation else "--"
         judged = ("--" if not arm.safety_validation else
                   "read when the answer arrives (`fresh_scan`, ours)" if arm.fresh_scan else "the step's (the paper's)")
+        retries = (f"N = {arm.failure_threshold}, then {arm.on_exhausted}" if arm.safety_validation else
+                   f"N = {arm.failure_threshold} on answers that do not parse, then {arm.on_exhausted}")
         lines.append(f"| {_cell(name, 80)} | {_cell(arm.prefix_variant or 'off', 80)} | "
                      f"{'on' if arm.state_management is True else arm.state_management or 'off'} | "
-                     f"{'on' if arm.safety_validation else 'off'} | {rules} | "
-                     f"N = {arm.failure_threshold}, then {arm.on_exhausted} | {judged} |")
+                     f"{'on' if arm.safety_validation else 'off'} | {rules} | {retries} | {judged} |")
     return lines + [""]
 
 
@@ -187,6 +205,45 @@ def outcomes_table(cells: list[Cell]) -> list[str]:
                     "trials ended by an unexpected exception in a component (a bug; the log says `trial.crashed`). "
                     "Collisions are summed over the scored trials: self = the robot moved into something, struck = "
                     "a moving obstacle ran into the robot.", ""]
+
+
+def self_collisions_table(cells: list[Cell]) -> list[str]:
+    """What each cell's self collisions hit (the environment's word for it: wall, ball, labbot, ...), summed
+    over its scored trials; nothing when no cell has one."""
+    counts: list[dict[str, int]] = []
+    for cell in cells:
+        hit: dict[str, int] = {}
+        for result in cell.scored:
+            for kind, n in result.self_collisions_hit.items():
+                hit[kind] = hit.get(kind, 0) + n
+            missing = result.collisions_self - sum(result.self_collisions_hit.values())
+            if missing > 0:  # a run recorded before what was hit was kept
+                hit["not recorded"] = hit.get("not recorded", 0) + missing
+        counts.append(hit)
+    kinds = sorted({kind for hit in counts for kind in hit})
+    if not kinds:
+        return []
+    lines = ["### What the robot ran into (self collisions)", "",
+             "| env | arm | condition | " + " | ".join(_cell(kind, 40) for kind in kinds) + " |",
+             "|---|---|---|" + "---|" * len(kinds)]
+    for cell, hit in zip(cells, counts):
+        m = cell.metrics
+        lines.append(f"{_names(m.environment, m.arm, m.condition)} "
+                     + " | ".join(str(hit.get(kind, 0)) for kind in kinds) + " |")
+    return lines + ["", "Summed over the scored trials, by what the environment says the robot's own motion hit.", ""]
+
+
+def timeouts_line(cells: list[Cell], scenario: Scenario) -> list[str]:
+    """How the timeout trials ended: by the step budget, or by their room's simulated time."""
+    if scenario.budget != "steps":
+        return []
+    timeouts = [r for cell in cells for r in cell.scored if r.outcome == Outcome.TIMEOUT]
+    if not timeouts:
+        return []
+    budget = sum(r.steps >= scenario.max_steps for r in timeouts)
+    clock = len(timeouts) - budget
+    return [f"Of the {plural(len(timeouts), 'timeout trial')}, {budget} spent the step budget of "
+            f"{scenario.max_steps} and {clock} ended sooner, when the room's simulated time ran out.", ""]
 
 
 def _per_100(estimate: Estimate | None, signed: bool = False) -> str:

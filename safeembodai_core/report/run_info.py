@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..backend_options import BackendDescription, BackendOptions
+from ..descriptions import BackendDescription, BackendOptions, EnvironmentDescription, EnvironmentOptions
 from ..refs import ComponentRef
 from ..scenario import Scenario
 
@@ -32,6 +32,7 @@ class RunInfo:
     model_source: str | None = None  # how ``model`` was read off the configuration (litellm's backends)
     inputs: list[tuple[str, Any, str]] = field(default_factory=list)  # (option, value, what it sets)
     weaknesses: list[tuple[str, Any]] = field(default_factory=list)
+    clocks: dict[str, EnvironmentDescription] = field(default_factory=dict)  # environment label -> its clock
 
     def as_dict(self) -> dict[str, Any]:
         return {"backend": self.backend, "model": self.model, "model_id": self.model_id,
@@ -80,6 +81,26 @@ def describe_ref(backend: ComponentRef, plugins: Any = None) -> BackendDescripti
     return BackendDescription(model=str(model) if model else None)
 
 
+def describe_environments(scenario: Scenario, plugins: Any = None) -> dict[str, EnvironmentDescription]:
+    """Each environment's clock as it describes itself (:class:`EnvironmentOptions`); an environment that
+    cannot say (no such options model, its plugin gone) has none listed."""
+    from ..errors import SafeEmbodAIError
+
+    clocks = {}
+    for ref in scenario.environments:
+        try:
+            if plugins is None:
+                from ..plugins import load_plugins
+
+                plugins = load_plugins()
+            options = plugins.registry.validate_options("environment", ref.use, ref.options)
+        except SafeEmbodAIError:
+            continue
+        if isinstance(options, EnvironmentOptions):
+            clocks[ref.key] = options.describe()
+    return clocks
+
+
 def _recorded_fingerprint(folder: Path | None) -> str | None:
     if folder is None:
         return None
@@ -117,4 +138,5 @@ def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any 
     return RunInfo(backend=scenario.backend.use, model=model, seed=scenario.seed,
                    fingerprint=recorded or fingerprint(scenario), trials_per_cell=scenario.trials,
                    simulated=described.simulated, model_id=described.model_id, model_source=source,
-                   inputs=list(described.inputs), weaknesses=list(described.weaknesses))
+                   inputs=list(described.inputs), weaknesses=list(described.weaknesses),
+                   clocks=describe_environments(scenario, plugins))

@@ -118,7 +118,8 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
         writer.writerows({key: csv_cell(value) for key, value in row.items()} for row in rows)
     metrics = [cell.metrics for cell in cells]
     lines = markdown.header(scenario, info, len(results)) + markdown.spending(results) + markdown.nodes(results)
-    lines += markdown.metrics_table(cells, catalog) + markdown.outcomes_table(cells)
+    lines += (markdown.metrics_table(cells, catalog) + markdown.outcomes_table(cells)
+              + markdown.timeouts_line(cells, scenario) + markdown.self_collisions_table(cells))
     lines += markdown.collision_rates_table(cells, rates)
     lines += markdown.world_rates_table(world_rates(scenario, cells), next(iter(scenario.arms)))
     lines += markdown.defences_table(cells, facts, scenario.state.use)

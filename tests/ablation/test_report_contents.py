@@ -86,7 +86,7 @@ arms:
     validators: [command_limits, {use: lidar_clearance, label: "wide|one", options: {half_angle_deg: 45}}]
 """, "mockrun.yaml", registry=plugins.registry)
     rows = arms_table(scenario)
-    assert rows[2] == "| baseline | off | off | off | -- | N = 3, then abort | -- |"
+    assert rows[2] == "| baseline | off | off | off | -- | N = 3 on answers that do not parse, then abort | -- |"
     assert rows[3] == ("| guarded | paper | off | on | `command_limits`; `wide\\|one (lidar_clearance)` "
                        "{half_angle_deg: 45} | N = 3, then abort | read when the answer arrives (`fresh_scan`, ours) |")
 
@@ -199,6 +199,25 @@ def test_outcomes_collisions_small_n_and_na_cells(tmp_path):
     assert "0.10 (n=1)" in attack  # ADR 2/20 of one trial
     assert "| OF | baseline | attack | not read | 9 of 20 | 0.45 | not read |" in text
     assert "state store `memory` did not leave" in text  # no steps to read: said, not guessed
+
+
+def test_the_budget_line_names_each_rooms_clock_and_the_timeouts_say_which_ended_them(tmp_path):
+    """A step budget of 25 while trials end at 14-17 steps: the room's time limit and think time are said
+    beside it, and the timeouts are split by what ended them; self collisions by what was hit."""
+    plugins = load_plugins(environ={})
+    scenario = parse_scenario("name: t\nmax_steps: 25\nstate: memory\n"
+                              "environments: [{use: MO, options: {max_sim_time_s: 90, think_time_s: 5}}]\n",
+                              "t.yaml", registry=plugins.registry)
+    results = [trial("baseline", "no_attack", 0, "timeout", 15, collisions=2, collisions_self=2,
+                     self_collisions_hit={"wall": 1, "labbot": 1}),
+               trial("baseline", "no_attack", 1, "timeout", 25, collisions=1, collisions_self=1),
+               trial("baseline", "attack", 0, "completed", 8)]
+    text = write_report(tmp_path, scenario, results, plugins=plugins).read_text()
+    assert ("| step budget | 25 steps; a trial also ends `timeout` when its room's simulated time runs out, often "
+            "before the budget: MO 90 s, 5 s of it passing while the LLM decides each step |") in text
+    assert "Of the 2 timeout trials, 1 spent the step budget of 25 and 1 ended sooner" in text
+    assert "| env | arm | condition | labbot | not recorded | wall |" in text
+    assert "| OF | baseline | no_attack | 1 | 1 | 1 |" in text  # the second trial kept no kinds: said, not guessed
 
 
 @pytest.mark.slow

@@ -305,3 +305,8 @@ def test_tokens_paid_in_a_step_whose_backend_then_gives_up_are_on_the_trials_cou
     result, steps = run(CorridorWorld(wall_mm=600), _PaidThenDown(), max_steps=1)
     assert result.outcome == Outcome.ERROR and steps == []
     assert (result.prompt_tokens, result.completion_tokens, result.tokens_estimated) == (1000, 80, True)
+
+
+def test_a_trial_counts_its_self_collisions_by_what_was_hit():
+    result, _ = run(CorridorWorld(wall_mm=300), Recorder(answer(straight(390))), defences=Defences(), max_steps=1)
+    assert result.collisions_self == 1 and result.self_collisions_hit == {"wall": 1}

@@ -13,6 +13,8 @@ import math
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from safeembodai_core.descriptions import EnvironmentDescription, EnvironmentOptions
+
 from .movers import MoverFamily, family
 
 CAN_RADIUS_MM = 33.0
@@ -22,10 +24,8 @@ SOCCERBALL_RADIUS_MM = 500.0  # pybullet_data's soccerball.urdf at scale 1
 MAX_FLOOR_SHARE = 0.40
 
 
-class RoomOptions(BaseModel):
+class RoomOptions(EnvironmentOptions):
     """Options every room takes (``OF`` takes only these)."""
-
-    model_config = ConfigDict(extra="forbid")
 
     room_mm: float = Field(4000.0, ge=1500.0, le=20_000.0, description="inner side of the square room")
     robot_radius_mm: float = Field(170.0, ge=80.0, le=400.0, description="radius of the cylinder robot")
@@ -47,6 +47,9 @@ class RoomOptions(BaseModel):
     camera_width: int = Field(320, ge=16, le=1280, description="image width in pixels (QVGA: 320)")
     camera_height: int = Field(240, ge=12, le=960, description="image height in pixels (QVGA: 240)")
     camera_fov_deg: float = Field(60.0, gt=10.0, lt=170.0, description="horizontal field of view")
+
+    def describe(self) -> EnvironmentDescription:
+        return EnvironmentDescription(time_limit_s=self.max_sim_time_s, think_time_s=self.think_time_s)
 
     @property
     def passage(self) -> float:

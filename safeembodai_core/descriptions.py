@@ -1,5 +1,6 @@
-"""How a backend describes itself for the report: :class:`BackendOptions` (a base for a backend's
-options model) and what its :meth:`~BackendOptions.describe` returns, :class:`BackendDescription`.
+"""How a backend, and an environment, describe themselves for the report: :class:`BackendOptions`
+and :class:`EnvironmentOptions` (bases for their options models) and what their ``describe``
+returns (:class:`BackendDescription`, :class:`EnvironmentDescription`).
 
 Light on purpose (pydantic only): a backend plugin's options module imports it at registration,
 which ``safeembodai --help`` runs, and the report reads it without building the backend (no key,
@@ -46,3 +47,24 @@ class BackendOptions(BaseModel):
         """The report's words on this backend; the default names the ``model`` option when there is one."""
         model = self.model_dump().get("model")
         return BackendDescription(model=str(model) if model else None)
+
+
+@dataclass(frozen=True)
+class EnvironmentDescription:
+    """What a report says of an environment beside the step budget (:meth:`EnvironmentOptions.describe`):
+    ``time_limit_s``, the simulated time after which a trial ends ``timeout`` whatever its budget;
+    ``think_time_s``, the simulated seconds the world runs while the LLM decides, once per step (None:
+    the environment has no such clock)."""
+
+    time_limit_s: float | None = None
+    think_time_s: float | None = None
+
+
+class EnvironmentOptions(BaseModel):
+    """A base for an environment's options model: the environment describes its clock for the report."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    def describe(self) -> EnvironmentDescription:
+        """The report's words on this environment's clock; the default: none."""
+        return EnvironmentDescription()
