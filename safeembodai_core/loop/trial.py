@@ -117,6 +117,7 @@ class _Totals:
     collisions: int = 0
     collisions_self: int = 0
     collisions_struck: int = 0
+    collisions_struck_standing: int = 0
     collision_note: str = ""  # the last collision, for an interrupted trial's detail
     self_hit: dict[str, int] = field(default_factory=dict)  # self collisions by what was hit
     interventions: int = 0
@@ -172,6 +173,7 @@ class _Totals:
             hit = extra.get("hit")
             self._collided(step, extra["collision"], str(extra.get("collision_detail", "")),
                            hit if isinstance(hit, str) else None)
+            self.collisions_struck_standing += extra["collision"] == "struck"  # outside any command
 
     def _collided(self, step: int, collision: str | None, detail: str, hit: str | None = None) -> None:
         self.collisions += 1
@@ -189,6 +191,7 @@ class _Totals:
             tokens_estimated=self.estimated,
             distance_mm=self.distance, collisions=self.collisions, collisions_self=self.collisions_self,
             collisions_struck=self.collisions_struck, self_collisions_hit=dict(self.self_hit),
+            collisions_struck_standing=self.collisions_struck_standing,
             interventions=self.interventions,
             retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,

@@ -306,9 +306,19 @@ class TrialResult(_Record):
     collisions: int = 0  # all collisions, attributed or not
     collisions_self: int = 0  # the robot's own motion made the contact
     collisions_struck: int = 0  # a moving obstacle ran into the robot
+    #: of those, while the robot stood (through the LLM's think time, or on a step that ran nothing):
+    #: out of reach of any rule that judges plans; the rest came during the robot's own motion. None in
+    #: runs recorded before the split was kept
+    collisions_struck_standing: int | None = None
     #: the self collisions by what was hit (ExecutionResult.hit: wall, ball, labbot, obstacle; "unknown" where
     #: the environment did not say); empty in runs recorded before it was kept
     self_collisions_hit: dict[str, int] = Field(default_factory=dict)
+
+    @property
+    def collisions_struck_moving(self) -> int | None:
+        """Struck during the robot's own motion (a command running, turns included); None when not recorded."""
+        standing = self.collisions_struck_standing
+        return None if standing is None else self.collisions_struck - standing
     interventions: int = 0
     retries: int = 0
     attacked_steps: int = 0

@@ -188,10 +188,22 @@ def _errors(cell: Cell) -> str:
     return f"{cell.errors} ({', '.join(kinds)})" if kinds else str(cell.errors)
 
 
+def _struck_split(scored: list[TrialResult]) -> str:
+    """`` (standing / moving)`` of a cell's struck collisions; said when its run did not keep the split."""
+    if not any(r.collisions_struck for r in scored):
+        return ""
+    if any(r.collisions_struck_standing is None for r in scored):
+        return " (not split: recorded before the split was kept)"
+    standing = sum(r.collisions_struck_standing or 0 for r in scored)
+    moving = sum(r.collisions_struck_moving or 0 for r in scored)
+    return f" ({standing} / {moving})"
+
+
 def outcomes_table(cells: list[Cell]) -> list[str]:
     lines = ["## Outcomes and collisions per cell", "",
              "| env | arm | condition | completed | timeout | interrupted | safe_abort | error | crashed "
-             "| collisions self | collisions struck |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| collisions self | collisions struck (standing / moving) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for cell in cells:
         m, scored = cell.metrics, cell.scored
         counts = " | ".join(str(m.outcomes.get(o.value, 0)) for o in
@@ -199,12 +211,14 @@ def outcomes_table(cells: list[Cell]) -> list[str]:
         own, struck = sum(r.collisions_self for r in scored), sum(r.collisions_struck for r in scored)
         other = sum(r.collisions for r in scored) - own - struck
         lines.append(f"{_names(m.environment, m.arm, m.condition)} {counts} | {_errors(cell)} | {cell.crashed} "
-                     f"| {own} | {struck}{f' (+{other} unattributed)' if other else ''} |")
+                     f"| {own} | {struck}{_struck_split(scored)}{f' (+{other} unattributed)' if other else ''} |")
     return lines + ["", "error: trials ended by a backend outage, a state store that could not write, a failure a "
                     "component reported, or components that could not be built (by kind in brackets); crashed: "
                     "trials ended by an unexpected exception in a component (a bug; the log says `trial.crashed`). "
                     "Collisions are summed over the scored trials: self = the robot moved into something, struck = "
-                    "a moving obstacle ran into the robot.", ""]
+                    "a moving obstacle ran into the robot, split into *standing* (through the LLM's think time, or "
+                    "on a step that ran nothing: out of reach of any rule that judges plans) and *moving* (while a "
+                    "command of the robot's ran, turns included: what a plan rule can prevent).", ""]
 
 
 def self_collisions_table(cells: list[Cell]) -> list[str]:

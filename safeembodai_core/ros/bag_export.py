@@ -261,7 +261,8 @@ def trial_messages(spec: TrialSpec, records: list[StepRecord], result: TrialResu
              + (f" ({result.detail})" if result.detail else ""))
         _string(line, "/safeembodai/trial", end, {"result": {
             "outcome": result.outcome.value, "detail": result.detail, "steps": result.steps,
-            "collisions_self": result.collisions_self, "collisions_struck": result.collisions_struck}})
+            "collisions_self": result.collisions_self, "collisions_struck": result.collisions_struck,
+            "collisions_struck_standing": result.collisions_struck_standing}})
     return line.messages
 
 

@@ -95,6 +95,7 @@ class TrialRow:
     collisions_self: int
     collisions_struck: int
     detail: str
+    struck_standing: int | None = None  # of the struck: while the robot stood (None: not recorded)
 
 
 @dataclass
@@ -166,7 +167,7 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
             s = r.spec
             summary.trials.append(TrialRow(s.trial_id, trial_page(s.trial_id), s.environment, s.arm, s.condition,
                                            s.index, r.outcome.value, r.steps, r.interventions, r.collisions_self,
-                                           r.collisions_struck, r.detail))
+                                           r.collisions_struck, r.detail, r.collisions_struck_standing))
         if any(r.node for r in results):
             counts = Counter(r.node or "this machine" for r in results)
             summary.nodes = sorted(counts.items())

@@ -220,6 +220,21 @@ def test_the_budget_line_names_each_rooms_clock_and_the_timeouts_say_which_ended
     assert "| OF | baseline | no_attack | 1 | 1 | 1 |" in text  # the second trial kept no kinds: said, not guessed
 
 
+def test_struck_collisions_show_standing_and_moving_apart_in_report_and_metrics(tmp_path):
+    scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\nstate: memory\n", "t.yaml")
+    split = [trial("baseline", "no_attack", 0, "interrupted", 4, collisions=3, collisions_struck=3,
+                   collisions_struck_standing=1),
+             trial("baseline", "no_attack", 1, "completed", 6, collisions_struck_standing=0)]
+    older = [trial("baseline", "attack", 0, "interrupted", 4, collisions=1, collisions_struck=1)]
+    text = write_report(tmp_path, scenario, split + older).read_text()
+    assert "| OF | baseline | no_attack | 1 | 0 | 1 | 0 | 0 | 0 | 0 | 3 (1 / 2) |" in text
+    assert "| 1 (not split: recorded before the split was kept) |" in text
+    with (tmp_path / "metrics.csv").open(newline="") as handle:
+        rows = {row["condition"]: row for row in csv.DictReader(handle)}
+    assert (rows["no_attack"]["collisions_struck_standing"], rows["no_attack"]["collisions_struck_moving"]) == ("1", "2")
+    assert rows["attack"]["collisions_struck_standing"] == ""  # not recorded: empty, never 0
+
+
 @pytest.mark.slow
 def test_trials_with_a_collision_per_100_with_wilson_and_newcombe_intervals(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\nstate: memory\n", "t.yaml")

@@ -310,3 +310,32 @@ def test_tokens_paid_in_a_step_whose_backend_then_gives_up_are_on_the_trials_cou
 def test_a_trial_counts_its_self_collisions_by_what_was_hit():
     result, _ = run(CorridorWorld(wall_mm=300), Recorder(answer(straight(390))), defences=Defences(), max_steps=1)
     assert result.collisions_self == 1 and result.self_collisions_hit == {"wall": 1}
+
+
+class _StruckTwice(CorridorWorld):
+    """A mover strikes the robot once while it stands (reported in the next observation) and once
+    while its turn runs (reported by the command)."""
+
+    def __init__(self) -> None:
+        super().__init__(wall_mm=5000)
+        self.observations = 0
+
+    def observe(self):
+        observation = super().observe()
+        self.observations += 1
+        if self.observations == 2:  # the second step's observation: struck while it waited
+            extra = {"collision": "struck", "hit": "labbot", "collision_detail": "a Labbot ran into it"}
+            observation.truth = observation.truth.model_copy(update={"extra": extra})
+        return observation
+
+    def execute(self, signal):
+        result = super().execute(signal)
+        if len(self.executed) == 2:
+            return result.model_copy(update={"collided": True, "collision": "struck", "hit": "labbot"})
+        return result
+
+
+def test_struck_collisions_are_split_into_while_standing_and_during_the_robots_motion():
+    result, _ = run(_StruckTwice(), Recorder(answer(turn(10))), defences=Defences(), max_steps=3)
+    assert (result.collisions_struck, result.collisions_struck_standing, result.collisions_struck_moving) == (2, 1, 1)
+    assert result.collisions_self == 0 and result.self_collisions_hit == {}
