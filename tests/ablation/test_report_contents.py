@@ -231,7 +231,8 @@ def test_struck_collisions_show_standing_and_moving_apart_in_report_and_metrics(
     assert "| 1 (not split: recorded before the split was kept) |" in text
     with (tmp_path / "metrics.csv").open(newline="") as handle:
         rows = {row["condition"]: row for row in csv.DictReader(handle)}
-    assert (rows["no_attack"]["collisions_struck_standing"], rows["no_attack"]["collisions_struck_moving"]) == ("1", "2")
+    split_row = rows["no_attack"]
+    assert (split_row["collisions_struck_standing"], split_row["collisions_struck_moving"]) == ("1", "2")
     assert rows["attack"]["collisions_struck_standing"] == ""  # not recorded: empty, never 0
 
 
