@@ -109,7 +109,7 @@ class Guard:
         self.history: deque[PastScan] = deque(maxlen=HISTORY_SCANS)
 
     def _context(self, lidar_mm: Any, max_range_mm: float, pose: Any, time_s: float | None,
-                 answer_time_s: float | None = None, since_scan: Any = None) -> ValidationContext:
+                 answer_time_s: float | None = None, since_scan: Any = None, keep: bool = True) -> ValidationContext:
         scan = None
         if isinstance(lidar_mm, LaserScan):
             scan = lidar_mm.to_lidar_scan()  # ROS semantics and the sensor's mounting: safeembodai_core.ros
@@ -134,7 +134,7 @@ class Guard:
         moved = _pose(since_scan)
         if moved is not None:  # the robot has moved on from where the scan was taken: judge from there
             context = replace(context, offset=(moved.x_mm, moved.y_mm, moved.heading_deg))
-        if scan is not None and start is not None and time_s is not None and (
+        if keep and scan is not None and start is not None and time_s is not None and (
                 not self.history or time_s > self.history[-1].sim_time_s):
             # a copy: a caller that refills one buffer must not rewrite the scans kept
             kept = LidarScan(np.array(scan.ranges_mm, dtype=float, copy=True), scan.max_range_mm)
@@ -142,9 +142,15 @@ class Guard:
             self.history.append(PastScan(kept, start, time_s))
         return context
 
+    def remember(self, lidar_mm: Any, *, pose: Any, time_s: float, max_range_mm: float = 10_000.0) -> None:
+        """Keep a scan for later checks' ``context.history`` without judging anything: the step's own scan,
+        when its plan is judged on a reading taken as the answer arrived (``check(..., keep_scan=False)``),
+        as the trial loop's ``fresh_scan`` does."""
+        self._context(lidar_mm, max_range_mm, pose, time_s)
+
     def check(self, commands: Sequence[Any], *, lidar_mm: Any = None, max_range_mm: float = 10_000.0,
               pose: Any = None, time_s: float | None = None, answer_time_s: float | None = None,
-              since_scan: Any = None) -> GuardReport:
+              since_scan: Any = None, keep_scan: bool = True) -> GuardReport:
         """Validate ``commands`` (dicts as the LLM writes them, or signal models) in order.
 
         ``lidar_mm``: ranges in mm, beam k at k*360/N degrees counter-clockwise from the heading
@@ -164,11 +170,13 @@ class Guard:
         as ``time_s``, and rules about motion predict from that moment instead of assuming a think
         time. ``since_scan``: where the robot is now, ``(x_mm, y_mm, heading_deg)`` in the frame the
         scan was taken in, when it has moved on since (``pose`` is then where it took the scan); the
-        plan is judged from there. One guard per robot; it is not meant to be shared between threads.
+        plan is judged from there. ``keep_scan=False``: judge on this scan without keeping it for later
+        checks (a reading taken as the answer arrived; :meth:`remember` the step's own scan instead).
+        One guard per robot; it is not meant to be shared between threads.
         Commands that do not even parse get a ``schema`` verdict and are not judged further.
         """
         context = self._context(lidar_mm, max_range_mm, pose, time_s, answer_time_s,  # kept even if they do not parse
-                                since_scan=since_scan)
+                                since_scan=since_scan, keep=keep_scan)
         try:
             signals = _SIGNALS.validate_python(list(commands), context={"limits": self.limits})
         except ValidationError as error:

@@ -38,40 +38,59 @@ def require_sense(environment: Any) -> None:
         raise _cannot_sense(environment, "it does not implement Environment.sense")
 
 
-def fresh_context(context: ValidationContext, observation: Observation, *, parts: Any, seed: int, step: int,
-                  instruction: str, reference: Any, limits: Any,
-                  on_sensed: Callable[[Observation], None]) -> ValidationContext:
-    """``context`` (built on the step's observation) moved to a reading taken now.
-
-    ``instruction`` and ``reference`` are the step's, as the attackers first saw them;
-    ``on_sensed`` receives the new reading (its truth may report a collision during the think
-    time, once). Raises
-    :class:`~safeembodai_core.errors.EnvironmentError_` when the environment cannot sense.
-    """
-    reading = parts.environment.sense()
+def sense_now(environment: Any, observation: Observation, needs_lidar: bool,
+              on_sensed: Callable[[Observation], None] = lambda reading: None) -> Observation:
+    """The environment's reading as an answer arrives (:meth:`Environment.sense`), checked: an
+    Observation, not older than the step's ``observation``, with a LiDAR (when ``needs_lidar``) and a
+    pose where the step had them. ``on_sensed`` receives it first (its truth may report a collision
+    during the think time, once: on record before anything about the reading is refused). Raises
+    :class:`~safeembodai_core.errors.EnvironmentError_` otherwise."""
+    reading = environment.sense()
     if reading is None:
-        raise _cannot_sense(parts.environment, "its sense() returned None")
-    name = type(parts.environment).__name__
+        raise _cannot_sense(environment, "its sense() returned None")
+    name = type(environment).__name__
     if not isinstance(reading, Observation):
         raise EnvironmentError_(f"environment {name}.sense() returned {type(reading).__name__}, not an Observation")
-    on_sensed(reading)  # a collision it reports is on record before anything about the reading is refused
+    on_sensed(reading)
     time_s = reading.sim_time_s
     if isinstance(time_s, bool) or not isinstance(time_s, (int, float)) or not math.isfinite(time_s) \
             or time_s < observation.sim_time_s:
         raise EnvironmentError_(f"environment {name}.sense() read at sim_time_s={time_s!r}, not a time at or "
                                 f"after the step's observation ({observation.sim_time_s:g} s): a reading as the "
                                 f"answer arrives cannot be older than the step")
-    if (context.scan is not None and reading.lidar is None) or (observation.pose is not None and reading.pose is None):
+    if (needs_lidar and reading.lidar is None) or (observation.pose is not None and reading.pose is None):
         raise EnvironmentError_(f"environment {name}.sense() gave no {'LiDAR' if reading.lidar is None else 'pose'}"
                                 f" where the step's observation had one")
-    # the step's readings, with the new LiDAR, pose, truth and time: an attacker finds what it found
-    # on the step (the camera frame too) and changes the LiDAR as it did there
+    return reading
+
+
+def attacked_reading(reading: Observation, observation: Observation, attackers: Any, *, seed: int, step: int,
+                     instruction: str, reference: Any, limits: Any) -> Observation:
+    """The step's readings with the new LiDAR, pose, truth and time, after the step's attackers ran on
+    them again: an attacker finds what it found on the step (the camera frame too) and changes the LiDAR
+    as it did there. Its records belong to the step's observation, already kept."""
     attacked = AttackSurface(step, instruction, replace(observation, lidar=reading.lidar, pose=reading.pose,
-                                                        truth=reading.truth, sim_time_s=time_s),
+                                                        truth=reading.truth, sim_time_s=reading.sim_time_s),
                              reference, rng=attack_stream(seed, "", step), limits=limits)
-    run_attackers(attacked, parts.attackers, seed, step)  # its records belong to the step's observation, kept
+    run_attackers(attacked, attackers, seed, step)
+    return attacked.observation
+
+
+def fresh_context(context: ValidationContext, observation: Observation, *, parts: Any, seed: int, step: int,
+                  instruction: str, reference: Any, limits: Any,
+                  on_sensed: Callable[[Observation], None]) -> ValidationContext:
+    """``context`` (built on the step's observation) moved to a reading taken now (:func:`sense_now`,
+    :func:`attacked_reading`): the step's scan joins the history, the plan starts at the reading's time.
+
+    ``instruction`` and ``reference`` are the step's, as the attackers first saw them;
+    ``on_sensed`` receives the new reading. Raises
+    :class:`~safeembodai_core.errors.EnvironmentError_` when the environment cannot sense.
+    """
+    reading = sense_now(parts.environment, observation, context.scan is not None, on_sensed)
+    attacked = attacked_reading(reading, observation, parts.attackers, seed=seed, step=step,
+                                instruction=instruction, reference=reference, limits=limits)
     history = context.history
-    if context.scan is not None and observation.pose is not None and observation.sim_time_s < time_s:
+    if context.scan is not None and observation.pose is not None and observation.sim_time_s < reading.sim_time_s:
         history = history + (PastScan(context.scan, observation.pose, observation.sim_time_s),)
-    return replace(context, scan=attacked.observation.lidar, start_pose=reading.pose,
+    return replace(context, scan=attacked.lidar, start_pose=reading.pose,
                    sim_time_s=reading.sim_time_s, history=history, answer_s=reading.sim_time_s)

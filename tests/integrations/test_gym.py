@@ -273,13 +273,38 @@ def test_the_guard_gives_rules_the_episodes_earlier_scans_as_the_loop_does():
         env.close()
 
 
-def test_an_arm_with_fresh_scan_is_refused_by_the_guard_naming_the_option():
-    scenario = default_scenario("flatland")
-    scenario.arms["safeembodai"] = scenario.arms["safeembodai"].model_copy(update={"fresh_scan": True})
-    env = gymnasium.make("safeembodai/flatland-v0", scenario=scenario)
+@pytest.mark.slow
+@pytest.mark.parametrize("index", [1, 2, 3])  # judged on the step's scan instead, each of these differs
+def test_a_fresh_scan_arm_gets_the_loops_verdicts_under_the_guard(repo, index):
+    """movers.yaml's ``moving`` arm (``fresh_scan``) in DO: the loop's trial, its answers replayed into the
+    guarded env: every attempt gets the loop's verdict, word for word, judged on the world as the answer
+    arrived, and the episode ends as the trial did (issue 39, decision 3)."""
+    from safeembodai_core.gym import SafeEmbodAIEnv
+    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.runner import ScenarioRunner, trial_spec
+
+    plugins = load_plugins(environ={})
+    scenario = load_scenario(repo / "scenarios" / "movers.yaml", ["trials=4", "state=memory", "max_steps=8"],
+                             plugins.registry)
+    runner = ScenarioRunner(scenario, plugins)
     try:
-        with pytest.raises(ValueError, match="fresh_scan"):
-            SafeEmbodAIGuard(env)
+        spec = trial_spec(scenario, "DO", "moving", "no_attack", index)
+        result = runner.run(spec)
+        steps = runner.state.steps(spec.trial_id)
+    finally:
+        runner.close()
+    assert len(steps) == result.steps
+    env = SafeEmbodAIGuard(SafeEmbodAIEnv("DO", scenario=scenario, arm="moving", action_format="text",
+                                          plugins=plugins))
+    try:
+        env.reset(options={"index": index})
+        for record in steps:
+            for attempt in record.attempts:
+                _, _, terminated, truncated, info = env.step(attempt.raw_text)
+                assert info["refused"] == (not attempt.accepted), (record.step, attempt.index)
+                if not attempt.accepted:
+                    assert info["reasons"] == attempt.failures(), (record.step, attempt.index)
+        assert terminated or truncated  # the episode ended with the trial
     finally:
         env.close()
 

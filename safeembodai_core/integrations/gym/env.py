@@ -23,9 +23,11 @@ import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
 from ...attacks import attack_stream, run_attackers
+from ...loop.fresh_scan import attacked_reading, sense_now
 from ...components import AttackSurface
 from ...models import (
-    Attempt, ControlSignal, ExecutedSignal, LidarScan, LLMResponse, Observation, Outcome, Pose, ResponseParseError,
+    Attempt, ControlSignal, ExecutedSignal, GroundTruth, LidarScan, LLMResponse, Observation, Outcome, Pose,
+    ResponseParseError,
     Verdict,
 )
 from ...models.reply import as_reply, read_reply
@@ -88,6 +90,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
         self.trial_seed: int | None = None
         self._observation: Observation | None = None  # the world's reading (pose, truth)
         self._surface: AttackSurface | None = None  # the step's inputs as the attackers left them
+        self._sensed_truth: GroundTruth | None = None  # the truth of a reading as the answer arrived
 
     # -- what the guard and the agent may read -------------------------------------------------
 
@@ -201,6 +204,24 @@ class SafeEmbodAIEnv(gymnasium.Env):
         self._outcome = Outcome.SAFE_ABORT
         return self._obs(), 0.0, True, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks)
 
+    def end_refused(self, reasons: list[str]):
+        """The step's plan is refused and the world has ended meanwhile (a Labbot struck the robot while
+        the agent thought): no retry can run anything, so the episode ends as the world says."""
+        return self._advance([], refused=reasons)
+
+    def answer_reading(self) -> Observation:
+        """The world read as the agent's answer arrives (an arm's ``fresh_scan``): the think time passes
+        first, then the LiDAR and pose are read, and the step's attackers run on the reading as in the
+        trial loop (:mod:`safeembodai_core.loop.fresh_scan`): what the guard judges. A Labbot that struck
+        the standing robot meanwhile ends the episode at the next :meth:`step` or :meth:`refuse`."""
+        if self._observation is None or self._outcome is not None:
+            raise RuntimeError("call reset() before step(), and again once an episode has ended")
+        assert self.trial_seed is not None  # reset() set it
+        reading = sense_now(self.world, self._observation, self._observation.lidar is not None)
+        self._sensed_truth = reading.truth  # a collision it reports is counted with the step
+        return attacked_reading(reading, self._observation, self._attackers, seed=self.trial_seed, step=self._step,
+                                instruction=self.scenario.instruction, reference=None, limits=self.limits)
+
     def render(self):
         if self.render_mode == "rgb_array" and self._observation is not None:
             return None if self._observation.camera is None else self._observation.camera.copy()
@@ -222,8 +243,12 @@ class SafeEmbodAIEnv(gymnasium.Env):
         hit: object = None
         if collision is not None:
             kind, hit = collision.collision or "unattributed", collision.hit
-        elif self._observation.truth.extra.get("collision") in ("self", "struck"):  # struck while waiting
-            kind, hit = str(self._observation.truth.extra["collision"]), self._observation.truth.extra.get("hit")
+        else:  # struck while waiting: reported once, by the reading as the answer arrived or by this one
+            for truth in (self._sensed_truth, self._observation.truth):
+                if truth is not None and truth.extra.get("collision") in ("self", "struck"):
+                    kind, hit = str(truth.extra["collision"]), truth.extra.get("hit")
+                    break
+        self._sensed_truth = None
         distance = self._observation.truth.target_distance_mm
         reward = 0.0
         if distance is not None and self._distance is not None:

@@ -4,9 +4,10 @@ Every action is judged before the room sees it, by :class:`~safeembodai_core.api
 :func:`~safeembodai_core.validation.validate_plan` with the arm's validators, from the step's
 (attacked) LiDAR scan, the world's pose and clock (the guard keeps the episode's earlier scans for
 rules about motion, as the trial loop does), each signal from the pose the earlier ones lead to,
-exactly as Algorithm 1 judges an LLM's plan. A refused plan is not executed: the step comes back
-with the same observation, ``info["refused"]`` and the rules' ``info["reasons"]``, cost 1, and
-the agent may try again until the arm's ``failure_threshold`` is spent
+exactly as Algorithm 1 judges an LLM's plan; with the arm's ``fresh_scan``, on the world read as the
+answer arrives (:meth:`SafeEmbodAIEnv.answer_reading`), as the loop does. A refused plan is not
+executed: the step comes back with the same observation, ``info["refused"]`` and the rules'
+``info["reasons"]``, cost 1, and the agent may try again until the arm's ``failure_threshold`` is spent
 (:meth:`SafeEmbodAIEnv.refuse`).
 
 Wrap the environment ``gymnasium.make`` returns, before any wrapper of your own: a refusal goes
@@ -20,6 +21,7 @@ from typing import Any, Sequence, cast
 import gymnasium
 
 from ...api import Guard
+from ...loop.fresh_scan import require_sense
 from .env import SafeEmbodAIEnv
 
 
@@ -33,9 +35,7 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
         if not isinstance(base, SafeEmbodAIEnv):
             raise TypeError(f"SafeEmbodAIGuard wraps a SafeEmbodAIEnv, got {type(base).__name__}")
         if base.arm.fresh_scan:
-            raise ValueError("the arm's fresh_scan (validators judge the LiDAR read when the answer arrives) is "
-                             "not taken by the Gymnasium guard yet; the trial loop takes it (ablate, "
-                             "run_guarded_trial, the Inspect task)")
+            require_sense(base.world)  # before any step: a room that cannot read as the answer arrives
         rules = list(base.arm.validators) if rules is None else list(rules)
         self.guard = Guard(rules, robot=base.world.robot, limits=base.limits, plugins=base.plugins)
 
@@ -50,7 +50,16 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
             return self.env.step(action)
         # the clock too: the guard keeps each step's scan, so rules about motion get the trial's earlier
         # scans as context.history, as in the trial loop
-        report = self.guard.check(signals, lidar_mm=base.scan, pose=base.pose, time_s=base.time_s)
+        if base.arm.fresh_scan:  # judged on the world as the answer arrives; the step's scan joins the history
+            reading = base.answer_reading()
+            if base.time_s is not None:
+                self.guard.remember(base.scan, pose=base.pose, time_s=base.time_s)
+            report = self.guard.check(signals, lidar_mm=reading.lidar, pose=reading.pose, time_s=reading.sim_time_s,
+                                      answer_time_s=reading.sim_time_s, keep_scan=False)
+            if not report.valid and base.world.outcome() is not None:  # struck while it thought: no retry
+                return base.end_refused(report.reasons)
+        else:
+            report = self.guard.check(signals, lidar_mm=base.scan, pose=base.pose, time_s=base.time_s)
         if not report.valid:
             return base.refuse(report.reasons)
         return self.env.step(action)
