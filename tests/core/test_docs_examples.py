@@ -1,5 +1,5 @@
-"""Every Python example in README.md and docs/ runs as written: a page's blocks in order, in one
-namespace (as a reader runs them), in a scratch folder."""
+"""Every Python example in README.md and docs/ runs as written: each block on its own (a reader may
+copy any one of them), a page's blocks in order, in a scratch folder."""
 
 from __future__ import annotations
 
@@ -54,9 +54,8 @@ def test_python_examples_run(doc, repo, capsys, example_plugin_installed, tmp_pa
                      display="none")
     blocks = code_blocks(repo / doc)
     assert blocks, f"{doc} has no python example"
-    namespace = {"__name__": "docs_example"}
     for block in blocks:
-        exec(compile(block, doc, "exec"), namespace)
+        exec(compile(block, doc, "exec"), {"__name__": "docs_example"})  # self-contained: a fresh namespace
     out = capsys.readouterr().out
     if doc == "README.md":
         assert out.startswith("False ['swept_body (signal 1): straight forward 350 mm")  # the robot defaults
