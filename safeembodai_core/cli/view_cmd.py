@@ -35,6 +35,8 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int) -> Non
         counts = build_site(root, target, plugins, refresh=refresh)
     console.print(f"{counts['found']} run(s) found, {counts['runs']} rendered anew ({counts['trials']} trial "
                   f"page(s)), the others unchanged, into {terminal_markup(str(target))}")
+    for name, why in counts["skipped"]:
+        console.print(f"left out {terminal_markup(name)}: {terminal_markup(why)}")
     if not serve:
         console.print(f"open {terminal_markup(str(target / 'index.html'))}")
         return

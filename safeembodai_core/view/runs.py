@@ -40,6 +40,32 @@ def find_runs(source: Path) -> list[Path]:
     return found
 
 
+#: Files by which a folder that is no run folder is known as another output of the framework, and why
+#: ``view`` leaves it out (listed on the index and in the line the command prints).
+NOT_A_RUN = (("trial.json", "a 'safeembodai run' folder: one trial, not a run; 'safeembodai show' reads it"),
+             ("results.sqlite", f"a results store without its {SCENARIO_FILE}: not readable as a run"))
+
+
+def skipped_folders(source: Path) -> list[tuple[Path, str]]:
+    """The folders :func:`find_runs` leaves out that are the framework's own outputs, each with why
+    (:data:`NOT_A_RUN`), at the same depths it looks at."""
+    if (source / SCENARIO_FILE).is_file() or not source.is_dir():
+        return []
+    candidates = []
+    for child in sorted(p for p in source.iterdir() if p.is_dir() and not p.is_symlink()):
+        candidates.append(child)
+        if not (child / SCENARIO_FILE).is_file():
+            candidates += sorted(p for p in child.iterdir() if p.is_dir() and not p.is_symlink())
+    skipped = []
+    for folder in candidates:
+        if (folder / SCENARIO_FILE).is_file():
+            continue
+        why = next((reason for name, reason in NOT_A_RUN if (folder / name).is_file()), None)
+        if why is not None:
+            skipped.append((folder, why))
+    return skipped
+
+
 def running(folder: Path) -> bool:
     """Whether an ``ablate`` holds the run now: its coordinator lock file exists and is locked.
     Probed with a shared, non-blocking lock on a read-only open: never created, never kept."""

@@ -17,7 +17,7 @@ from ..runner import trajectory_file
 from ..trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
-from .runs import CellRow, RunSummary, broken, find_runs, running, signature, summarise, trial_page
+from .runs import CellRow, RunSummary, broken, find_runs, running, signature, skipped_folders, summarise, trial_page
 from .trial_steps import replayed_prompts, step_views
 
 log = get_logger(__name__)
@@ -49,7 +49,7 @@ def _cached(known: dict[str, Any], folder: Path) -> RunSummary | None:
         return None
 
 
-def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh: int = 0) -> dict[str, int]:
+def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh: int = 0) -> dict[str, Any]:
     """Render the site of ``source`` (a run folder, or a folder of them) into ``out``; return how many
     runs were found (``found``) and how many runs and trial pages were (re)rendered. ``refresh``:
     seconds after which the index and the pages of running runs ask the browser to reload (0: never)."""
@@ -63,7 +63,8 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
         site.write(asset, (STATIC / asset).read_bytes())
     runs: dict[str, Any] = _manifest(site).get("runs", {})
     summaries: list[RunSummary] = []
-    counts = {"found": len(folders), "runs": 0, "trials": 0}
+    skipped = [(folder.relative_to(source).as_posix(), why) for folder, why in skipped_folders(source)]
+    counts: dict[str, Any] = {"found": len(folders), "runs": 0, "trials": 0, "skipped": skipped}
     for folder in folders:
         stamp = f"{signature(folder)}|running:{running(folder)}"  # a run that stopped is rendered anew
         key = folder.name if folder == source else folder.relative_to(source).as_posix()  # runs/X/mo-...: X/mo-...
@@ -84,7 +85,7 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
         runs[key] = {"signature": stamp, "trials": {k: {"key": v["key"]} for k, v in trials.items()},
                              "summary": _plain(summary)}
         summaries.append(summary)
-    site.write("index.html", render("index.html.j2", runs=summaries, refresh=refresh))
+    site.write("index.html", render("index.html.j2", runs=summaries, skipped=skipped, refresh=refresh))
     site.write(MANIFEST, json.dumps({"version": MANIFEST_VERSION, "runs": runs}, indent=1))
     return counts
 
