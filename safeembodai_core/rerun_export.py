@@ -35,8 +35,8 @@ import numpy as np
 from .components import WorldSnapshot
 from .errors import SafeEmbodAIError
 from .loop.capture import Executed, Observed, Seen, TrialCapture
-from .models import ControlSignal, Pose, StepRecord, Straight, TrialResult, TrialSpec
-from .models.observation import LidarScan
+from .geometry.plans import nearest_in_reach, plan_path, scan_points
+from .models import Pose, StepRecord, Straight, TrialResult, TrialSpec
 from .robot import RobotSpec
 from .text_safety import terminal_text
 
@@ -65,51 +65,6 @@ def _text(value: Any) -> str:
 
 def _m(mm: float) -> float:
     return float(mm) / 1000.0
-
-
-def plan_path(pose: Pose, plan: list[ControlSignal]) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
-    """The points (mm, world frame) a plan of straights and turns in place drives from ``pose``, and
-    each signal's segment (start, end; a turn's is a point)."""
-    x, y, heading = pose.x_mm, pose.y_mm, pose.heading_deg
-    points, segments = [np.array([x, y])], []
-    for signal in plan:
-        start = np.array([x, y])
-        if isinstance(signal, Straight):
-            rad = math.radians(heading)
-            x += signal.signed_distance_mm * math.cos(rad)
-            y += signal.signed_distance_mm * math.sin(rad)
-            points.append(np.array([x, y]))
-        else:
-            heading += signal.signed_angle_deg
-        segments.append((start, np.array([x, y])))
-    return np.array(points), segments
-
-
-def scan_points(scan: LidarScan, pose: Pose) -> np.ndarray:
-    """A scan's returns (mm) in the world frame, taken at ``pose``."""
-    local = scan.points()
-    rad = math.radians(pose.heading_deg)
-    c, s = math.cos(rad), math.sin(rad)
-    return np.column_stack((pose.x_mm + local[:, 0] * c - local[:, 1] * s,
-                            pose.y_mm + local[:, 0] * s + local[:, 1] * c)) if local.size else np.zeros((0, 2))
-
-
-def nearest_in_reach(points: np.ndarray, start: np.ndarray, end: np.ndarray, reach_mm: float) -> np.ndarray | None:
-    """The point of ``points`` nearest ``start`` among those within ``reach_mm`` of the segment; None if none."""
-    if points.size == 0:
-        return None
-    direction = end - start
-    length = float(np.hypot(*direction))
-    if length == 0:
-        return None
-    unit = direction / length
-    along = (points - start) @ unit
-    across = np.abs((points - start) @ np.array([-unit[1], unit[0]]))
-    inside = (along >= -reach_mm) & (along <= length + reach_mm) & (across <= reach_mm)
-    if not inside.any():
-        return None
-    candidates = points[inside]
-    return candidates[np.argmin(np.hypot(*(candidates - start).T))]
 
 
 class _Writer:

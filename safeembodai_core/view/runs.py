@@ -14,7 +14,7 @@ from pathlib import Path
 from stat import S_ISREG
 from typing import Any
 
-from ..ablation.run_folder import COORDINATOR_LOCK, SCENARIO_FILE, RunFolder
+from ..ablation.run_folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
 from ..errors import SafeEmbodAIError
 from .report_tables import report_tables
 
@@ -43,7 +43,7 @@ def find_runs(source: Path) -> list[Path]:
 #: Files by which a folder that is no run folder is known as another output of the framework, and why
 #: ``view`` leaves it out (listed on the index and in the line the command prints).
 NOT_A_RUN = (("trial.json", "a 'safeembodai run' folder: one trial, not a run; 'safeembodai show' reads it"),
-             ("results.sqlite", f"a results store without its {SCENARIO_FILE}: not readable as a run"))
+             (LEDGER_FILE, f"a run's ledger without its {SCENARIO_FILE}: not readable as a run"))
 
 
 def skipped_folders(source: Path) -> list[tuple[Path, str]]:

@@ -17,7 +17,9 @@ from ..runner import trajectory_file
 from ..trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
-from .runs import CellRow, RunSummary, broken, find_runs, running, signature, skipped_folders, summarise, trial_page
+from .runs import (
+    CellRow, RunSummary, broken, find_runs, running, signature, skipped_folders, summarise, trial_page,
+)
 from .trial_steps import replayed_prompts, step_views
 
 log = get_logger(__name__)

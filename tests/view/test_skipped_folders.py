@@ -26,7 +26,7 @@ def test_a_run_folder_of_safeembodai_run_and_a_bare_store_are_listed_as_left_out
     (runs / "one-trial").mkdir()
     (runs / "one-trial" / "trial.json").write_text("{}")
     (runs / "X" / "damaged").mkdir(parents=True)
-    (runs / "X" / "damaged" / "results.sqlite").write_bytes(b"")
+    (runs / "X" / "damaged" / "finished.jsonl").write_text("")
     (runs / "notes").mkdir()  # not ours: nothing to say about it
     counts = build_site(runs, tmp_path / "site")
     assert counts["found"] == 1
