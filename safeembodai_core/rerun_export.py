@@ -15,8 +15,8 @@ the room's corner at the origin. Entities (:data:`ENTITIES`):
 * ``world/plans/attempt_<j>`` -- each attempt's plan as the path it would drive from the step's
   pose (accepted green, refused red; an answer that did not parse has none), cleared at the next
   step; ``world/plans/attempt_<j>/blocked_by`` -- for a refused straight, the nearest return of
-  the step's scan within the body's reach of that straight (computed here, for the eye: the rule's
-  own reasoning is in the log);
+  the step's scan in its corridor (the body's width) from its start on (computed here, for the eye:
+  the rule's own reasoning is in the log);
 * ``images/<name>`` -- the camera and LiDAR pictures the LLM was shown;
 * ``log`` -- the instruction, attacks, the LLM's answers, refusals and acceptances, executed
   commands, collisions and the outcome, as text (control characters shown as escapes).
@@ -35,7 +35,7 @@ import numpy as np
 from .components import WorldSnapshot
 from .errors import SafeEmbodAIError
 from .loop.capture import Executed, Observed, Seen, TrialCapture
-from .geometry.plans import nearest_in_reach, plan_path, scan_points
+from .geometry.plans import nearest_ahead, plan_path, scan_points
 from .models import Pose, StepRecord, Straight, TrialResult, TrialSpec
 from .robot import RobotSpec
 from .text_safety import terminal_text
@@ -161,7 +161,7 @@ class _Writer:
             if not isinstance(attempt.response.control[index], Straight):
                 continue
             start, end = segments[index]
-            found = nearest_in_reach(points, start, end, self.robot.radius_mm)
+            found = nearest_ahead(points, start, end, self.robot.radius_mm)
             if found is not None:
                 blocked.append([_m(found[0]), _m(found[1]), 0.05])
         if blocked:

@@ -1,6 +1,6 @@
 """Where a plan would drive and what it would meet: a plan of straights and turns in place as the
-path it drives from a pose, a scan's returns in the same frame, and the nearest return within the
-body's reach of a segment. For pictures of plans (the Rerun export, ``view``'s trial pages), not for
+path it drives from a pose, a scan's returns in the same frame, and the nearest return in a
+straight's corridor. For pictures of plans (the Rerun export, ``view``'s trial pages), not for
 judging them: the validators judge (``safeembodai_core.validation``)."""
 
 from __future__ import annotations
@@ -40,8 +40,10 @@ def scan_points(scan: LidarScan, pose: Pose) -> np.ndarray:
                             pose.y_mm + local[:, 0] * s + local[:, 1] * c)) if local.size else np.zeros((0, 2))
 
 
-def nearest_in_reach(points: np.ndarray, start: np.ndarray, end: np.ndarray, reach_mm: float) -> np.ndarray | None:
-    """The point of ``points`` nearest ``start`` among those within ``reach_mm`` of the segment; None if none."""
+def nearest_ahead(points: np.ndarray, start: np.ndarray, end: np.ndarray, half_width_mm: float) -> np.ndarray | None:
+    """The point of ``points`` nearest ``start`` in the corridor ``half_width_mm`` either side of the
+    straight from ``start`` towards ``end``, from ``start`` on (beyond ``end`` too: what a rule that keeps a
+    clearance sees); None if none."""
     if points.size == 0:
         return None
     direction = end - start
@@ -51,8 +53,8 @@ def nearest_in_reach(points: np.ndarray, start: np.ndarray, end: np.ndarray, rea
     unit = direction / length
     along = (points - start) @ unit
     across = np.abs((points - start) @ np.array([-unit[1], unit[0]]))
-    inside = (along >= -reach_mm) & (along <= length + reach_mm) & (across <= reach_mm)
+    inside = (along >= 0) & (across <= half_width_mm)
     if not inside.any():
         return None
     candidates = points[inside]
-    return candidates[np.argmin(np.hypot(*(candidates - start).T))]
+    return candidates[np.argmin(along[inside])]

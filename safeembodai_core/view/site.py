@@ -132,8 +132,10 @@ def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: Run
     spec = result.spec
     name = trial_page(spec.trial_id)
     records = runner.state.steps(spec.trial_id)
-    prompts, missing = replayed_prompts(runner, spec, records) if records else ({}, "no step was recorded")
-    steps = step_views(records, prompts, site, f"{base}/img/{name}", f"../img/{name}")
+    prompts, scans, missing = replayed_prompts(runner, spec, records) if records else ({}, {}, "no step was recorded")
+    robot = runner.environment(spec.environment).robot if scans else None
+    steps = step_views(records, prompts, site, f"{base}/img/{name}", f"../img/{name}", scans,
+                       robot.radius_mm if robot is not None else 170.0)
     picture = read_run_file(trajectory_file(folder, spec.trial_id), png=True)
     trajectory = None
     if picture is not None:

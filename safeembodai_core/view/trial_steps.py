@@ -14,7 +14,9 @@ from typing import Any
 
 from ..models import StepRecord, TrialSpec
 from ..models.observation import ImagePart, TextPart
+from ..loop.capture import Seen
 from .files import safe_name
+from .plan_picture import plan_svg
 
 _SUFFIX = {"image/png": "png", "image/jpeg": "jpg"}
 
@@ -43,6 +45,7 @@ class StepView:
     attempts: list[AttemptView] = field(default_factory=list)
     executed: list[tuple[str, str, bool]] = field(default_factory=list)  # (signal, result, collided)
     waited_collision: str = ""
+    plans: str = ""  # the step's plans drawn over its scan (a file relative to the page), when it could be
 
 
 def _result(item: Any) -> str:
@@ -54,9 +57,10 @@ def _result(item: Any) -> str:
 
 
 def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, site: Any, image_dir: str,
-               image_href: str) -> list[StepView]:
+               image_href: str, scans: dict[int, Any] | None = None, robot_radius_mm: float = 170.0) -> list[StepView]:
     """One view per recorded step; the images of each step's first prompt written into the site's
-    ``image_dir`` (linked as ``image_href/<file>``), under names of their own making."""
+    ``image_dir`` (linked as ``image_href/<file>``), under names of their own making; with the replay's
+    ``scans`` (by step), each step's plans drawn over its scan (:mod:`.plan_picture`)."""
     views = []
     for record in records:
         view = StepView(step=record.step, instruction=record.instruction, sim_time_s=record.sim_time_s,
@@ -70,6 +74,11 @@ def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, 
                 name = f"step{record.step:03d}-{safe_name(image.name)}.{_SUFFIX.get(image.media_type, 'img')}"
                 site.write(f"{image_dir}/{name}", image.data)
                 view.images.append((image.name, f"{image_href}/{name}"))
+        if scans is not None and record.step in scans and any(a.response is not None for a in record.attempts):
+            name = f"step{record.step:03d}-plans.svg"
+            site.write(f"{image_dir}/{name}", plan_svg(scans[record.step], record.attempts,
+                                                       robot_radius_mm).encode("utf-8"))
+            view.plans = f"{image_href}/{name}"
         for attempt in record.attempts:
             view.attempts.append(AttemptView(
                 number=attempt.index + 1, answer=attempt.raw_text, reasoning=attempt.reasoning,
@@ -86,15 +95,18 @@ def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, 
     return views
 
 
-def replayed_prompts(runner: Any, spec: TrialSpec, records: list[StepRecord]) -> tuple[dict[int, list[Any]], str]:
-    """The prompts of a replay of the trial, and why there are none when it could not be replayed."""
+def replayed_prompts(runner: Any, spec: TrialSpec,
+                     records: list[StepRecord]) -> tuple[dict[int, list[Any]], dict[int, Any], str]:
+    """The prompts of a replay of the trial, each step's scan as the rules read it, and why there are
+    none when it could not be replayed."""
     from ..errors import SafeEmbodAIError
     from ..loop.replay import replay_trial
 
     try:
         capture, _, _ = replay_trial(runner, spec, records)
     except SafeEmbodAIError as error:
-        return {}, f"the prompts and images could not be rebuilt: {error}"
+        return {}, {}, f"the prompts and images could not be rebuilt: {error}"
     except Exception as error:  # a plugin's bug: the page still shows every record
-        return {}, f"the prompts and images could not be rebuilt: {type(error).__name__}: {error}"
-    return capture.prompts, ""
+        return {}, {}, f"the prompts and images could not be rebuilt: {type(error).__name__}: {error}"
+    scans = {event.step: event.scan for event in capture.events if isinstance(event, Seen)}
+    return capture.prompts, scans, ""
