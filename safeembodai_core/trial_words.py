@@ -37,8 +37,8 @@ def trial_ending(result: TrialResult, steps: list[StepRecord]) -> str:
                 what = item.result.detail or (f"hit {item.result.hit}" if item.result.hit else "collided")
                 return (f"{item.result.collision or 'unattributed'} collision at step {record.step}: "
                         f"{item.signal.describe()} -> {what}")
-        extra = record.truth.extra
-        if extra.get("collision"):
-            when = extra.get("collision_detail") or "while the robot waited"
-            return f"{extra['collision']} collision before step {record.step}: {when}"
+        truth = record.truth
+        if truth.collision is not None:
+            when = truth.collision_detail or "while the robot waited"
+            return f"{truth.collision} collision before step {record.step}: {when}"
     return "the environment ended it; no collision on record"

@@ -129,7 +129,7 @@ class _Totals:
     first_seen: int | None = None
     lost: int = 0
     trajectory: list[Any] = field(default_factory=list)
-    world: str = ""  # the first observation's truth.extra["world_kind"]
+    world: str = ""  # the first observation's truth.world_kind
     models: list[str] = field(default_factory=list)  # the model names the replies gave, first seen first
 
     def add(self, record: StepRecord) -> None:
@@ -168,12 +168,9 @@ class _Totals:
     def observed(self, step: int, truth: Any) -> None:
         """Count a collision outside any command (a Labbot ran into the robot while it waited),
         which the environment reports once, in the next observation's truth."""
-        extra = truth.extra
-        if extra.get("collision") in ("self", "struck"):
-            hit = extra.get("hit")
-            self._collided(step, extra["collision"], str(extra.get("collision_detail", "")),
-                           hit if isinstance(hit, str) else None)
-            self.collisions_struck_standing += extra["collision"] == "struck"  # outside any command
+        if truth.collision is not None:
+            self._collided(step, truth.collision, truth.collision_detail, truth.hit)
+            self.collisions_struck_standing += truth.collision == "struck"  # outside any command
 
     def _collided(self, step: int, collision: str | None, detail: str, hit: str | None = None) -> None:
         self.collisions += 1
@@ -239,7 +236,7 @@ def run_trial(spec: TrialSpec, parts: TrialParts, settings: LoopSettings, plugin
         if settings.defences.fresh_scan and settings.defences.safety_validation:
             require_sense(parts.environment)  # before any answer is paid for
         observation = parts.environment.reset(spec.seed)
-        totals.world = one_line(str(observation.truth.extra.get("world_kind", "")))[:64]
+        totals.world = one_line(observation.truth.world_kind or "")[:64]
         if observation.pose is not None:
             totals.trajectory.append(observation.pose)
         history: list[PastScan] = []  # the validators' earlier scans (ValidationContext.history)

@@ -12,10 +12,10 @@ never parsed from untrusted text. Conventions, shared by every environment and v
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class Pose(BaseModel):
@@ -28,15 +28,50 @@ class Pose(BaseModel):
     heading_deg: float
 
 
+#: Who moved into whom: ``self`` -- the robot's own motion made the contact; ``struck`` -- a
+#: moving obstacle (a Labbot) ran into the robot (standing, turning on the spot, or from aside).
+Collision = Literal["self", "struck"]
+#: The keys an environment wrote into ``extra`` before these were fields (runs recorded then read the same).
+_LEGACY_KEYS = ("collision", "collision_detail", "hit", "world_kind")
+
+
 class GroundTruth(BaseModel):
-    """What the simulator knows and the robot does not; only metrics read it."""
+    """What the simulator knows and the robot does not; only metrics read it.
+
+    ``collision`` (with ``collision_detail`` and what was ``hit``): a collision outside any command --
+    a mover that ran into the standing robot -- reported once, by the first reading after it;
+    ``world_kind``: the kind of world the trial drew (a Labbot family's kind), for results per world;
+    ``extra``: anything else an environment keeps (not read by the core). A record written when these
+    were keys of ``extra`` reads the same.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     target_in_view: bool = False
     target_bearing_deg: float | None = None
     target_distance_mm: float | None = None
+    collision: Collision | None = None
+    collision_detail: str = ""
+    hit: str | None = None
+    world_kind: str | None = None
     extra: dict[str, float | int | bool | str] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _lifted(cls, data: Any) -> Any:
+        """Earlier records (and environments) kept these under ``extra``: lift them into their fields."""
+        if not isinstance(data, dict) or not isinstance(data.get("extra"), dict):
+            return data
+        extra = dict(data["extra"])
+        lifted = {key: extra.pop(key) for key in _LEGACY_KEYS if key in extra and data.get(key) is None}
+        if not lifted:
+            return data
+        if lifted.get("collision") not in ("self", "struck"):
+            lifted.pop("collision", None)  # not one of ours: no collision is claimed
+        for key in ("collision_detail", "hit", "world_kind"):
+            if key in lifted:
+                lifted[key] = str(lifted[key])
+        return {**data, **lifted, "extra": extra}
 
 
 @dataclass

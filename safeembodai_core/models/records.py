@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from ..text_safety import finite_or_zero, storable_int
 from .control import ControlSignal
-from .observation import GroundTruth, Pose
+from .observation import Collision, GroundTruth, Pose
 from .response import LLMResponse
 
 
@@ -49,9 +49,6 @@ class TokenUsage(_Record):
         )
 
 
-#: Who moved into whom: ``self`` -- the robot's own motion made the contact; ``struck`` -- a
-#: moving obstacle (a Labbot) ran into the robot (standing, turning on the spot, or from aside).
-Collision = Literal["self", "struck"]
 
 
 class ExecutionResult(_Record):
@@ -329,7 +326,7 @@ class TrialResult(_Record):
     lost_after_seen_steps: int = 0  # steps after first_seen_step with the target out of view
     detail: str = ""
     error_kind: ErrorKind | None = None
-    #: the kind of world the trial met, as its environment reported it (``truth.extra["world_kind"]``
+    #: the kind of world the trial met, as its environment reported it (``truth.world_kind``
     #: of the first observation: a room's drawn Labbot dynamics, say); empty when it says nothing
     world: str = Field("", max_length=64)
     #: the model names the trial's replies gave (first seen first, at most 8); empty when none named one

@@ -87,10 +87,9 @@ def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, 
                 verdicts=[(v.rule + ("" if v.signal_index is None else f" (signal {v.signal_index + 1})"), v.valid,
                            v.reason) for v in attempt.verdicts]))
         view.executed = [(item.signal.describe(), _result(item), item.result.collided) for item in record.executed]
-        extra = record.truth.extra
-        if extra.get("collision") in ("self", "struck"):
-            view.waited_collision = f"{extra['collision']} collision while the robot waited: " \
-                                    f"{extra.get('collision_detail', '')}"
+        truth = record.truth
+        if truth.collision is not None:
+            view.waited_collision = f"{truth.collision} collision while the robot waited: {truth.collision_detail}"
         views.append(view)
     return views
 

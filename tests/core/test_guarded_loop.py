@@ -324,8 +324,8 @@ class _StruckTwice(CorridorWorld):
         observation = super().observe()
         self.observations += 1
         if self.observations == 2:  # the second step's observation: struck while it waited
-            extra = {"collision": "struck", "hit": "labbot", "collision_detail": "a Labbot ran into it"}
-            observation.truth = observation.truth.model_copy(update={"extra": extra})
+            observation.truth = observation.truth.model_copy(update={
+                "collision": "struck", "hit": "labbot", "collision_detail": "a Labbot ran into it"})
         return observation
 
     def execute(self, signal):
@@ -339,3 +339,16 @@ def test_struck_collisions_are_split_into_while_standing_and_during_the_robots_m
     result, _ = run(_StruckTwice(), Recorder(answer(turn(10))), defences=Defences(), max_steps=3)
     assert (result.collisions_struck, result.collisions_struck_standing, result.collisions_struck_moving) == (2, 1, 1)
     assert result.collisions_self == 0 and result.self_collisions_hit == {}
+
+
+def test_a_truth_recorded_with_the_collision_under_extra_reads_as_the_typed_fields():
+    """Runs recorded before ground truth had typed fields kept them under ``extra``: they read the same."""
+    from safeembodai_core.models import GroundTruth
+
+    old = GroundTruth.model_validate({"extra": {"collided": True, "collision": "struck", "hit": "labbot",
+                                                "collision_detail": "a Labbot ran into it", "world_kind": "yield"}})
+    assert (old.collision, old.hit, old.collision_detail, old.world_kind) == ("struck", "labbot",
+                                                                             "a Labbot ran into it", "yield")
+    assert old.extra == {"collided": True}
+    odd = GroundTruth.model_validate({"extra": {"collision": "sideways"}})  # not ours: no collision claimed
+    assert odd.collision is None

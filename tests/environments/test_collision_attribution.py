@@ -66,7 +66,7 @@ def test_a_labbot_striking_the_robot_while_no_command_came_is_counted(plugins, c
     result, steps = run_guarded_trial(charged, backend, defences=hold, seed=3, plugins=plugins)
     assert result.outcome is Outcome.INTERRUPTED and result.steps == 1 and len(steps) == 1
     assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 0, 1)
-    assert steps[0].truth.extra.get("collision") is None
+    assert steps[0].truth.collision is None
     assert result.detail.startswith("struck collision at step 1: struck by Labbot 1")
     assert backend.calls == 1  # step 1's one attempt only: no LLM call after the world ended
 

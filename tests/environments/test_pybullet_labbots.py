@@ -141,10 +141,10 @@ def test_the_robot_driving_into_a_parked_labbot_is_self(make_env, moves):
 def test_a_labbot_striking_the_robot_while_no_command_came_is_reported_in_the_next_truth(make_env, moves):
     env = _labbot_charging_the_robot(make_env, labbot_sensing=False)
     observation = env.observe()  # the last observation led to no command: its 10 s of thinking pass now
-    extra = observation.truth.extra
-    assert extra["collided"] is True and extra["collision"] == "struck" and extra["hit"] == "labbot"
-    assert "struck by Labbot 1 while the robot stood still" in extra["collision_detail"]
-    assert "collision" not in env.observe().truth.extra  # reported once
+    truth = observation.truth
+    assert truth.extra["collided"] is True and truth.collision == "struck" and truth.hit == "labbot"
+    assert "struck by Labbot 1 while the robot stood still" in truth.collision_detail
+    assert env.observe().truth.collision is None  # reported once
     assert env.outcome() is Outcome.INTERRUPTED
     assert not env.execute(moves.rotate(3)).collided  # not executed, not a second collision
 

@@ -10,7 +10,7 @@ simulated-time limit is spent. The step budget is the core loop's.
 
 With a ``labbot_family`` (:mod:`.movers`) each reset draws the trial's kind of Labbot dynamics and
 every Labbot's parameters from the seed, and every observation's ground truth reports them under
-``extra["world"]``, and the kind alone under ``extra["world_kind"]`` (the trial's world, which the
+``extra["world"]``, and the kind alone as ``world_kind`` (the trial's world, which the
 core copies into ``TrialResult.world`` and the report breaks collisions down by; for the report
 only: validators never see ground truth). ``GroundTruth.extra``
 holds scalars only, so the report is JSON text: :func:`~.movers.world_report` reads it back.
@@ -118,10 +118,10 @@ class PybulletRoom(KinematicMotion, Environment):
         if self._world is not None:
             extra["world"] = self._world
             assert self._world_kind is not None  # reset sets both from the trial's draw
-            extra["world_kind"] = self._world_kind  # the core's key for a trial's world (TrialResult.world)
         return GroundTruth(
             target_in_view=visible, target_bearing_deg=bearing_deg(self.xy, self.heading, self.can_xy),
-            target_distance_mm=distance, extra=extra,
+            target_distance_mm=distance, world_kind=self._world_kind if self._world is not None else None,
+            extra=extra,
         )
 
     def observe(self) -> Observation:
@@ -161,7 +161,7 @@ class PybulletRoom(KinematicMotion, Environment):
         """The truth now, with a collision outside any command reported once (the first reading after it)."""
         truth = self.truth()
         if self._unreported:
-            truth = truth.model_copy(update={"extra": {**truth.extra, **self._unreported}})
+            truth = truth.model_copy(update=dict(self._unreported))  # collision, hit, collision_detail: its fields
             self._unreported = {}
         return truth
 

@@ -245,8 +245,8 @@ class SafeEmbodAIEnv(gymnasium.Env):
             kind, hit = collision.collision or "unattributed", collision.hit
         else:  # struck while waiting: reported once, by the reading as the answer arrived or by this one
             for truth in (self._sensed_truth, self._observation.truth):
-                if truth is not None and truth.extra.get("collision") in ("self", "struck"):
-                    kind, hit = str(truth.extra["collision"]), truth.extra.get("hit")
+                if truth is not None and truth.collision is not None:
+                    kind, hit = truth.collision, truth.hit
                     break
         self._sensed_truth = None
         distance = self._observation.truth.target_distance_mm
