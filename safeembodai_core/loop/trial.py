@@ -157,6 +157,8 @@ class _Totals:
                 self.distance += abs(item.result.distance_mm)
             if item.result.collided:
                 self._collided(record.step, item.result.collision, item.result.detail, item.result.hit)
+                # a mover that struck in the think time before the command moved: the robot stood
+                self.collisions_struck_standing += item.result.collision == "struck" and item.result.before_motion
 
     def spent(self, usage: Any) -> None:
         """Tokens paid outside any recorded step (a step whose backend gave up): counted all the same."""

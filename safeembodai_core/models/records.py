@@ -56,7 +56,9 @@ class ExecutionResult(_Record):
 
     ``collision`` says who moved into whom when ``collided`` (None where the environment does not
     say); ``hit`` names what the robot touched -- ``wall``, ``ball``, ``labbot``, ``obstacle`` or
-    ``can`` (touching the can is no collision) -- when the environment knows.
+    ``can`` (touching the can is no collision) -- when the environment knows; ``before_motion``: the
+    contact came before this command moved the robot (a mover struck it in the think time before the
+    command ran): the robot stood, as far as a plan rule is concerned.
     """
 
     distance_mm: float = 0.0
@@ -65,6 +67,7 @@ class ExecutionResult(_Record):
     collided: bool = False
     collision: Collision | None = None
     hit: str | None = None
+    before_motion: bool = False  # the contact came before the command moved the robot (in the think time)
     detail: str = ""
 
     @model_validator(mode="after")

@@ -9,7 +9,7 @@ import pytest
 from safeembodai_core import BackendError, hookimpl, run_guarded_trial
 from safeembodai_core.components import BackendReply, LLMBackend
 from safeembodai_core.loop import Defences
-from safeembodai_core.models import Outcome, Straight, TokenUsage, Turn, Verdict
+from safeembodai_core.models import ExecutionResult, Outcome, Straight, TokenUsage, Turn, Verdict
 from safeembodai_core.plugins import load_plugins
 from safeembodai_core.testing import CorridorWorld, answer, straight, turn
 
@@ -352,3 +352,17 @@ def test_a_truth_recorded_with_the_collision_under_extra_reads_as_the_typed_fiel
     assert old.extra == {"collided": True}
     odd = GroundTruth.model_validate({"extra": {"collision": "sideways"}})  # not ours: no collision claimed
     assert odd.collision is None
+
+
+class _StruckInTheThinkTime(CorridorWorld):
+    """A room that spends the think time inside execute(): a mover strikes before the command moved."""
+
+    def execute(self, signal):
+        self.executed.append(signal)
+        return ExecutionResult(stopped=True, collided=True, collision="struck", hit="labbot", before_motion=True,
+                               detail="stopped after 0 deg: struck while the robot stood still (think time)")
+
+
+def test_a_strike_in_the_think_time_before_a_command_counts_as_standing():
+    result, _ = run(_StruckInTheThinkTime(), Recorder(answer(turn(10))), defences=Defences(), max_steps=1)
+    assert (result.collisions_struck, result.collisions_struck_standing, result.collisions_struck_moving) == (1, 1, 0)

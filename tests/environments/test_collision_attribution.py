@@ -47,6 +47,7 @@ def test_a_labbot_striking_the_robot_in_its_think_time_counts_as_struck(plugins,
                                       state=store, plugins=plugins)
     assert result.outcome is Outcome.INTERRUPTED
     assert (result.collisions, result.collisions_self, result.collisions_struck) == (1, 0, 1)
+    assert result.collisions_struck_standing == 1  # before the command moved the robot: it stood
     assert result.detail.startswith("struck collision at step 1: ")
     assert "struck by Labbot 1 while the robot stood still" in result.detail
     executed = steps[0].executed[0].result

@@ -91,7 +91,7 @@ def test_a_blind_labbot_running_into_the_standing_robot_interrupts_struck(make_e
     env = _labbot_charging_the_robot(make_env, labbot_sensing=False)
     result = env.execute(moves.rotate(3))
     assert result.collided and result.stopped
-    assert result.collision == "struck" and result.hit == "labbot"
+    assert result.collision == "struck" and result.hit == "labbot" and result.before_motion
     assert "struck by Labbot 1 while the robot stood still" in result.detail
     assert env.outcome() is Outcome.INTERRUPTED
     gap = math.hypot(*(env.swarm.xy[0] - env.xy)) - env.robot.radius_mm - env.options.labbot_radius_mm

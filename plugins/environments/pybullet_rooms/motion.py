@@ -94,7 +94,7 @@ class KinematicMotion:
                 self._thought = True
                 hit = self._wait(self.options.think_time_s)
                 if hit is not None:
-                    return self._result(signal, 0.0, hit, "while the robot stood still (think time)")
+                    return self._result(signal, 0.0, hit, "while the robot stood still (think time)", standing=True)
             done, hit = self._move(signal, amount, per_unit_s, increment)
         return self._result(signal, done, hit,
                             "while the robot " + ("drove" if isinstance(signal, Straight) else "turned"))
@@ -224,7 +224,8 @@ class KinematicMotion:
         self.collision = {"collision": kind, "hit": self.scene.kinds.get(hit, "body"), "collision_detail": detail}
         return self.collision.copy()
 
-    def _result(self, signal: ControlSignal, done: float, hit: int | None, when: str) -> ExecutionResult:
+    def _result(self, signal: ControlSignal, done: float, hit: int | None, when: str,
+                standing: bool = False) -> ExecutionResult:
         straight = isinstance(signal, Straight)
         signed = done * (1.0 if not straight or signal.direction == "forward" else -1.0)
         values: _Moved
@@ -239,6 +240,7 @@ class KinematicMotion:
         if hit is not None:
             record = self._collision_record(hit, when)
             return ExecutionResult(stopped=True, collided=True, collision=record["collision"], hit=record["hit"],
+                                   before_motion=standing,
                                    detail=f"stopped after {done:.0f} {unit}: {record['collision_detail']}", **values)
         requested = signal.distance if isinstance(signal, Straight) else signal.angle
         if done < requested - 1e-6:
