@@ -22,7 +22,8 @@ class BackendDescription:
     ``model``: the model as the report names it (None: "the backend's own"); ``model_id``: as
     configured, when that differs (a litellm id with its route); ``model_source``: how ``model``
     was read off the configuration; ``simulated``: a banner for a backend that is not an LLM (the
-    report, its figures and the trial pictures carry it); ``names_model_in_replies``: the replies
+    report, its figures and the trial pictures carry it), with ``why`` (what every number then follows
+    from) and ``pilot`` (a legend's few words); ``names_model_in_replies``: the replies
     name the model that answered, and the report prefers those names; ``inputs``: options whose
     values are the inputs behind numbers that look like findings (name, value, what it sets);
     ``weaknesses``: options that shape the other numbers (name, value).
@@ -32,6 +33,10 @@ class BackendDescription:
     model_id: str | None = None
     model_source: str | None = None
     simulated: str | None = None
+    #: with a banner: what every number follows from (the report says it after the banner), and the
+    #: few words figure legends name the pilot by
+    why: str | None = None
+    pilot: str | None = None
     names_model_in_replies: bool = False
     inputs: tuple[tuple[str, Any, str], ...] = ()
     weaknesses: tuple[tuple[str, Any], ...] = ()

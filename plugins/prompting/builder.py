@@ -184,13 +184,21 @@ class JinjaPromptBuilder(PromptBuilder):
         recent = list(failures[-keep:]) if keep else []
         return [clip(line, self.options.max_failure_chars) for line in recent], len(failures) - len(recent)
 
-    @staticmethod
-    def _shown(request: PromptRequest, shown: int) -> tuple[Refusal, ...]:
+    def _shown(self, request: PromptRequest, shown: int) -> tuple[Refusal, ...]:
         """The refusals of the failure lines the prompt shows (the last ``shown``), when the request
-        gave one per line; none otherwise (a request with reasons only: nothing to hand on as data)."""
+        gave one per line; none otherwise (a request with reasons only: nothing to hand on as data).
+        A line cut shorter than where its advice's words end (``Refusal.advice_end``) is handed on
+        without its advice: the prompt no longer says it."""
         if not shown or len(request.refusals) != len(request.failures):
             return ()
-        return tuple(request.refusals[-shown:])
+        kept = self.options.max_failure_chars - len(_ELLIPSIS)
+        refusals = []
+        for line, refusal in zip(request.failures[-shown:], request.refusals[-shown:]):
+            cut = len(line) > self.options.max_failure_chars
+            if cut and refusal.advice is not None and (refusal.advice_end is None or refusal.advice_end > kept):
+                refusal = refusal.model_copy(update={"advice": None})
+            refusals.append(refusal)
+        return tuple(refusals)
 
     # -- PromptBuilder ------------------------------------------------------------------------
 

@@ -197,4 +197,6 @@ class LidarClearanceRule(Validator):
             what = (f"{thing} {nearest:.0f} mm {where}{later} ({beam} {angle:.0f} deg) would be "
                     f"{nearest - signal.distance:.0f} mm away after the motion, "
                     f"less than the {dist:g} mm required{how}")
-        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}", advice=offered)
+        reason = f"{signal.describe()}: {what}; {advice}"
+        return Verdict(rule=self.name, valid=False, reason=reason,  # the advice's words end the reason
+                       advice=offered.model_copy(update={"words_end": len(reason)}) if offered else None)

@@ -132,7 +132,9 @@ class FootprintSweepRule(Validator):
                     f"beyond {along:.0f} mm {where}")
         else:
             what = (f"obstacle {along:.0f} mm {where} and {abs(lateral):.0f} mm {side} of centre, inside {path}")
-        return Verdict(rule=self.name, valid=False, reason=f"{signal.describe()}: {what}; {advice}", advice=offered)
+        reason = f"{signal.describe()}: {what}; {advice}"
+        return Verdict(rule=self.name, valid=False, reason=reason,  # the advice's words end the reason
+                       advice=offered.model_copy(update={"words_end": len(reason)}) if offered else None)
 
     def _turn(self, signal: ControlSignal, known: np.ndarray, unknown: np.ndarray, radius: float) -> Verdict:
         for points, is_unknown in ((known, False), (unknown, True)):

@@ -173,9 +173,9 @@ class SweptBodyRule(MotionValidator):
                       else f"no turn to the {signal.direction} is safe here; move straight away first")
             offered = Advice(safe_deg=safe) if safe >= 1 else None
             moved = f"after {turned:.0f} deg"
-        return Verdict(rule=self.name, valid=False, reason=(
-            f"{signal.describe()}: the body ({body}) touches {what} {_where(point)} of the robot {moved}; {advice}"),
-            advice=offered)
+        reason = f"{signal.describe()}: the body ({body}) touches {what} {_where(point)} of the robot {moved}; {advice}"
+        return Verdict(rule=self.name, valid=False, reason=reason,  # the advice's words end the reason
+                       advice=offered.model_copy(update={"words_end": len(reason)}) if offered else None)
 
     def validate_motion(self, motion: Motion, context: ValidationContext) -> MotionVerdict:
         touched, hidden = self._contacts(motion, context)

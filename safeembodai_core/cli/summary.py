@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from rich.markup import escape
 from rich.table import Table
 
 from ..metrics import metric_catalog
@@ -15,15 +14,16 @@ from ..models import TrialResult
 from ..report.cells import scenario_cells
 from ..report.run_info import RunInfo, run_info
 from ..scenario import Scenario
+from ..text_safety import terminal_markup
 
 
 def title(scenario: Scenario, info: RunInfo) -> str:
     """The lines above the table (rich markup, escaped)."""
-    lines = [f"{escape(scenario.name)}: metrics per cell",
-             f"backend {escape(info.backend)}, model {escape(info.model)}",
+    lines = [f"{terminal_markup(scenario.name)}: metrics per cell",
+             f"backend {terminal_markup(info.backend)}, model {terminal_markup(info.model)}",
              f"seed {info.seed}, scenario {info.fingerprint[:12]}, N={info.trials_per_cell} per cell"]
     if info.simulated:
-        lines.append(f"[bold red]{escape(info.simulated.upper())}[/bold red]")
+        lines.append(f"[bold red]{terminal_markup(info.simulated.upper())}[/bold red]")
     return "\n".join(lines)
 
 
@@ -42,11 +42,12 @@ def summary_table(scenario: Scenario, results: list[TrialResult], *, info: RunIn
     shown = [entry for entry in catalog if entry.console]
     columns = ("env", "arm", "condition", "n", *(str(entry.console) for entry in shown), "err")
     for column in columns + (("crash",) if crashes else ()):
-        table.add_column(escape(column), no_wrap=True,
+        table.add_column(terminal_markup(column), no_wrap=True,
                          justify="left" if column in ("env", "arm", "condition") else "right")
     for cell in cells:
         m = cell.metrics
-        table.add_row(escape(m.environment), escape(m.arm), escape(m.condition), str(m.trials),
+        table.add_row(terminal_markup(m.environment), terminal_markup(m.arm), terminal_markup(m.condition),
+                      str(m.trials),
                       *(_value(m.estimates[entry.name], entry.digits) for entry in shown), str(cell.errors),
                       *((str(cell.crashed),) if crashes else ()))
     table.caption = "\n".join([
@@ -54,7 +55,7 @@ def summary_table(scenario: Scenario, results: list[TrialResult], *, info: RunIn
         "* over completed trials; ref = validator refusals per trial",
         "err = backend, store or other failures" + ("; crash = a component's bug" if crashes else ""),
         "n/a = nothing to estimate (ADR without attacks); intervals in report.md",
-        *(escape(f"{entry.console} = {entry.description or entry.name} (plugin {entry.origin})")
+        *(terminal_markup(f"{entry.console} = {entry.description or entry.name} (plugin {entry.origin})")
           for entry in shown if entry.origin != CORE), *_settings(scenario)])
     return table
 

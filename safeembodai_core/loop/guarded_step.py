@@ -52,10 +52,30 @@ def _one_line(text: str) -> str:
 
 
 def _feedback(index: int, attempt: Attempt) -> list[str]:
-    refused = ""
-    if attempt.response is not None and attempt.response.control:
-        refused = " (refused plan: " + ", ".join(s.describe() for s in attempt.response.control) + ")"
-    return [_one_line(f"attempt {index + 1}{refused}: {reason}") for reason in attempt.failures()]
+    return [_one_line(f"attempt {index + 1}{_refused(attempt)}: {reason}") for reason in attempt.failures()]
+
+
+def _refused(attempt: Attempt) -> str:
+    if attempt.response is None or not attempt.response.control:
+        return ""
+    return " (refused plan: " + ", ".join(s.describe() for s in attempt.response.control) + ")"
+
+
+def _feedback_refusals(index: int, attempt: Attempt) -> list[Refusal]:
+    """:meth:`Attempt.refusals`, each with where in its failure line (:func:`_feedback`) the advice's words end."""
+    refusals = attempt.refusals()
+    if attempt.parse_error is not None:
+        return refusals
+    refused = [v for v in attempt.verdicts if not v.valid]
+    marked = []
+    for verdict, refusal in zip(refused, refusals):
+        advice = verdict.advice
+        if advice is not None and advice.words_end is not None:
+            where = "" if verdict.signal_index is None else f" (signal {verdict.signal_index + 1})"
+            said = f"attempt {index + 1}{_refused(attempt)}: {verdict.rule}{where}: {verdict.reason[:advice.words_end]}"
+            refusal = refusal.model_copy(update={"advice_end": len(_one_line(said))})
+        marked.append(refusal)
+    return marked
 
 
 def decide(
@@ -116,5 +136,5 @@ def decide(
         if ended is not None and ended():
             break  # nothing can be executed any more: another call would be paid for nothing
         failures.extend(_feedback(index, attempt))
-        refusals.extend(attempt.refusals())
+        refusals.extend(_feedback_refusals(index, attempt))
     return attempts, None

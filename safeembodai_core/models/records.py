@@ -99,6 +99,9 @@ class Advice(_Record):
     safe_deg: float | None = Field(None, ge=0)
     wait: bool = False
     step_aside: list[ControlSignal] = Field(default_factory=list)
+    #: how many characters of the verdict's reason it takes to say this advice in words (None: the
+    #: reason does not say it): a prompt that cuts the reason shorter has cut the advice too
+    words_end: int | None = Field(None, ge=0)
 
 
 class Verdict(_Record):
@@ -173,6 +176,9 @@ class Refusal(_Record):
     rule: str | None = None
     signal_index: int | None = None
     advice: Advice | None = None
+    #: how many characters of the failure line it takes to say the advice (from ``Advice.words_end``):
+    #: a prompt builder that cuts the line shorter hands the refusal on without its advice
+    advice_end: int | None = Field(None, ge=0)
 
 
 class AttackRecord(_Record):

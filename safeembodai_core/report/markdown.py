@@ -62,10 +62,9 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
     if scenario.description:
         lines += [markdown_cell(scenario.description, 4000), ""]
     if info.simulated:
-        why = ("Every number below comes from a simulated pilot whose weaknesses are configured; the numbers its "
-               "configuration sets are listed under *Pilot's configured inputs*." if info.inputs else
-               "Every answer is replayed from the scenario: every number below follows from that script.")
-        lines += [f"> **{info.simulated[0].upper()}{info.simulated[1:]}.** {why}", ""]
+        banner = markdown_cell(info.simulated[0].upper() + info.simulated[1:], 600)
+        why = markdown_cell(info.why or "Read every number below as not a measurement of an LLM.", 1000)
+        lines += [f"> **{banner}.** {why}", ""]
     m = scenario.metrics
     s_max = ("mean steps of the cell's timeout trials (the budget when none)" if m.s_max == "timeouts"
              else f"fixed {m.s_max}")
@@ -89,11 +88,19 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
                   "(roughly flag probability × share of steps attacked through the instruction, plus "
                   "`false_flag_p` × the rest) and how often it follows an injection are inputs of this run, not "
                   "findings.", "", "| option | value | what it sets |", "|---|---|---|"]
-        lines += [f"| `{markdown_code(name, 80)}` | {value:g} | {markdown_cell(what)} |"
+        lines += [f"| `{markdown_code(name, 80)}` | {_value(value)} | {markdown_cell(what)} |"
                   for name, value, what in info.inputs]
         lines += ["", "Its other configured weaknesses shape MOER, TLR, collisions and refusals: "
-                  + ", ".join(f"`{markdown_code(name, 80)}` {value:g}" for name, value in info.weaknesses) + ".", ""]
+                  + ", ".join(f"`{markdown_code(name, 80)}` {_value(value)}" for name, value in info.weaknesses)
+                  + ".", ""]
     return lines
+
+
+def _value(value: object) -> str:
+    """An option's value from a backend's description: a number as ``:g``, anything else as escaped text."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return f"{value:g}"
+    return markdown_cell(value, 80)
 
 
 def _cell(text: object, most: int = 400) -> str:

@@ -33,6 +33,8 @@ class RunInfo:
     inputs: list[tuple[str, Any, str]] = field(default_factory=list)  # (option, value, what it sets)
     weaknesses: list[tuple[str, Any]] = field(default_factory=list)
     clocks: dict[str, EnvironmentDescription] = field(default_factory=dict)  # environment label -> its clock
+    why: str | None = None  # with a banner: what every number follows from
+    pilot_words: str | None = None  # with a banner: a legend's few words
 
     def as_dict(self) -> dict[str, Any]:
         return {"backend": self.backend, "model": self.model, "model_id": self.model_id,
@@ -45,7 +47,7 @@ class RunInfo:
     def pilot(self) -> str:
         """Who answered, in a few words: ``local/SmolLM2``, or a simulated pilot named as not an LLM."""
         if self.simulated:
-            return f"{self.simulated.split(':')[0]}, not an LLM"
+            return self.pilot_words or f"{self.backend} (not known to be an LLM)"
         return f"{self.backend}/{self.model}"
 
     def bars(self) -> str:
@@ -71,12 +73,15 @@ def describe_ref(backend: ComponentRef, plugins: Any = None) -> BackendDescripti
             plugins = load_plugins()
         options = plugins.registry.validate_options("llm_backend", backend.use, backend.options)
     except SafeEmbodAIError as error:
-        model = backend.options.get("model")
-        reason = str(error).splitlines()[0][:200]
-        return BackendDescription(model=str(model) if model else None, simulated=(
-            f"backend {backend.use!r} could not describe itself ({reason}): not known to be an LLM"))
+        return _undescribed(backend, str(error))
     if isinstance(options, BackendOptions):
-        return options.describe()
+        try:
+            described = options.describe()
+        except Exception as error:  # a plugin's describe() that fails: not described, said so
+            return _undescribed(backend, f"its describe() failed: {type(error).__name__}: {error}")
+        if not isinstance(described, BackendDescription):
+            return _undescribed(backend, f"its describe() returned {type(described).__name__}")
+        return described
     model = options.model_dump().get("model")  # a plain options model: named by its model option
     return BackendDescription(model=str(model) if model else None)
 
@@ -99,6 +104,21 @@ def describe_environments(scenario: Scenario, plugins: Any = None) -> dict[str, 
         if isinstance(options, EnvironmentOptions):
             clocks[ref.key] = options.describe()
     return clocks
+
+
+def _undescribed(backend: ComponentRef, reason: str) -> BackendDescription:
+    """A backend that cannot describe itself: named by its ``model`` option and never taken for an LLM.
+    Its name and the reason come from a run folder or a plugin: one line of terminal-safe text."""
+    from ..text_safety import one_line, terminal_text
+
+    model = backend.options.get("model")
+    name, why = (one_line(terminal_text(str(text)))[:200] for text in (backend.use, reason.splitlines()[0]
+                                                                        if reason else ""))
+    return BackendDescription(
+        model=one_line(terminal_text(str(model)))[:200] if model else None,
+        simulated=f"backend '{name}' could not describe itself ({why}): not known to be an LLM",
+        why="Whether an LLM answered is not known: read every number below with that in mind.",
+        pilot=f"{name} (not known to be an LLM)")
 
 
 def _recorded_fingerprint(folder: Path | None) -> str | None:
@@ -139,4 +159,4 @@ def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any 
                    fingerprint=recorded or fingerprint(scenario), trials_per_cell=scenario.trials,
                    simulated=described.simulated, model_id=described.model_id, model_source=source,
                    inputs=list(described.inputs), weaknesses=list(described.weaknesses),
-                   clocks=describe_environments(scenario, plugins))
+                   clocks=describe_environments(scenario, plugins), why=described.why, pilot_words=described.pilot)

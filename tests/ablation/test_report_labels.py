@@ -199,3 +199,45 @@ def test_a_backend_that_cannot_describe_itself_is_never_taken_for_an_llm(repo, p
     assert gone.model == "x" and "not known to be an LLM" in gone.simulated
     stale = describe_ref(ComponentRef(use="mock", options={"no_such_option": 1}), plugins)
     assert "not known to be an LLM" in stale.simulated
+
+
+def test_a_backend_name_from_a_run_folder_reaches_the_report_as_text(plugins, tmp_path):
+    """The banner of a backend that cannot describe itself names it: escaped for Markdown and the terminal."""
+    from safeembodai_core.refs import ComponentRef
+    from safeembodai_core.report.markdown import header
+    from safeembodai_core.report.run_info import RunInfo, describe_ref
+
+    hostile = ComponentRef(use="x<img src=x onerror=alert(1)>![p](http://evil/p.png)\x1b[2J\u202e",
+                           options={"model": "m\x1b]8;;"})
+    described = describe_ref(hostile, plugins)
+    assert "\x1b" not in described.simulated and "\u202e" not in described.simulated
+    info = RunInfo(backend="x", model="m", seed=0, fingerprint="f", trials_per_cell=1, simulated=described.simulated,
+                   why=described.why, pilot_words=described.pilot)
+    from safeembodai_core.scenario import parse_scenario
+
+    text = "\n".join(header(parse_scenario("name: t\nenvironments: [OF]\nstate: memory\n", "t.yaml"), info, 0))
+    import re
+
+    assert re.search(r"(?<!\\)<img", text) is None and "![p](" not in text  # shown as escaped text
+    assert "not known to be an LLM" in text
+    assert "Whether an LLM answered is not known" in text and info.pilot.endswith("(not known to be an LLM)")
+
+
+def test_a_describe_that_fails_is_a_backend_not_known_to_be_an_llm(plugins):
+    from safeembodai_core.descriptions import BackendOptions
+    from safeembodai_core.hookspecs import hookimpl
+    from safeembodai_core.refs import ComponentRef
+    from safeembodai_core.report.run_info import describe_ref
+    from safeembodai_core.testing import inline_plugins
+
+    class Broken(BackendOptions):
+        def describe(self):
+            raise RuntimeError("boom")
+
+    class Plugin:
+        @hookimpl
+        def register_llm_backends(self, register):
+            register("broken", lambda options, context: None, options=Broken)
+
+    described = describe_ref(ComponentRef(use="broken"), inline_plugins(("p", Plugin())))
+    assert "its describe() failed: RuntimeError: boom" in described.simulated

@@ -384,3 +384,36 @@ def test_amend_sends_the_step_aside_a_parking_refusal_advised(built_plugins):
     other = refused("turn left 5 deg", 1, "step out of the way", advice=aside)
     later = _refused("straight forward 100 mm", 1, "too close", "lidar_clearance", attempt=2)
     assert _reading(other, later).step_aside is None  # not the latest
+
+
+def test_a_failure_line_cut_before_its_advice_hands_the_refusal_on_without_it(built_plugins):
+    """The builder cuts each line to max_failure_chars (400): where the advice's words lay past the
+    cut, the prompt no longer says it, so the refusal goes on without its advice (second read)."""
+    from safeembodai_core.models import Refusal
+
+    _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
+    long = "attempt 1 (refused plan: straight forward 300 mm): lidar_clearance (signal 1): " + "x" * 500
+    plan = signals_of("straight forward 300 mm")
+    cut = Refusal(attempt=1, plan=plan, rule="lidar_clearance", signal_index=0, advice=Advice(safe_mm=120),
+                  advice_end=len(long))
+    kept = cut.model_copy(update={"advice_end": 150})
+    shown = make_prompt(built_plugins, observation, failures=[(long, cut)]).refusals
+    assert shown[0].advice is None and shown[0].plan == plan  # the refusal itself is still there
+    assert make_prompt(built_plugins, observation, failures=[(long, kept)]).refusals[0].advice == Advice(safe_mm=120)
+    whole = make_prompt(built_plugins, observation, failures=[(long[:200], cut)]).refusals  # not cut at all
+    assert whole[0].advice == Advice(safe_mm=120)
+
+
+def test_the_loops_refusals_say_where_each_advice_ends_in_its_line():
+    from safeembodai_core.loop.guarded_step import _feedback, _feedback_refusals
+    from safeembodai_core.models import Attempt, Verdict
+
+    text = json.dumps({"perception": [], "planning": "p", "control": [
+        {"command": "straight", "direction": "forward", "distance": 300, "justification": "a"}]})
+    reason = "straight forward 300 mm: too close; going forward, at most 120 mm is safe. More words follow."
+    said = reason.index(". More")
+    attempt = Attempt(index=0, raw_text=text, response=parse_response(text), verdicts=[
+        Verdict(rule="r", valid=False, signal_index=0, reason=reason, advice=Advice(safe_mm=120, words_end=said))])
+    [line] = _feedback(0, attempt)
+    [refusal] = _feedback_refusals(0, attempt)
+    assert line[:refusal.advice_end].endswith("at most 120 mm is safe")

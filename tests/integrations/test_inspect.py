@@ -636,3 +636,25 @@ def test_the_terminal_table_names_every_cell_whole(tmp_path):
     said = done.stdout
     assert "moer" in said and "…" not in said  # the table is there, and no name in it was cut
     assert said.count("flatland") >= 4 and "no_attack" in said and "safeembodai" in said
+
+
+def test_what_a_failed_call_paid_survives_inspects_wrapping():
+    from safeembodai_core.errors import BackendError
+    from safeembodai_core.integrations.inspect.bridge import _spent
+    from safeembodai_core.models import TokenUsage
+
+    paid = TokenUsage(prompt_tokens=900, completion_tokens=300, estimated=True)
+    try:
+        try:
+            raise BackendError("gave up", spent=paid)
+        except BackendError as inner:
+            raise RuntimeError("Inspect's own words") from inner
+    except RuntimeError as outer:
+        assert _spent(outer) == paid
+    assert _spent(RuntimeError("nothing paid")) is None
+
+
+def test_a_default_model_in_the_environment_does_not_refuse_a_task_built_for_another(monkeypatch):
+    monkeypatch.setenv("INSPECT_EVAL_MODEL", "openai/gpt-4o")
+    monkeypatch.setenv("OPENAI_API_KEY", "sk-never-used")
+    assert scenario_task("quickstart").name == "quickstart"

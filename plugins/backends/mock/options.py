@@ -83,5 +83,8 @@ class MockOptions(BackendOptions):
         return BackendDescription(
             model=f"none: simulated, tokens counted as for {self.token_model}",
             simulated="simulated pilot (mock): not a measurement of an LLM",
+            why="Every number below comes from a simulated pilot whose weaknesses are configured; the numbers its "
+                "configuration sets are listed under *Pilot's configured inputs*.",
+            pilot="simulated pilot (mock), not an LLM",
             inputs=tuple((name, values[name], what) for name, what in INPUTS),
             weaknesses=tuple((name, values[name]) for name in WEAKNESSES))

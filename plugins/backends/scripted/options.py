@@ -15,4 +15,6 @@ class ScriptedOptions(BackendOptions):
 
     def describe(self) -> BackendDescription:
         return BackendDescription(model="none: answers replayed from the scenario",
-                                  simulated="scripted answers (scripted): not a measurement of an LLM")
+                                  simulated="scripted answers (scripted): not a measurement of an LLM",
+                                  why="Every answer is replayed from the scenario: every number below follows "
+                                      "from that script.", pilot="scripted answers (scripted), not an LLM")

@@ -369,10 +369,10 @@ class MovingObstaclesRule(Validator):
         distance, bearing = seen_from(_planned_pose(context), blob.centre)
         advice = ", then ".join(step.describe() for step in aside)
         # the advice first: prompts cut long reasons (max_failure_chars)
-        return (f"{signal.describe()}: step out of a moving obstacle's way instead, for example {advice}. The plan "
-                f"leaves the robot on its course ({distance:.0f} mm away at {bearing:.0f} deg, "
+        said = f"{signal.describe()}: step out of a moving obstacle's way instead, for example {advice}"
+        return (f"{said}. The plan leaves the robot on its course ({distance:.0f} mm away at {bearing:.0f} deg, "
                 f"{float(np.hypot(*velocity)):.0f} mm/s): it reaches the robot {when:.1f} s after the scan if it "
-                f"keeps going"), Advice(step_aside=list(aside))
+                f"keeps going"), Advice(step_aside=list(aside), words_end=len(said))
 
     def _step_aside(self, context: ValidationContext, blobs: list[Blob], think: float,
                     next_think: float) -> list[ControlSignal] | None:
@@ -444,10 +444,11 @@ class MovingObstaclesRule(Validator):
                       f"a few degrees)")
             offered = Advice(safe_mm=0, wait=True)
         # the advice comes before the details: prompts cut long reasons (max_failure_chars)
-        return (f"{signal.describe()}: a moving obstacle {now_d:.0f} mm away at {now_b:.0f} deg may be in the way; "
-                f"{advice}. It moves ({motion}); {meeting.share:.0%} of its {o.futures} predicted courses meet this "
+        said = (f"{signal.describe()}: a moving obstacle {now_d:.0f} mm away at {now_b:.0f} deg may be in the way; "
+                f"{advice}")
+        return (f"{said}. It moves ({motion}); {meeting.share:.0%} of its {o.futures} predicted courses meet this "
                 f"motion, first {meeting.driven_mm:.0f} mm in, {meeting.when_s:.1f} s after the scan "
-                f"(after {think:g} s think time)"), offered
+                f"(after {think:g} s think time)"), offered.model_copy(update={"words_end": len(said)})
 
     def _safe_distance(self, signal: Straight, context: ValidationContext, blobs: list[Blob], start: float) -> int:
         """The longest straight in the same direction, in 10 mm steps, that meets no predicted mover."""

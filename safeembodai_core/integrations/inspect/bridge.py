@@ -220,6 +220,18 @@ def backend_reply(output: Any, started: float, prompt: Prompt | None = None, det
     )
 
 
+def _spent(error: BaseException | None) -> TokenUsage | None:
+    """What a failed call paid, as ``safeembodai/<backend>``'s :class:`BackendError` says, through
+    whatever Inspect wrapped it in (its cause or context chain); None when nothing says."""
+    seen = 0
+    while error is not None and seen < 16:
+        spent = getattr(error, "spent", None)
+        if isinstance(spent, TokenUsage):
+            return spent
+        error, seen = error.__cause__ or error.__context__, seen + 1
+    return None
+
+
 class InspectBackend(LLMBackend):
     """An :class:`LLMBackend` whose every call is ``model.generate`` on Inspect's event loop.
 
@@ -247,5 +259,6 @@ class InspectBackend(LLMBackend):
 
                 output = anyio.from_thread.run(self.model.generate, messages)
         except Exception as error:  # the provider's, after Inspect's retries; or a sample limit
-            raise BackendError(one_line(f"inspect model {self.model}: {type(error).__name__}: {error}")) from error
+            raise BackendError(one_line(f"inspect model {self.model}: {type(error).__name__}: {error}"),
+                               spent=_spent(error)) from error
         return backend_reply(output, started, prompt, self.detail)

@@ -84,11 +84,13 @@ def check_provider(model: Any) -> None:
 
 def check_active_model() -> None:
     """:func:`check_provider` on Inspect's active model when there is one (``inspect eval`` sets it
-    before it builds the task); nothing when none is set yet (the solver checks again)."""
-    from inspect_ai.model import get_model
-
+    before it builds the task); nothing when none is set yet (the solver checks again). Never the
+    default model of ``INSPECT_EVAL_MODEL``: a task built for another model must not be refused by it,
+    nor build a provider only to check it."""
     try:
-        model = get_model()
-    except Exception:  # no active model yet (a task built before eval()): the solver checks it
+        from inspect_ai.model._model import active_model
+    except ImportError:  # a later Inspect that moved it: the solver's check is the one that counts
         return
-    check_provider(model)
+    model = active_model()
+    if model is not None:
+        check_provider(model)
