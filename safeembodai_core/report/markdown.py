@@ -263,8 +263,9 @@ def timeouts_line(cells: list[Cell], scenario: Scenario) -> list[str]:
         return []
     budget = sum(r.steps >= scenario.max_steps for r in timeouts)
     clock = len(timeouts) - budget
-    return [f"Of the {plural(len(timeouts), 'timeout trial')}, {budget} spent the step budget of "
-            f"{scenario.max_steps} and {clock} ended sooner, when the room's simulated time ran out.", ""]
+    return [f"Of the {plural(len(timeouts), 'timeout trial')}, {budget} reached the step budget of "
+            f"{scenario.max_steps} (the room's clock may have run out in that last step too) and {clock} ended "
+            f"sooner, when the room's simulated time ran out.", ""]
 
 
 def _per_100(estimate: Estimate | None, signed: bool = False) -> str:

@@ -16,6 +16,7 @@ from typing import Any
 
 from ..ablation.run_folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
 from ..errors import SafeEmbodAIError
+from ..run_files import RECORDINGS_DIR
 from .report_tables import report_tables
 
 
@@ -91,10 +92,14 @@ def running(folder: Path) -> bool:
 def signature(folder: Path) -> str:
     """Changes whenever the run's results may have: the size and time of every file directly in
     the run folder -- scenario, ledger, lock, report, and whatever files the state store keeps
-    there (its name for them is the store's business, not the view's)."""
+    there (its name for them is the store's business, not the view's) -- and in its ``recordings/``
+    (Rerun recordings exported there after the run)."""
     parts = []
     try:
         paths = sorted(folder.iterdir())
+        recordings = folder / RECORDINGS_DIR
+        if recordings.is_dir() and not recordings.is_symlink():
+            paths += sorted(recordings.iterdir())
     except OSError:
         return "-"
     for path in paths:
@@ -103,7 +108,7 @@ def signature(folder: Path) -> str:
         except OSError:
             continue
         if S_ISREG(stat.st_mode):
-            parts.append(f"{path.name}:{stat.st_size}:{stat.st_mtime_ns}")
+            parts.append(f"{path.relative_to(folder)}:{stat.st_size}:{stat.st_mtime_ns}")
     return "|".join(parts)
 
 

@@ -33,6 +33,16 @@ RRD_MAGIC = b"RRF2"
 MAX_RECORDING_BYTES = 64 * 1024 * 1024
 
 
+def _recording_stamp(folder: Path, trial_id: str) -> str:
+    """The size and time of the trial's recording (``RUN/recordings/``), so an export after the page
+    was rendered renders it anew with its link; "" without one."""
+    try:
+        stat = recording_file(folder, trial_id).lstat()
+    except OSError:
+        return ""
+    return f"|rrd:{stat.st_size}:{stat.st_mtime_ns}"
+
+
 def _manifest(site: Site) -> dict[str, Any]:
     try:
         value = json.loads(site.read(MANIFEST) or "")
@@ -115,7 +125,7 @@ def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[s
         trials: dict[str, dict[str, Any]] = {}
         for result in results:
             spec = result.spec
-            key = result.model_dump_json()
+            key = result.model_dump_json() + _recording_stamp(folder, spec.trial_id)
             page = site.out / base / "trials" / f"{trial_page(spec.trial_id)}.html"
             rendered = not (known.get(spec.trial_id, {}).get("key") == key and page.is_file())
             if rendered:

@@ -215,7 +215,8 @@ def test_the_budget_line_names_each_rooms_clock_and_the_timeouts_say_which_ended
     text = write_report(tmp_path, scenario, results, plugins=plugins).read_text()
     assert ("| step budget | 25 steps; a trial also ends `timeout` when its room's simulated time runs out, often "
             "before the budget: MO 90 s, 5 s of it passing while the LLM decides each step |") in text
-    assert "Of the 2 timeout trials, 1 spent the step budget of 25 and 1 ended sooner" in text
+    assert "Of the 2 timeout trials, 1 reached the step budget of 25 (the room's clock may have run out in that " \
+           "last step too) and 1 ended sooner" in text
     assert "| env | arm | condition | labbot | not recorded | wall |" in text
     assert "| OF | baseline | no_attack | 1 | 1 | 1 |" in text  # the second trial kept no kinds: said, not guessed
 

@@ -129,13 +129,15 @@ def test_a_recording_is_never_written_over_and_a_missing_extra_is_said(exported,
 
 
 def test_view_links_each_trial_page_to_its_recording_in_the_run_folder(exported, tmp_path):
-    """``export RUN --format rrd --out RUN/recordings``: ``view`` copies each recording into the site
-    and the trial page links it; a file there that is not a recording is left out."""
+    """``export RUN --format rrd --out RUN/recordings`` after a site was built: rebuilt, ``view`` copies
+    each recording into the site and the trial page links it; a file there that is not a recording is
+    left out."""
     import shutil
 
     from safeembodai_core.view.site import build_site
 
     folder, out, steps = exported
+    build_site(folder, tmp_path / "site")  # rendered before any recording was exported
     shutil.copytree(out, folder / "recordings")
     first, second = sorted(steps)[:2]
     (folder / "recordings" / (second.replace("/", "__") + ".rrd")).write_bytes(b"<html>not a recording</html>")

@@ -9,15 +9,14 @@ no think time.
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
+from safeembodai_core.descriptions import EnvironmentDescription, EnvironmentOptions
 from safeembodai_core.hookspecs import hookimpl
 from safeembodai_core.registry import lazy
 
 
-class FlatlandOptions(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-
+class FlatlandOptions(EnvironmentOptions):
     room_mm: float = Field(4000.0, ge=1000.0, le=50_000.0, description="side of the square room")
     obstacles: int = Field(0, ge=0, le=60, description="round static obstacles")
     obstacle_radius_mm: float = Field(110.0, gt=0, le=1000.0)
@@ -33,6 +32,9 @@ class FlatlandOptions(BaseModel):
     camera_width: int = Field(320, ge=16, le=1920)
     camera_height: int = Field(240, ge=12, le=1080)
     camera_fov_deg: float = Field(60.0, gt=10, lt=170)
+
+    def describe(self) -> EnvironmentDescription:
+        return EnvironmentDescription(time_limit_s=self.max_sim_time_s)  # no think time: the world waits
 
 
 @hookimpl

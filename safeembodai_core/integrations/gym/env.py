@@ -162,6 +162,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
         self._attackers = [(ref.key, self.runner.build("attacker", ref, self.trial_seed))
                            for ref in self.condition.attackers]
         self._step, self._attempt, self._outcome = 1, 0, None
+        self._sensed_truth = None  # a reading of the last episode says nothing of this one
         self._observation = self.world.reset(self.trial_seed)
         self._distance = self._observation.truth.target_distance_mm
         attacks = self._attack()
