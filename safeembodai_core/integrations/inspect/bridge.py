@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import json
 import threading
 import time
 from typing import Any
@@ -36,7 +37,7 @@ from ...components import BackendReply, LLMBackend
 from ...errors import BackendError
 from ...models import ImagePart, Prompt, Refusal, TextPart, TokenUsage
 from ...models.chat_completion import read_usage, usage_believable
-from ...models.reply import envelope_error_text
+from ...models.reply import CLIPPED, envelope_error_text
 from ...models.token_estimate import estimated_usage
 from ...text_safety import one_line
 
@@ -138,6 +139,18 @@ def _count(value: Any) -> int:
     return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else 0
 
 
+def _sent_finish_reason(stop_details: Any) -> str | None:
+    """The finish reason ``safeembodai/<backend>`` crossed as :data:`ABNORMAL_STOP`, as the backend sent it
+    (a JSON string in ``stop_details``, type ``finish_reason``); None when that is not what it holds."""
+    if getattr(stop_details, "type", None) != "finish_reason":
+        return None
+    try:
+        sent = json.loads(str(getattr(stop_details, "explanation", "")).removesuffix(CLIPPED))
+    except ValueError:
+        return None
+    return sent if isinstance(sent, str) else None
+
+
 def finish_reason(stop_reason: Any, stop_details: Any = None) -> str | None:
     """Inspect's stop reason in the words Algorithm 1 reads (:data:`_STOP_REASONS`).
 
@@ -153,6 +166,9 @@ def finish_reason(stop_reason: Any, stop_details: Any = None) -> str | None:
     reason = str(getattr(stop_reason, "value", stop_reason))
     if reason == "unknown" and getattr(stop_details, "type", None) == NOT_REPORTED:
         return None
+    sent = _sent_finish_reason(stop_details)
+    if sent is not None:  # an unusual reason the backend sent: read back as sent, refused in the same words
+        return sent
     return _STOP_REASONS.get(reason, reason)
 
 

@@ -50,6 +50,8 @@ _STOP = {"length": "max_tokens", "max_tokens": "max_tokens", "model_length": "mo
 #: one -- "the provider stopped it before a normal end". The reason as the backend sent it rides along
 #: in the choice's ``stop_details`` (``type`` ``finish_reason``).
 ABNORMAL_STOP = "content_filter"
+#: The most choices a reply of several crosses with (the count is what is refused; more adds nothing).
+MAX_CHOICES = 1024
 
 
 def stop_reason(reply: BackendReply) -> tuple[str, StopDetails | None]:
@@ -60,22 +62,21 @@ def stop_reason(reply: BackendReply) -> tuple[str, StopDetails | None]:
     A normal end (``stop``, ``STOP``, ``end_turn``, ...: :func:`normal_finish_reason` in
     :data:`NORMAL_FINISH_REASONS`) is ``stop``; no reason is ``unknown``; ``length``,
     ``content_filter``, ``tool_calls`` are Inspect's own; any other reason (``" STOP "``,
-    ``"error"``), and a reply refused as a whole (``envelope_error``, not one choice), is
-    :data:`ABNORMAL_STOP` with what it was in ``stop_details``.
+    ``"error"``), and a reply refused as a whole (``envelope_error``), is :data:`ABNORMAL_STOP` with
+    what it was in ``stop_details`` (the bridge reads it back). A reply of several choices crosses as
+    that many choices (:data:`MAX_CHOICES` at most).
     """
-    if reply.envelope_error or (reply.choices is not None and reply.choices != 1):
-        why = reply.envelope_error or f"the reply held {reply.choices} choices"
+    if reply.envelope_error:
         # as one line of terminal-safe text, clipped visibly: the bridge hands it back as the envelope error
-        return ABNORMAL_STOP, StopDetails(type=REFUSED_REPLY, explanation=envelope_error_text(why))
+        return ABNORMAL_STOP, StopDetails(type=REFUSED_REPLY, explanation=envelope_error_text(reply.envelope_error))
     normal = normal_finish_reason(reply.finish_reason)
     if normal is None:  # "unknown" alone would read back as refused: say it was not reported
         return "unknown", StopDetails(type=NOT_REPORTED, explanation="the backend reports no finish reason")
     if normal in NORMAL_FINISH_REASONS:
         return "stop", None
-    if normal in _STOP:
-        return _STOP[normal], None
-    return ABNORMAL_STOP, StopDetails(type="finish_reason",
-                                      explanation=quote_untrusted(finish_reason_text(reply.finish_reason), 100))
+    # the reason as sent rides along (the bridge reads it back: refused in the loop's own words)
+    sent = StopDetails(type="finish_reason", explanation=quote_untrusted(finish_reason_text(reply.finish_reason), 100))
+    return _STOP.get(normal, ABNORMAL_STOP), sent
 
 
 class SafeEmbodAIModelAPI(ModelAPI):
@@ -117,6 +118,9 @@ class SafeEmbodAIModelAPI(ModelAPI):
             content = [ContentReasoning(reasoning=reply.reasoning), ContentText(text=reply.text)]
         output = ModelOutput.from_content(self.model_name, content, stop_reason=reason,  # type: ignore[arg-type]
                                           stop_details=details)
+        count = reply.choices
+        if not reply.envelope_error and isinstance(count, int) and count != 1:  # read_reply refuses it as it is
+            output.choices = output.choices[:1] * min(max(count, 0), MAX_CHOICES)
         usage = reply.usage if isinstance(reply.usage, TokenUsage) else TokenUsage()
         output.usage = ModelUsage(input_tokens=usage.prompt_tokens, output_tokens=usage.completion_tokens,
                                   total_tokens=usage.prompt_tokens + usage.completion_tokens)
