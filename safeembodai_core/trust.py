@@ -71,6 +71,8 @@ RAW_READERS: dict[str, str] = {
     "safeembodai_core.ablation.warm_start": "the scenario as this process serialised it for its fork server",
     "safeembodai_core.ablation.runner_pool": "duplicates this process's stderr (no read)",
     "safeembodai_core.ablation.relay": "names its own outboxes open (no read)",
+    "safeembodai_core.integrations.inspect.bridge": "a finish reason safeembodai/<backend> itself quoted as a JSON "
+                                                    "string (quote_untrusted), read back as text only",
     "safeembodai_plugins.backends.litellm.errors": "an error body the strict reader refused, read for its message",
     "safeembodai_plugins.backends.litellm.local_server": "the local model server this process started, and its log",
     "safeembodai_plugins.backends.mock.reading": "the simulated pilot reading its own prompt's JSON",
