@@ -199,7 +199,7 @@ def _struck_split(scored: list[TrialResult]) -> str:
     """`` (standing / moving)`` of a cell's struck collisions; said when its run did not keep the split."""
     if not any(r.collisions_struck for r in scored):
         return ""
-    if any(r.collisions_struck_standing is None for r in scored):
+    if any(r.collisions_struck and r.collisions_struck_standing is None for r in scored):
         return " (not split: recorded before the split was kept)"
     standing = sum(r.collisions_struck_standing or 0 for r in scored)
     moving = sum(r.collisions_struck_moving or 0 for r in scored)

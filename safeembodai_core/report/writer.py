@@ -47,8 +47,8 @@ def _row(cell: Cell, catalog: tuple[Metric, ...], rates: CollisionRates, facts: 
             estimate.value, estimate.low, estimate.high, estimate.n)
     row["collisions_self"] = sum(r.collisions_self for r in scored)
     row["collisions_struck"] = sum(r.collisions_struck for r in scored)
-    split = [r for r in scored if r.collisions_struck_standing is not None]
-    if len(split) == len(scored):  # every trial kept the split (none in runs recorded before it)
+    split = [r for r in scored if r.collisions_struck_standing is not None or not r.collisions_struck]
+    if len(split) == len(scored):  # every struck trial kept the split (none in runs recorded before it)
         row["collisions_struck_standing"] = sum(r.collisions_struck_standing or 0 for r in split)
         row["collisions_struck_moving"] = sum(r.collisions_struck_moving or 0 for r in split)
     row["trials_collided_self"], row["trials_collided_struck"] = rates.self_trials, rates.struck_trials

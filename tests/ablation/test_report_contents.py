@@ -184,13 +184,13 @@ def test_outcomes_collisions_small_n_and_na_cells(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\nstate: memory\n", "t.yaml")
     results = [trial("baseline", "no_attack", 0, "completed", 6, collisions=0),
                trial("baseline", "no_attack", 1, "interrupted", 4, collisions=2, collisions_self=1,
-                     collisions_struck=1),
+                     collisions_struck=1, collisions_struck_standing=1),
                trial("baseline", "no_attack", 2, "completed", 8),
                trial("baseline", "no_attack", 3, "error", 0, detail="llm backend down", error_kind="backend"),
                trial("baseline", "no_attack", 4, "error", 0, detail="KeyError: 'x'", error_kind="crash"),
                trial("baseline", "attack", 0, "timeout", 20, attacked_steps=9, flagged_steps=2)]
     text = write_report(tmp_path, scenario, results).read_text()
-    assert "| OF | baseline | no_attack | 2 | 0 | 1 | 0 | 1 (1 backend) | 1 | 1 | 1 |" in text
+    assert "| OF | baseline | no_attack | 2 | 0 | 1 | 0 | 1 (1 backend) | 1 | 1 | 1 (1 / 0) |" in text
     row = next(line for line in text.splitlines() if line.startswith("| OF | baseline | no_attack | 3 |"))
     cells = [c.strip() for c in row.split("|")[1:-1]]
     assert cells[6] == "n/a"  # ADR of a cell whose condition attacks nothing

@@ -76,7 +76,8 @@ def test_index_run_and_trial_pages_render(page, tmp_path):
     assert "safeembodai__attack" in link.get_attribute("href")
     page.goto(f"{page.base}/runs/mo-40/{link.get_attribute('href')}")
     steps = page.locator("li.step").count()
-    assert steps >= 1 and page.locator("li.step img").count() == 2 * steps
+    assert steps >= 1 and page.locator("li.step img:not(.plans)").count() == 2 * steps  # camera and LiDAR
+    assert 1 <= page.locator("li.step img.plans").count() <= steps  # the plans, where an answer parsed
     assert all(page.evaluate("(img) => img.naturalWidth", handle) > 0 for handle in page.query_selector_all("img"))
     page.click("li.step details summary >> nth=0")
     assert "Security" in page.inner_text("li.step details pre >> nth=0")

@@ -115,8 +115,10 @@ def test_a_trial_page_shows_each_step_with_what_the_llm_saw_and_said(runs_dir, s
     page = Page(html)
     steps = [attrs for attrs in page.all("li") if attrs.get("class") == "step"]
     assert len(steps) == len(records) == trial.steps
-    images = page.all("img")
+    images = [a for a in page.all("img") if a.get("class") != "plans"]
     assert len(images) == 1 + 2 * len(records)  # the trajectory, then camera and LiDAR per step
+    parsed = sum(any(a.response is not None for a in r.attempts) for r in records)
+    assert sum(1 for a in page.all("img") if a.get("class") == "plans") == parsed  # each step's plans drawn
     assert sum(1 for a in images if a.get("alt") == "camera_image") == len(records)
     assert html.count("<details><summary>prompt</summary>") == len(records)
     text = "".join(page.text)
@@ -133,10 +135,10 @@ def test_rebuilding_renders_only_what_changed(runs_dir, tmp_path):
     source = tmp_path / "runs"
     shutil.copytree(runs_dir / "hostile", source / "hostile")
     out = tmp_path / "site"
-    assert build_site(source, out) == {"found": 1, "runs": 1, "trials": 4}
-    assert build_site(source, out) == {"found": 1, "runs": 0, "trials": 0}
+    assert build_site(source, out) == {"found": 1, "runs": 1, "trials": 4, "skipped": []}
+    assert build_site(source, out) == {"found": 1, "runs": 0, "trials": 0, "skipped": []}
     shutil.copytree(runs_dir / "mo-40", source / "mo-40")
-    assert build_site(source, out) == {"found": 2, "runs": 1, "trials": 40}
+    assert build_site(source, out) == {"found": 2, "runs": 1, "trials": 40, "skipped": []}
     manifest = json.loads((out / "manifest.json").read_text())
     assert set(manifest["runs"]) == {"hostile", "mo-40"}
     assert "hostile" in (out / "index.html").read_text()  # a run not rendered again keeps its row
