@@ -163,7 +163,9 @@ def _direct_check(ctx: ValidationContext, signal: Straight, r: float, required: 
         offset = (np.degrees(np.arctan2(points[:, 1], points[:, 0])) - centre + 180.0) % 360.0 - 180.0
         distance = np.hypot(points[:, 0], points[:, 1])
         inside = (np.abs(offset) < r - 1e-6) & (distance > 1e-6)
-        if (distance[inside] - signal.distance < required).any():
+        # 1e-6 mm: a point exactly at the required distance is accepted (the rule's >=), whatever the
+        # last bit of the cos/sin this check places it with (a free-space bound at 500 mm read 499.99999...)
+        if (distance[inside] - signal.distance < required - 1e-6).any():
             return False
     return True
 
