@@ -241,3 +241,19 @@ def test_a_describe_that_fails_is_a_backend_not_known_to_be_an_llm(plugins):
 
     described = describe_ref(ComponentRef(use="broken"), inline_plugins(("p", Plugin())))
     assert "its describe() failed: RuntimeError: boom" in described.simulated
+
+
+def test_an_option_value_that_is_not_a_number_prints_as_text_and_flatland_names_its_clock(plugins, tmp_path):
+    from safeembodai_core.report import write_report
+    from safeembodai_core.report.markdown import header
+    from safeembodai_core.report.run_info import RunInfo
+    from safeembodai_core.scenario import parse_scenario
+
+    scenario = parse_scenario("name: t\nenvironments: [flatland]\nstate: memory\n", "t.yaml", registry=plugins.registry)
+    info = RunInfo(backend="b", model="m", seed=0, fingerprint="f", trials_per_cell=1, simulated="a pilot: no LLM",
+                   inputs=[("mode", "<b>fast</b>", "what it sets"), ("p", 0.25, "a number")],
+                   weaknesses=[("style", "|pipe|")])
+    text = "\n".join(header(scenario, info, 0))
+    assert "| `mode` | \\<b\\>fast\\</b\\> |" in text and "| `p` | 0.25 |" in text and "`style` \\|pipe\\|" in text
+    report = write_report(tmp_path, scenario, [], plugins=plugins).read_text()
+    assert "when its room's simulated time runs out, often before the budget: flatland 100 s" in report

@@ -530,3 +530,19 @@ def test_the_text_space_holds_replies_and_the_env_reads_every_form():
         assert base.read(42)[0] is None  # not a reply at all: refused, not a crash
     finally:
         env.close()
+
+
+def test_a_reading_left_over_from_the_last_episode_says_nothing_of_the_next():
+    """An answer reading's collision belongs to its episode: a reset forgets it (second read)."""
+    from safeembodai_core.models import GroundTruth
+
+    env = gymnasium.make("safeembodai/flatland-v0")
+    action = ({"command": 0, "direction": 0, "distance": np.float32(1), "angle": np.float32(10)},)
+    try:
+        env.reset(seed=1)
+        env.unwrapped._sensed_truth = GroundTruth(collision="struck", hit="labbot")  # as answer_reading leaves it
+        env.reset(seed=2)
+        _, _, _, _, info = env.step(action)
+        assert info["collision"] is None
+    finally:
+        env.close()
