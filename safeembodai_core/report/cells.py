@@ -40,6 +40,15 @@ class Cell:
         return [r for r in self.results if error_kind(r) is None]
 
 
+def struck_split(scored: Sequence[TrialResult]) -> tuple[int, int] | None:
+    """The cell's struck collisions as (while standing, during the robot's motion); None when a trial
+    with a struck collision was recorded before the split was kept (not known, never 0)."""
+    if any(r.collisions_struck and r.collisions_struck_standing is None for r in scored):
+        return None
+    return (sum(r.collisions_struck_standing or 0 for r in scored),
+            sum(r.collisions_struck_moving or 0 for r in scored))
+
+
 def attacked(scenario: Scenario, condition: str) -> bool:
     """Whether ``condition`` has an attacker (a condition the scenario no longer names counts as attacked)."""
     known = scenario.conditions.get(condition)

@@ -13,7 +13,7 @@ from ..models import Outcome, TrialResult
 from ..scenario import Scenario
 from ..text_safety import markdown_cell, markdown_code
 from ..trial_words import plural
-from .cells import Cell, CollisionRates, WorldRates
+from .cells import Cell, CollisionRates, WorldRates, struck_split
 from .run_info import RunInfo
 from .step_facts import TrialFacts
 
@@ -199,11 +199,8 @@ def _struck_split(scored: list[TrialResult]) -> str:
     """`` (standing / moving)`` of a cell's struck collisions; said when its run did not keep the split."""
     if not any(r.collisions_struck for r in scored):
         return ""
-    if any(r.collisions_struck and r.collisions_struck_standing is None for r in scored):
-        return " (not split: recorded before the split was kept)"
-    standing = sum(r.collisions_struck_standing or 0 for r in scored)
-    moving = sum(r.collisions_struck_moving or 0 for r in scored)
-    return f" ({standing} / {moving})"
+    split = struck_split(scored)
+    return " (not split: recorded before the split was kept)" if split is None else f" ({split[0]} / {split[1]})"
 
 
 def outcomes_table(cells: list[Cell]) -> list[str]:

@@ -67,11 +67,7 @@ def describe_ref(backend: ComponentRef, plugins: Any = None) -> BackendDescripti
     from ..errors import SafeEmbodAIError
 
     try:
-        if plugins is None:
-            from ..plugins import load_plugins
-
-            plugins = load_plugins()
-        options = plugins.registry.validate_options("llm_backend", backend.use, backend.options)
+        options = _validated("llm_backend", backend, plugins)
     except SafeEmbodAIError as error:
         return _undescribed(backend, str(error))
     if isinstance(options, BackendOptions):
@@ -89,21 +85,26 @@ def describe_ref(backend: ComponentRef, plugins: Any = None) -> BackendDescripti
 def describe_environments(scenario: Scenario, plugins: Any = None) -> dict[str, EnvironmentDescription]:
     """Each environment's clock as it describes itself (:class:`EnvironmentOptions`); an environment that
     cannot say (no such options model, its plugin gone) has none listed."""
-    from ..errors import SafeEmbodAIError
-
     clocks = {}
     for ref in scenario.environments:
         try:
-            if plugins is None:
-                from ..plugins import load_plugins
-
-                plugins = load_plugins()
-            options = plugins.registry.validate_options("environment", ref.use, ref.options)
-        except SafeEmbodAIError:
+            options = _validated("environment", ref, plugins)
+            described = options.describe() if isinstance(options, EnvironmentOptions) else None
+        except Exception:  # its plugin gone, its options stale, its describe() failing: no clock listed
             continue
-        if isinstance(options, EnvironmentOptions):
-            clocks[ref.key] = options.describe()
+        if isinstance(described, EnvironmentDescription):
+            clocks[ref.key] = described
     return clocks
+
+
+def _validated(kind: str, ref: ComponentRef, plugins: Any) -> Any:
+    """``ref``'s options as its registered options model reads them (the installed plugins when
+    ``plugins`` is None); raises :class:`SafeEmbodAIError` when its plugin is gone or they do not validate."""
+    if plugins is None:
+        from ..plugins import load_plugins
+
+        plugins = load_plugins()
+    return plugins.registry.validate_options(kind, ref.use, ref.options)
 
 
 def _undescribed(backend: ComponentRef, reason: str) -> BackendDescription:

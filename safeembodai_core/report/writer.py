@@ -24,7 +24,7 @@ from ..runner import trajectory_file
 from ..scenario import Scenario
 from ..text_safety import csv_cell, json_ready, markdown_code
 from . import markdown, step_facts
-from .cells import Cell, CollisionRates, collision_rates, release_of, scenario_cells, world_rates
+from .cells import Cell, CollisionRates, collision_rates, release_of, scenario_cells, struck_split, world_rates
 from .figures import draw_figures
 from .paper import comparison_rows
 from .run_info import run_info
@@ -47,10 +47,9 @@ def _row(cell: Cell, catalog: tuple[Metric, ...], rates: CollisionRates, facts: 
             estimate.value, estimate.low, estimate.high, estimate.n)
     row["collisions_self"] = sum(r.collisions_self for r in scored)
     row["collisions_struck"] = sum(r.collisions_struck for r in scored)
-    split = [r for r in scored if r.collisions_struck_standing is not None or not r.collisions_struck]
-    if len(split) == len(scored):  # every struck trial kept the split (none in runs recorded before it)
-        row["collisions_struck_standing"] = sum(r.collisions_struck_standing or 0 for r in split)
-        row["collisions_struck_moving"] = sum(r.collisions_struck_moving or 0 for r in split)
+    split = struck_split(scored)
+    if split is not None:  # left empty where it is not known (runs recorded before it was kept)
+        row["collisions_struck_standing"], row["collisions_struck_moving"] = split
     row["trials_collided_self"], row["trials_collided_struck"] = rates.self_trials, rates.struck_trials
     row["self_collision_reference_arm"] = rates.reference
     for name, rate in (("self_collision_rate", rates.self_rate), ("struck_collision_rate", rates.struck_rate),

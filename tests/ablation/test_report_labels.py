@@ -257,3 +257,25 @@ def test_an_option_value_that_is_not_a_number_prints_as_text_and_flatland_names_
     assert "| `mode` | \\<b\\>fast\\</b\\> |" in text and "| `p` | 0.25 |" in text and "`style` \\|pipe\\|" in text
     report = write_report(tmp_path, scenario, [], plugins=plugins).read_text()
     assert "when its room's simulated time runs out, often before the budget: flatland 100 s" in report
+
+
+def test_an_environment_whose_describe_fails_lists_no_clock_and_the_report_goes_on():
+    from safeembodai_core.descriptions import EnvironmentOptions
+    from safeembodai_core.hookspecs import hookimpl
+    from safeembodai_core.report.run_info import describe_environments
+    from safeembodai_core.scenario import parse_scenario
+    from safeembodai_core.testing import CorridorWorld, inline_plugins
+
+    class Broken(EnvironmentOptions):
+        def describe(self):
+            raise RuntimeError("boom")
+
+    class Plugin:
+        @hookimpl
+        def register_environments(self, register):
+            register("broken_room", lambda options, context: CorridorWorld(), options=Broken)
+
+    plugins = inline_plugins(("p", Plugin()))
+    scenario = parse_scenario("name: t\nenvironments: [broken_room, flatland]\nstate: memory\n", "t.yaml",
+                              registry=plugins.registry)
+    assert set(describe_environments(scenario, plugins)) == {"flatland"}
