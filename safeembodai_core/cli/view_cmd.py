@@ -13,7 +13,9 @@ import click
 @click.option("--host", default="127.0.0.1", show_default=True, help="Address to serve on (with --serve).")
 @click.option("--port", type=click.IntRange(0, 65535), default=8000, show_default=True,
               help="Port to serve on (0: any free one).")
-def view(source: str, out: str | None, serve: bool, host: str, port: int) -> None:
+@click.option("--viewer-port", type=click.IntRange(0, 65535), default=0, show_default=True,
+              help="Port for Rerun's web viewer, served with --serve when rerun-sdk is installed (0: any free one).")
+def view(source: str, out: str | None, serve: bool, host: str, port: int, viewer_port: int) -> None:
     """Write a static site of every run in RUNS_DIR_OR_RUN (index, run pages, trial pages)."""
     import time
     from pathlib import Path
@@ -24,6 +26,7 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int) -> Non
     from ..plugins import load_plugins
     from ..text_safety import terminal_markup
     from ..view import build_site
+    from ..view.rerun_viewer import ViewerUnavailable, start_web_viewer
     from ..view.serve import SiteServer
 
     root = Path(source)
@@ -31,8 +34,15 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int) -> Non
     plugins = load_plugins()
     console = Console(stderr=True, emoji=False)
     refresh = 5 if serve else 0
+    viewer: int | None = None
+    if serve:  # before the build: the trial pages with a recording link to the viewer
+        try:
+            viewer = start_web_viewer(viewer_port)
+        except ViewerUnavailable as why:
+            console.print(f"Rerun's web viewer is not served: {terminal_markup(str(why))}; the trial pages "
+                          "link their recordings only")
     with console.status("rendering"):
-        counts = build_site(root, target, plugins, refresh=refresh)
+        counts = build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None)
     console.print(f"{counts['found']} run(s) found, {counts['runs']} rendered anew ({counts['trials']} trial "
                   f"page(s)), the others unchanged, into {terminal_markup(str(target))}")
     for name, why in counts["skipped"]:
@@ -40,8 +50,12 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int) -> Non
     if not serve:
         console.print(f"open {terminal_markup(str(target / 'index.html'))}")
         return
-    server = SiteServer(target, lambda: build_site(root, target, plugins, refresh=refresh), host, port).start()
+    server = SiteServer(target, lambda: build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None),
+                        host, port, viewer_port=viewer).start()
     console.print(f"serving {terminal_markup(server.url)} (Ctrl-C to stop)")
+    if viewer is not None:
+        console.print(f"Rerun's web viewer on port {viewer} (every interface): each trial page with a recording "
+                      "links to it")
     try:
         while True:
             time.sleep(3600)

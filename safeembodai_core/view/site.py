@@ -14,9 +14,12 @@ from typing import Any
 
 from ..logs import get_logger
 from ..runner import trajectory_file
+from ..run_files import MAX_RECORDING_BYTES, RRD_MAGIC
+from ..run_files import RECORDINGS_DIR
 from ..trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
+from .rerun_viewer import VIEWER_PREFIX
 from .runs import (
     CellRow, RunSummary, broken, find_runs, running, signature, skipped_folders, summarise, trial_page,
 )
@@ -29,8 +32,6 @@ MANIFEST_VERSION = 2
 
 #: A trial's Rerun recording (``RUN/recordings/<trial>.rrd``) is copied into the site when it is one
 #: (its first bytes) and at most this large.
-RRD_MAGIC = b"RRF2"
-MAX_RECORDING_BYTES = 64 * 1024 * 1024
 
 
 def _recording_stamp(folder: Path, trial_id: str) -> str:
@@ -61,10 +62,13 @@ def _cached(known: dict[str, Any], folder: Path) -> RunSummary | None:
         return None
 
 
-def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh: int = 0) -> dict[str, Any]:
+def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh: int = 0,
+               viewer: bool = False) -> dict[str, Any]:
     """Render the site of ``source`` (a run folder, or a folder of them) into ``out``; return how many
     runs were found (``found``) and how many runs and trial pages were (re)rendered. ``refresh``:
-    seconds after which the index and the pages of running runs ask the browser to reload (0: never)."""
+    seconds after which the index and the pages of running runs ask the browser to reload (0: never).
+    ``viewer``: the site is served with Rerun's web viewer beside it (``view --serve``,
+    :mod:`.rerun_viewer`): a trial page with a recording links to it there too."""
     from ..plugins import load_plugins
 
     source = Path(source)
@@ -79,6 +83,8 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
     counts: dict[str, Any] = {"found": len(folders), "runs": 0, "trials": 0, "skipped": skipped}
     for folder in folders:
         stamp = f"{signature(folder)}|running:{running(folder)}"  # a run that stopped is rendered anew
+        if viewer and (folder / RECORDINGS_DIR).is_dir():  # its recordings' pages get the viewer's link
+            stamp += "|viewer"
         key = folder.name if folder == source else folder.relative_to(source).as_posix()  # runs/X/mo-...: X/mo-...
         known = runs.get(key, {})
         name = safe_name(key.replace("/", "-"))
@@ -87,7 +93,8 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
             summaries.append(cached)
             continue
         try:
-            summary, trials = _render_run(folder, site, f"runs/{name}", plugins, known.get("trials", {}), refresh)
+            summary, trials = _render_run(folder, site, f"runs/{name}", plugins, known.get("trials", {}), refresh,
+                                          viewer)
         except Exception as error:  # one unreadable folder must not hide the others
             log.warning("view.run_unreadable", run=str(folder), error=str(error))
             summary, trials = broken(folder, error), {}
@@ -112,7 +119,7 @@ def _plain(summary: RunSummary) -> dict[str, Any]:
 
 
 def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[str, Any],
-                refresh: int) -> tuple[RunSummary, dict]:
+                refresh: int, viewer: bool = False) -> tuple[RunSummary, dict]:
     summary, runner, results = summarise(folder, plugins)
     try:
         shown = []
@@ -125,11 +132,12 @@ def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[s
         trials: dict[str, dict[str, Any]] = {}
         for result in results:
             spec = result.spec
-            key = result.model_dump_json() + _recording_stamp(folder, spec.trial_id)
+            recorded = _recording_stamp(folder, spec.trial_id)
+            key = result.model_dump_json() + recorded + ("|viewer" if viewer and recorded else "")
             page = site.out / base / "trials" / f"{trial_page(spec.trial_id)}.html"
             rendered = not (known.get(spec.trial_id, {}).get("key") == key and page.is_file())
             if rendered:
-                _render_trial(folder, site, base, runner, summary, result)
+                _render_trial(folder, site, base, runner, summary, result, viewer)
             trials[spec.trial_id] = {"key": key, "rendered": rendered}
         site.write(f"{base}/index.html", render("run.html.j2", run=summary,
                                                refresh=refresh if summary.status == "running" else 0))
@@ -138,7 +146,8 @@ def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[s
     return summary, trials
 
 
-def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: RunSummary, result: Any) -> None:
+def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: RunSummary, result: Any,
+                  viewer: bool = False) -> None:
     spec = result.spec
     name = trial_page(spec.trial_id)
     records = runner.state.steps(spec.trial_id)
@@ -152,10 +161,12 @@ def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: Run
         site.write(f"{base}/img/{name}.png", picture)
         trajectory = f"../img/{name}.png"
     recorded = read_run_file(recording_file(folder, spec.trial_id), MAX_RECORDING_BYTES)
-    recording = None
+    recording = in_viewer = None
     if recorded is not None and recorded.startswith(RRD_MAGIC):  # a Rerun recording, nothing else
         site.write(f"{base}/recordings/{name}.rrd", recorded)
         recording = f"../recordings/{name}.rrd"
+        if viewer:  # the site server's redirect to Rerun's web viewer opening it (.serve)
+            in_viewer = f"../../..{VIEWER_PREFIX}{base}/recordings/{name}.rrd"
     site.write(f"{base}/trials/{name}.html",
                render("trial.html.j2", run=summary, result=result, steps=steps, trajectory=trajectory,
-                      recording=recording, missing=missing, refresh=0))
+                      recording=recording, in_viewer=in_viewer, missing=missing, refresh=0))
