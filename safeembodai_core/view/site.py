@@ -14,7 +14,6 @@ from typing import Any
 
 from ..logs import get_logger
 from ..runner import trajectory_file
-from ..run_files import MAX_RECORDING_BYTES, RRD_MAGIC
 from ..run_files import RECORDINGS_DIR
 from ..trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
@@ -32,6 +31,8 @@ MANIFEST_VERSION = 2
 
 #: A trial's Rerun recording (``RUN/recordings/<trial>.rrd``) is copied into the site when it is one
 #: (its first bytes) and at most this large.
+RRD_MAGIC = b"RRF2"
+MAX_RECORDING_BYTES = 64 * 1024 * 1024
 
 
 def _recording_stamp(folder: Path, trial_id: str) -> str:
