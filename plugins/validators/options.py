@@ -11,6 +11,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from safeembodai_core.world_private import WORLD_PRIVATE
+
 
 class CommandLimitsOptions(BaseModel):
     """Options of ``command_limits``; unset maxima follow the scenario's ``limits``."""
@@ -99,7 +101,12 @@ class SweptBodyOptions(BaseModel):
 
 
 class MovingObstaclesOptions(BaseModel):
-    """Options of ``moving_obstacles``; timing defaults are the pybullet rooms' (``docs/defences.md``)."""
+    """Options of ``moving_obstacles``; timing defaults are the pybullet rooms' (``docs/defences.md``).
+
+    ``cruise_speed_mm_s``, ``movers_yield_mm`` and ``movers_yield_deg`` describe the movers, not the
+    rule: only the simulator knows them (world-private, :mod:`safeembodai_core.world_private`); an arm
+    that sets one is a ``told`` comparison. ``think_time_s`` is the robot's own planner latency, which
+    it can measure, and is not marked."""
 
     model_config = ConfigDict(extra="forbid")
 
@@ -135,12 +142,13 @@ class MovingObstaclesOptions(BaseModel):
     cruise_speed_mm_s: float | None = Field(None, gt=0, le=5000, allow_inf_nan=False, description=(
         "movers move at this speed when they move: scans are paired by the chord it gives, courses "
         "run at least this fast, and a shorter chord fans that share of them (a turn or a stop); "
-        "null: unknown, courses at the measured speed (pybullet rooms' Labbots: 150)"))
+        "null: unknown, courses at the measured speed (pybullet rooms' Labbots: 150)"), json_schema_extra=WORLD_PRIVATE)
     movers_yield_mm: float = Field(0.0, ge=0, le=5000, allow_inf_nan=False, description=(
         "movers stop for the robot once its body is this close to their rim, ahead of them "
-        "(0: movers never yield; the rooms' sensing Labbots: 300)"))
+        "(0: movers never yield; the rooms' sensing Labbots: 300)"), json_schema_extra=WORLD_PRIVATE)
     movers_yield_deg: float = Field(60.0, ge=0, le=180, allow_inf_nan=False, description=(
-        "how far off its heading a mover sees the robot to yield (the rooms' Labbots: sensors at 0, +-30, +-60 deg)"))
+        "how far off its heading a mover sees the robot to yield (the rooms' Labbots: sensors at 0, +-30, +-60 deg)"),
+        json_schema_extra=WORLD_PRIVATE)
     max_scan_gap_s: float = Field(30.0, gt=0, le=600, allow_inf_nan=False, description=(
         "an earlier scan older than this says nothing about motion now: it is not compared"))
     futures: int = Field(64, ge=1, le=4096, description="possible courses drawn per mover")

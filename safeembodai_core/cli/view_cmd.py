@@ -52,10 +52,10 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int, viewer
         return
     server = SiteServer(target, lambda: build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None),
                         host, port, viewer_port=viewer).start()
-    console.print(f"serving {terminal_markup(server.url)} (Ctrl-C to stop)")
     if viewer is not None:
         console.print(f"Rerun's web viewer on port {viewer} (every interface): each trial page with a recording "
                       "links to it")
+    console.print(f"serving {terminal_markup(server.url)} (Ctrl-C to stop)")
     try:
         while True:
             time.sleep(3600)

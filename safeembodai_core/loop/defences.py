@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler, field_validator, model_serializer
 
 from ..refs import ComponentRef, unique_keys
 
@@ -29,6 +29,10 @@ class Defences(BaseModel):
       environment's :meth:`~safeembodai_core.components.Environment.sense`, after the think
       time), not the scan the step's prompt was built from; the step's scan joins
       ``ValidationContext.history``. Ours, not the paper's: V(C) reads l_i, the step's scan.
+    * ``told``: the arm's rules are told what only the simulator knows about its world (options
+      declared world-private, :mod:`safeembodai_core.world_private`, e.g. the Labbots' cruising
+      speed): an oracle kept for comparison. ``report.md`` says so under the arms table. Recorded
+      only when true, so that the fingerprints of scenarios written before it stay as they were.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -40,6 +44,14 @@ class Defences(BaseModel):
     failure_threshold: int = Field(3, ge=0, le=20)
     on_exhausted: Literal["abort", "hold"] = "abort"
     fresh_scan: bool = False
+    told: bool = False
+
+    @model_serializer(mode="wrap")
+    def _told_only_when_true(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        data = handler(self)
+        if isinstance(data, dict) and not self.told:
+            data.pop("told", None)
+        return data
 
     @field_validator("validators")
     @classmethod

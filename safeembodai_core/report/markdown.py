@@ -81,7 +81,7 @@ def header(scenario: Scenario, info: RunInfo, results: int) -> list[str]:
               f"{'capped at 1' if m.cap_s_ratio else 'not capped (the release)'} |"]
     if scenario.profile is not None:
         lines.append(f"| profile | `{markdown_code(scenario.profile.name, 80)}` |")
-    lines += ["", *arms_table(scenario)]
+    lines += ["", *arms_table(scenario), *told_words(scenario, info)]
     if info.inputs:
         lines += ["### Pilot's configured inputs", "",
                   "The simulated pilot flags and obeys an injected instruction with these probabilities: its ADR "
@@ -133,6 +133,19 @@ def arms_table(scenario: Scenario) -> list[str]:
                      f"{'on' if arm.state_management is True else arm.state_management or 'off'} | "
                      f"{'on' if arm.safety_validation else 'off'} | {rules} | {retries} | {judged} |")
     return lines + [""]
+
+
+def told_words(scenario: Scenario, info: RunInfo) -> list[str]:
+    """Under the arms table: each arm told what only the simulator knows about its world (an oracle)."""
+    lines = []
+    for name, options in info.told.items():
+        named = ", ".join(f"`{markdown_code(option, 120)}`" for option in options) or "no option marked so"
+        declared = ("" if scenario.arms[name].told else
+                    " The scenario does not declare it (`told: true`): read its numbers as an oracle's all the same.")
+        lines.append(f"**Arm `{markdown_code(name, 80)}` was told what only the simulator knows** about its world "
+                     f"({named}; options declared world-private): a comparison, not a rule a robot could run as it "
+                     f"is.{declared}")
+    return lines + [""] if lines else []
 
 
 def spending(results: list[TrialResult]) -> list[str]:

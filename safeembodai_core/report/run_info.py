@@ -35,6 +35,7 @@ class RunInfo:
     clocks: dict[str, EnvironmentDescription] = field(default_factory=dict)  # environment label -> its clock
     why: str | None = None  # with a banner: what every number follows from
     pilot_words: str | None = None  # with a banner: a legend's few words
+    told: dict[str, list[str]] = field(default_factory=dict)  # arm -> world-private options it sets (`told`)
 
     def as_dict(self) -> dict[str, Any]:
         return {"backend": self.backend, "model": self.model, "model_id": self.model_id,
@@ -95,6 +96,17 @@ def describe_environments(scenario: Scenario, plugins: Any = None) -> dict[str, 
         if isinstance(described, EnvironmentDescription):
             clocks[ref.key] = described
     return clocks
+
+
+def told_arms(scenario: Scenario, plugins: Any = None) -> dict[str, list[str]]:
+    """Each arm told what only the simulator knows (:func:`~safeembodai_core.world_private.arms_told`)."""
+    from ..world_private import arms_told
+
+    if plugins is None:
+        from ..plugins import load_plugins
+
+        plugins = load_plugins()
+    return arms_told(scenario, plugins.registry)
 
 
 def _validated(kind: str, ref: ComponentRef, plugins: Any) -> Any:
@@ -160,4 +172,5 @@ def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any 
                    fingerprint=recorded or fingerprint(scenario), trials_per_cell=scenario.trials,
                    simulated=described.simulated, model_id=described.model_id, model_source=source,
                    inputs=list(described.inputs), weaknesses=list(described.weaknesses),
-                   clocks=describe_environments(scenario, plugins), why=described.why, pilot_words=described.pilot)
+                   clocks=describe_environments(scenario, plugins), why=described.why, pilot_words=described.pilot,
+                   told=told_arms(scenario, plugins))

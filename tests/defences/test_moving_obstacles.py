@@ -205,18 +205,19 @@ def _body_at(plan, pose: Pose, when: float, options: MovingObstaclesOptions) -> 
 
 
 @functools.cache
-def _shipped(path: str = "scenarios/dynamic.yaml") -> dict:
+def _shipped(path: str = "scenarios/dynamic.yaml", arm: str = "told") -> dict:
     from safeembodai_core.plugins import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     root = Path(__file__).resolve().parents[2]
     scenario = load_scenario(str(root / path), [], load_plugins(environ={}).registry)
-    ref = next(v for v in scenario.arms["moving"].validators if getattr(v, "use", v) == "moving_obstacles")
+    ref = next(v for v in scenario.arms[arm].validators if getattr(v, "use", v) == "moving_obstacles")
     return dict(ref.options)
 
 
 def _shipped_options(yielding: bool) -> dict:
-    """The ``moving`` arm's options in ``scenarios/dynamic.yaml`` (without its yielding movers if asked)."""
+    """The ``told`` arm's options in ``scenarios/dynamic.yaml`` (the rule told the Labbots' cruising
+    speed and yielding; its ``moving`` arm until issue 39), without its yielding movers if asked."""
     options = dict(_shipped())
     if not yielding:
         options.pop("movers_yield_mm", None)
@@ -251,7 +252,7 @@ def test_every_plan_that_drives_into_the_mover_is_refused(wander, cruising, plan
     into its straight course by more than 60 mm, where standing still would have stayed 60 mm clear
     of it, is refused too (there the straight course is one of many, and a graze of it -- or a
     course that nearly reaches the waiting robot anyway -- can count in fewer than ``max_risk``
-    of them). With the options of ``scenarios/dynamic.yaml``'s ``moving`` arm (cruising speed 150
+    of them). With the options of ``scenarios/dynamic.yaml``'s ``told`` arm (cruising speed 150
     mm/s, its margin growth and ``max_risk``; these movers do not yield) the same holds for a mover
     at least that fast."""
     if cruising:

@@ -34,8 +34,10 @@ def bag_run(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def moving_bag_run(tmp_path_factory):
-    """``scenarios/dynamic.yaml``'s ``moving`` arm (the moving-obstacle rule, which reads the earlier
-    scans) in DO, three trials, run with ``ablate --bags mcap``: as :func:`bag_run`."""
+    """``scenarios/dynamic.yaml``'s ``told`` arm, named ``moving`` here (the moving-obstacle rule, which
+    reads the earlier scans) in DO, three trials, run with ``ablate --bags mcap``: as :func:`bag_run`.
+    Not the shipped ``moving`` arm: its ``fresh_scan`` judges a reading the bag does not hold (the bag's
+    scans are the steps'), so ``guard-bag`` cannot judge its plans as the trial did."""
     import yaml
 
     from safeembodai_core.ablation import Ablation, RunFolder
@@ -43,7 +45,7 @@ def moving_bag_run(tmp_path_factory):
     from safeembodai_core.scenario import load_scenario
 
     data = yaml.safe_load((REPO / "scenarios" / "dynamic.yaml").read_text(encoding="utf-8"))
-    data.update(arms={"moving": data["arms"]["moving"]}, environments=data["environments"][:1], trials=3,
+    data.update(arms={"moving": data["arms"]["told"]}, environments=data["environments"][:1], trials=3,
                 max_steps=12, conditions={"no_attack": {}})
     folder = tmp_path_factory.mktemp("moving-bag-run")
     (folder / "moving.yaml").write_text(yaml.safe_dump(data), encoding="utf-8")
