@@ -231,3 +231,14 @@ def write_recording(path: str | Path, spec: TrialSpec, records: list[StepRecord]
     stream.disconnect()
     partial.replace(path)
     return path
+
+
+def recording_bytes(spec: TrialSpec, records: list[StepRecord], result: TrialResult | None, capture: TrialCapture,
+                    robot: RobotSpec) -> bytes:
+    """The trial's ``.rrd`` as bytes (:func:`write_recording` in a scratch folder of this machine):
+    what a run writes as each trial ends, in the run folder or, from a Ray node, through the relay."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="safeembodai-rrd-") as scratch:
+        path = write_recording(Path(scratch) / "trial.rrd", spec, records, result, capture, robot)
+        return path.read_bytes()

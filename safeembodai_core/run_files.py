@@ -14,8 +14,14 @@ from pathlib import Path
 
 from .errors import SafeEmbodAIError
 
-#: Where a run folder keeps the Rerun recordings of its trials, when someone exported them there.
+#: Where a run folder keeps the Rerun recordings of its trials (``ablate --rerun``, or exported there).
 RECORDINGS_DIR = "recordings"
+#: A run folder whose ``recordings/`` holds this file writes a Rerun recording per trial as it ends
+#: (its text: ``rrd``); ``ablate --rerun`` writes it.
+RECORD_FILE = "record"
+#: What a Rerun recording starts with, and the largest one a run folder's reader accepts.
+RRD_MAGIC = b"RRF2"
+MAX_RECORDING_BYTES = 64 * 1024 * 1024
 #: A run folder whose ``bags/`` holds this file records a ROS 2 bag per trial as it ends (its text:
 #: the storage, ``mcap`` or ``sqlite3``); ``ablate --bags`` writes it.
 BAGS_DIR = "bags"

@@ -13,16 +13,16 @@ from typing import Any
 
 
 from . import seeds
-from .components import BuildContext, LLMBackend, StateStore
+from .building import ComponentBuilder
+from .components import LLMBackend, StateStore
 from .errors import SafeEmbodAIError
 from .loop import LoopSettings, TrialParts, run_trial
 from .loop.trial import error_result
 from .models import TrialResult, TrialSpec
 from .plugins import Plugins
-from .refs import ComponentRef
-from .run_files import BAG_STORAGE_FILE, BAGS_DIR, read_run_text
 from .scenario import Scenario
-from .trial_files import FolderFiles, TrialFiles, TrialOutputs, bag_file, trajectory_file
+from .trial_artefacts import TrialArtefacts
+from .trial_files import ArtefactSettings, FolderFiles, TrialFiles, TrialOutputs, bag_file, trajectory_file
 
 __all__ = ["ScenarioRunner", "bag_file", "preflight", "trajectory_file", "trial_spec"]
 
@@ -53,7 +53,7 @@ def preflight(scenario: Scenario, plugins: Plugins) -> int:
     """
     try:
         plugins.metrics
-        backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
+        backend = ComponentBuilder(scenario, plugins).backend()
         try:
             backend.preflight()
             suggested = backend.concurrency
@@ -68,22 +68,6 @@ class PreflightError(SafeEmbodAIError):
     """The scenario's backend cannot work (no key, no server): raised before any trial runs."""
 
 
-def recorded_bag_storage(run_dir: str | Path | None) -> str | None:
-    """The bag storage a run folder asks for (``bags/storage``), or None when it records no bags."""
-    if run_dir is None:
-        return None
-    marker = Path(run_dir) / BAGS_DIR / BAG_STORAGE_FILE
-    try:
-        storage = read_run_text(marker, 1024).strip()
-    except FileNotFoundError:
-        return None
-    except OSError as error:
-        raise SafeEmbodAIError(f"{marker} is unreadable: {error}") from None
-    if storage not in ("mcap", "sqlite3"):
-        raise SafeEmbodAIError(f"{marker} says {storage[:40]!r}: it must say mcap or sqlite3")
-    return storage
-
-
 def trial_spec(scenario: Scenario, environment: str, arm: str, condition: str, index: int) -> TrialSpec:
     return TrialSpec(
         trial_id=f"{environment}/{arm}/{condition}/{index}",
@@ -93,42 +77,38 @@ def trial_spec(scenario: Scenario, environment: str, arm: str, condition: str, i
 
 
 class ScenarioRunner:
-    """Builds and runs the trials of one scenario with one set of plugins."""
+    """Runs the trials of one scenario with one set of plugins: each trial's components come from a
+    :class:`~.building.ComponentBuilder`, what it leaves beside its records is written by a
+    :class:`~.trial_artefacts.TrialArtefacts`."""
 
     def __init__(self, scenario: Scenario, plugins: Plugins, run_dir: str | Path | None = None,
                  state: StateStore | None = None, save_trajectories: bool = False,
                  outputs: TrialOutputs | None = None) -> None:
-        """``outputs`` stands in for a run folder (a Ray worker's runner: its files, bag storage and
-        cache go back to the coordinator, ``ablation/relay.py``); else ``run_dir`` is read and written."""
+        """``outputs`` stands in for a run folder (a Ray worker's runner: its files, bags, recordings
+        and cache go back to the coordinator, ``ablation/relay.py``); else ``run_dir`` is read and written."""
         self.scenario = scenario
         self.plugins = plugins
         self.run_dir = str(run_dir) if run_dir is not None else None
-        self.files: TrialFiles | None = (outputs.files if outputs is not None
-                                         else FolderFiles(run_dir) if run_dir is not None else None)
-        self.save_trajectories = save_trajectories and self.files is not None
-        # a ROS 2 bag per trial, as it ends
-        self.bag_storage = outputs.bag_storage if outputs is not None else recorded_bag_storage(run_dir)
+        self.builder = ComponentBuilder(scenario, plugins, run_dir)
+        files: TrialFiles | None = (outputs.files if outputs is not None
+                                    else FolderFiles(run_dir) if run_dir is not None else None)
+        settings = outputs.settings if outputs is not None else ArtefactSettings.recorded(run_dir)
+        self.artefacts = TrialArtefacts(scenario, plugins, files, pictures=save_trajectories, settings=settings)
         self._environments: dict[str, Any] = {}
         self._state = state
         self._outputs = outputs
         self._cache: Any = None  # the response cache, opened with the first trial of a cacheable backend
-        self._simulated: str | None = None  # the backend's banner for trial pictures, read once
-
-    def build(self, kind: str, ref: ComponentRef, seed: int = 0, only_to_describe: bool = False) -> Any:
-        """Component ``ref`` of ``kind`` (``only_to_describe``: :class:`BuildContext`'s flag)."""
-        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir, label=ref.key,
-                               only_to_describe=only_to_describe)
-        return self.plugins.registry.build(kind, ref.use, ref.options, context)
 
     @property
     def state(self) -> StateStore:
         if self._state is None:
-            self._state = self.build("state_store", self.scenario.state)
+            self._state = self.builder.state_store()
         return self._state
 
     def environment(self, label: str) -> Any:
+        """The environment labelled ``label``, built once and kept for every trial of this runner."""
         if label not in self._environments:
-            self._environments[label] = self.build("environment", self.scenario.environment(label))
+            self._environments[label] = self.builder.environment(label)
         return self._environments[label]
 
     def parts(self, spec: TrialSpec, backend: LLMBackend | None = None) -> TrialParts:
@@ -136,15 +116,15 @@ class ScenarioRunner:
         never built: an integration that brings its own model needs no key for the scenario's)."""
         arm = self.scenario.arms[spec.arm]
         condition = self.scenario.conditions[spec.condition]
+        build = self.builder.build
         return TrialParts(
             environment=self.environment(spec.environment),
-            perception=self.build("perception", self.scenario.perception, spec.seed),
-            prompt_builder=self.build("prompt_builder", self.scenario.prompt_builder, spec.seed),
+            perception=build("perception", self.scenario.perception, spec.seed),
+            prompt_builder=build("prompt_builder", self.scenario.prompt_builder, spec.seed),
             state=self.state,
-            backend=backend if backend is not None else self._cached(
-                self.build("llm_backend", self.scenario.backend, spec.seed), spec),
-            validators=[(r.key, self.build("validator", r, spec.seed)) for r in arm.validators],
-            attackers=[(r.key, self.build("attacker", r, spec.seed)) for r in condition.attackers],
+            backend=backend if backend is not None else self._cached(self.builder.backend(spec.seed), spec),
+            validators=[(r.key, build("validator", r, spec.seed)) for r in arm.validators],
+            attackers=[(r.key, build("attacker", r, spec.seed)) for r in condition.attackers],
         )
 
     def _cached(self, backend: LLMBackend, spec: TrialSpec) -> LLMBackend:
@@ -172,6 +152,9 @@ class ScenarioRunner:
                             defences=s.arms[arm], limits=s.limits, budget=s.budget)
 
     def run(self, spec: TrialSpec) -> TrialResult:
+        """Run trial ``spec`` (its records and result go to the state store), then write what it
+        leaves (:meth:`TrialArtefacts.after_trial`); a trial whose components cannot be built is
+        stored as an ``error`` result and the run goes on."""
         try:
             parts = self.parts(spec)
         except SafeEmbodAIError as error:  # e.g. a factory that failed: this trial errs, the run goes on
@@ -181,7 +164,7 @@ class ScenarioRunner:
             self.state.end_trial(result)
             return result
         capture = None
-        if self.bag_storage is not None:
+        if self.artefacts.capture:
             from .loop.capture import TrialCapture
 
             capture = TrialCapture()
@@ -190,65 +173,12 @@ class ScenarioRunner:
             result = run_trial(spec, parts, self.settings(spec.arm), self.plugins)
         finally:
             parts.backend.close()
-        if self.save_trajectories:
-            self._save_trajectory(parts.environment, result)
-        if capture is not None and self.files is not None:
-            self._save_bag(spec, capture, parts, result)
+        self.artefacts.after_trial(spec, parts.environment, capture, result,
+                                   lambda: self.state.steps(spec.trial_id))
         return result
-
-    def _save_bag(self, spec: TrialSpec, capture: Any, parts: TrialParts, result: TrialResult) -> None:
-        """Write the trial's bag (``bags/<trial>``), replacing one a resumed run left of an earlier try.
-        A bag that cannot be written stops the run with an error naming it, as a picture does: the
-        trial's result is stored (``safeembodai export`` makes the bag again from the run folder)."""
-        messages = self.bag_messages(spec, capture, self.state.steps(spec.trial_id), result, parts.environment.robot)
-        assert self.files is not None  # checked by the caller
-        self.files.bag(spec.trial_id, messages, self.bag_storage or "mcap")
-
-    def bag_messages(self, spec: TrialSpec, capture: Any, records: list[Any], result: TrialResult | None,
-                     robot: Any) -> list[Any]:
-        """The bag of one trial (:func:`~safeembodai_core.ros.bag_export.trial_messages`), with the
-        scenario's word on the arm's defences and the limits in ``/safeembodai/trial``."""
-        from .ros.bag_export import trial_messages
-
-        about = {"scenario": self.scenario.name, "arm": self.scenario.arms[spec.arm].model_dump(mode="json"),
-                 "limits": self.scenario.limits.model_dump(mode="json")}
-        return trial_messages(spec, records, result, capture, robot, about)
 
     def trajectory_path(self, trial_id: str) -> Path:
         return trajectory_file(self.run_dir or ".", trial_id)
-
-    def trajectory_picture(self, environment: Any, result: TrialResult) -> bytes | None:
-        """The trial's picture as ``environment`` draws it, captioned with the trial's id, arm and
-        condition and, for a simulated backend, that it is one (``report/captions.py``); None when
-        the environment draws none. Raises what the environment's drawing raises."""
-        from .report.captions import caption_lines, captioned
-        from .report.run_info import describe_backend
-
-        picture = environment.trajectory_png(result.trajectory, result.outcome)
-        if not picture:
-            return None
-        if self._simulated is None:  # the backend's banner, once per runner ("" for an LLM)
-            self._simulated = describe_backend(self.scenario, self.plugins).simulated or ""
-        return captioned(picture, caption_lines(result.spec, self._simulated or None))
-
-    def _save_trajectory(self, environment: Any, result: TrialResult) -> bool:
-        """Draw and write the trial's picture (:meth:`trajectory_picture`); False when the
-        environment draws none.
-
-        A drawing bug only costs the picture (a warning). A picture that cannot be written (a
-        full disk, ``trajectories`` not a folder) stops the run with an error naming the file: the
-        trial's result is already stored, and a resume draws the missing picture again. The file
-        appears whole or not at all (written aside, then renamed).
-        """
-        try:
-            picture = self.trajectory_picture(environment, result)
-        except Exception as error:  # a picture is a convenience: never lose a trial over it
-            log.warning("trajectory.failed", trial=result.spec.trial_id, error=str(error))
-            return False
-        if not picture or self.files is None:
-            return False
-        self.files.picture(result.spec.trial_id, picture)
-        return True
 
     def draw_missing_trajectories(self, results: list[TrialResult]) -> int:
         """Draw the pictures of ``results`` that have none (a run killed between storing a result
@@ -268,7 +198,7 @@ class ScenarioRunner:
             except Exception as error:  # SafeEmbodAIError included: the picture stays missing, the report says so
                 log.warning("trajectory.failed", trial=result.spec.trial_id, error=str(error))
                 continue
-            drawn += self._save_trajectory(environment, result)
+            drawn += self.artefacts.save_picture(environment, result)
         return drawn
 
     def specs(self) -> list[TrialSpec]:

@@ -1,6 +1,6 @@
-"""Where a trial's files go: its picture and its ROS 2 bag.
+"""Where a trial's files go: its picture, its ROS 2 bag and its Rerun recording.
 
-:class:`~safeembodai_core.runner.ScenarioRunner` hands them to a :class:`TrialFiles` and knows
+:class:`~safeembodai_core.trial_artefacts.TrialArtefacts` hands them to a :class:`TrialFiles` and knows
 nothing more of where they end up. :class:`FolderFiles` writes them into the run folder, each
 whole or not at all; on a Ray node the relay (``ablation/relay.py``) sends them to the coordinator
 instead, which writes them with a :class:`FolderFiles` of its own: a worker on another machine
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from .errors import SafeEmbodAIError
-from .run_files import BAGS_DIR, RECORDINGS_DIR, trial_file_name
+from .run_files import BAG_STORAGE_FILE, BAGS_DIR, RECORD_FILE, RECORDINGS_DIR, read_run_text, trial_file_name
 
 #: The most files a trial's bag folder may hold (rosbag2: the storage file and metadata.yaml).
 MAX_BAG_FILES = 16
@@ -52,15 +52,63 @@ class TrialFiles(ABC):
     def bag(self, trial_id: str, messages: Iterable[tuple[str, int, Any]], storage: str) -> None:
         """Keep the trial's bag, made of ``messages`` (replacing one an earlier try left)."""
 
+    @abstractmethod
+    def recording(self, trial_id: str, rrd: bytes) -> None:
+        """Keep the trial's Rerun recording (replacing one an earlier try left)."""
+
+
+@dataclass(frozen=True)
+class ArtefactSettings:
+    """Which files a run writes per trial besides its picture: a bag (``bag_storage``, ``mcap`` or
+    ``sqlite3``; None for none) and a Rerun recording (``recordings``)."""
+
+    bag_storage: str | None = None
+    recordings: bool = False
+
+    @classmethod
+    def recorded(cls, run_dir: str | Path | None) -> "ArtefactSettings":
+        """What the run folder's markers ask for (nothing for no folder)."""
+        if run_dir is None:
+            return cls()
+        return cls(bag_storage=_marker(Path(run_dir) / BAGS_DIR / BAG_STORAGE_FILE, ("mcap", "sqlite3")),
+                   recordings=_marker(Path(run_dir) / RECORDINGS_DIR / RECORD_FILE, ("rrd",)) is not None)
+
+
+def _marker(path: Path, allowed: tuple[str, ...]) -> str | None:
+    try:
+        text = read_run_text(path, 1024).strip()
+    except FileNotFoundError:
+        return None
+    except OSError as error:
+        raise SafeEmbodAIError(f"{path} is unreadable: {error}") from None
+    if text not in allowed:
+        raise SafeEmbodAIError(f"{path} says {text[:40]!r}: it must say {' or '.join(allowed)}")
+    return text
+
+
+def record_artefacts(run_dir: str | Path, *, bags: str | None = None, recordings: bool = False) -> None:
+    """Write the markers that make every trial of the run folder write a bag (``bags``) and a
+    recording (``recordings``) as it ends; raises :class:`SafeEmbodAIError` naming the folder."""
+    for wanted, folder, name, text in ((bags, BAGS_DIR, BAG_STORAGE_FILE, bags),
+                                       (recordings, RECORDINGS_DIR, RECORD_FILE, "rrd")):
+        if not wanted:
+            continue
+        target = Path(run_dir) / folder
+        try:
+            target.mkdir(parents=True, exist_ok=True)
+            (target / name).write_text(f"{text}\n", encoding="utf-8")
+        except OSError as error:
+            raise SafeEmbodAIError(f"cannot write {target}: {error.strerror or error}") from None
+
 
 @dataclass
 class TrialOutputs:
     """What a runner with no run folder of its own (a Ray worker) is given instead: where files go,
-    the bag storage the run records (None: no bags), and the response cache replies are read from
+    the bags and recordings the run writes, and the response cache replies are read from
     and kept in (None: none; any object with ``get(key)`` and ``put(key, reply, trial_id)``)."""
 
     files: TrialFiles
-    bag_storage: str | None = None
+    settings: ArtefactSettings = ArtefactSettings()
     cache: Any = None
 
 
@@ -77,6 +125,9 @@ class FolderFiles(TrialFiles):
         from .ros.bag_export import write_bag
 
         write_bag(bag_file(self.run_dir, trial_id), messages, storage, replace=True)
+
+    def recording(self, trial_id: str, rrd: bytes) -> None:
+        write_whole(recording_file(self.run_dir, trial_id), rrd, what="the Rerun recording")
 
     def bag_folder(self, trial_id: str, files: dict[str, bytes]) -> None:
         """Put a bag made elsewhere (its files by name) in place of the trial's, whole or not at all."""

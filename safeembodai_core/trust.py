@@ -62,6 +62,7 @@ RAW_READERS: dict[str, str] = {
     "safeembodai_core.cli.guard_bag_cmd": "a bag's messages, through rosbags' reader, then read_json_document",
     "safeembodai_core.ros.bag_guard": "rosbags' reader of a bag (the library parses the container)",
     "safeembodai_core.trial_files": "a bag this process has just written in a scratch folder of its own",
+    "safeembodai_core.rerun_export": "a recording this process has just written in a scratch folder of its own",
     "safeembodai_core.report.paper": "the paper's values shipped in the package (safeembodai_core/data)",
     "safeembodai_core.report.writer": "writes metrics.csv (no read)",
     "safeembodai_core.cli.trial_view": "writes steps.jsonl (no read)",

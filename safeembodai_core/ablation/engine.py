@@ -15,20 +15,21 @@ refuses a store that lost trials of the ledger instead of quietly running them a
 from __future__ import annotations
 
 import os
-import tempfile
 import time
 from pathlib import Path
 from typing import Any, Callable
 
 
-from ..errors import SafeEmbodAIError, StateStoreError
+from ..errors import StateStoreError
 from ..models import Outcome, TrialResult, TrialSpec
 from ..plugins import Plugins
 from ..runner import ScenarioRunner
 from ..scenario import Scenario
 from .error_kinds import store_failed
 from .executors import ProcessExecutor, SerialExecutor
+from .plan import AblationError, RunPlan, not_persistent
 from .run_folder import RunFolder, RunLock
+from ..trial_files import record_artefacts
 
 from ..logs import get_logger
 
@@ -37,99 +38,45 @@ log = get_logger(__name__)
 FULL_CHECK_EVERY_S = 2.0  # reading every result back costs O(trials): not after each trial of a fast run
 
 
-class AblationError(SafeEmbodAIError):
-    """The ablation cannot start or continue (the message says how to resume)."""
-
-
-EXECUTORS = ("serial", "process", "ray")
-
-
-def _not_persistent(executor: str, scenario: Scenario) -> AblationError:
-    return AblationError(f"--workers/--concurrency/--executor {executor} needs a persistent state store "
-                         f"(e.g. sqlite); the scenario uses {scenario.state.use!r}")
-
-
-def _store_is_persistent(scenario: Scenario, plugins: Plugins) -> bool:
-    """Whether the scenario's store keeps records across processes, asked of a store built in a
-    scratch folder (so nothing appears in the run folder, which does not exist yet)."""
-    with tempfile.TemporaryDirectory(prefix="safeembodai-store-check-") as scratch:
-        runner = ScenarioRunner(scenario, plugins, run_dir=scratch)
-        try:
-            return bool(runner.state.persistent)
-        finally:
-            runner.close()
-
-
-def executor_name(workers: int = 1, executor: str | None = None, address: str | None = None,
-                  concurrency: int = 1) -> str:
-    """The executor the options choose; options it would ignore are refused in one line.
-
-    Trials run at once in threads (``concurrency`` > 1) run in worker processes, even with one
-    worker: pybullet's chatter is silenced through the process-wide descriptors 1 and 2, which the
-    coordinator's progress display and logs need."""
-    if workers < 1:
-        raise AblationError("--workers must be at least 1")
-    if concurrency < 1:
-        raise AblationError("--concurrency must be at least 1")
-    name = executor or ("process" if workers > 1 or concurrency > 1 else "serial")
-    if name not in EXECUTORS:
-        raise AblationError(f"unknown executor {name!r}; choose serial, process or ray")
-    if name == "serial" and (workers > 1 or concurrency > 1):
-        option = f"--workers {workers}" if workers > 1 else f"--concurrency {concurrency}"
-        raise AblationError(f"--executor serial runs one trial at a time, not {option}: "
-                            f"drop {option.split()[0]}, or use --executor process or ray")
-    if address is not None and name != "ray":
-        raise AblationError(f"--address is the address of a Ray cluster: use it with --executor ray "
-                            f"(the {name} executor would ignore it)")
-    return name
-
-
-def check_executor(scenario: Scenario, plugins: Plugins, *, workers: int = 1, executor: str | None = None,
-                   address: str | None = None, concurrency: int = 1) -> str:
-    """:func:`executor_name`, and that its workers can run the scenario: no inline plugins, a
-    persistent store. Called before the run folder is made, so a refused run leaves nothing behind."""
-    name = executor_name(workers, executor, address, concurrency)
-    if name == "serial":
-        return name
-    inline = sorted(n for n, origin in plugins.origins.items() if origin.source == "inline")
-    if inline:
-        raise AblationError(f"inline plugins ({', '.join(inline)}) cannot reach worker processes; "
-                            "install them as packages or use the serial executor")
-    if not _store_is_persistent(scenario, plugins):
-        raise _not_persistent(name, scenario)
-    return name
-
-
 class Ablation:
-    """One ablation run of ``scenario`` in ``folder``."""
+    """One ablation run of ``scenario`` in ``folder``.
+
+    Built from a :class:`~.plan.RunPlan` (``plan``; :meth:`start`), it checks nothing again. Built
+    directly, as a library user may, it runs the plan's checks itself with the options given, so a
+    library user's run is refused where the CLI's would be."""
 
     def __init__(self, scenario: Scenario, plugins: Plugins, folder: RunFolder, *, resume: bool = False,
                  workers: int = 1, executor: str | None = None, address: str | None = None,
                  bags: str | None = None, concurrency: int = 1, cache: Any = None,
-                 connect_timeout_s: float | None = None) -> None:
-        self.scenario, self.plugins, self.folder = scenario, plugins, folder
-        self.workers, self.address, self.concurrency = workers, address, concurrency
-        self.connect_timeout_s = connect_timeout_s
-        self.executor_name = check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
-                                            concurrency=concurrency)
+                 connect_timeout_s: float | None = None, recordings: bool = False,
+                 plan: RunPlan | None = None) -> None:
+        if plan is None:
+            plan = RunPlan.prepare(scenario, plugins, workers=workers, concurrency=concurrency, executor=executor,
+                                   address=address, connect_timeout_s=connect_timeout_s, bags=bags,
+                                   recordings=recordings, cache=cache)
+        self.plan = plan
+        self.scenario, self.plugins, self.folder = plan.scenario, plan.plugins, folder
+        self.workers, self.address, self.concurrency = plan.workers, plan.address, plan.concurrency
+        self.connect_timeout_s = plan.connect_timeout_s
+        self.executor_name = plan.executor
         if resume:
-            folder.check_same(scenario)
+            folder.check_same(self.scenario)
         else:
-            folder.start(scenario)
+            folder.start(self.scenario)
         self.lock = RunLock(folder.path)
         self.lock.acquire()
-        if bags is not None:
-            folder.record_bags(bags)  # before any runner: every worker's reads it from the folder
-        if cache is not None:  # a CacheSettings (what the run recorded on a resume without cache options)
-            cache.write(folder.path)
-        self.runner = ScenarioRunner(scenario, plugins, run_dir=folder.path, save_trajectories=True)
+        # before any runner: every worker's reads them from the folder
+        record_artefacts(folder.path, bags=plan.bags, recordings=plan.recordings)
+        if plan.cache is not None:  # a CacheSettings (what the run recorded on a resume without cache options)
+            plan.cache.write(folder.path)
+        self.runner = ScenarioRunner(self.scenario, self.plugins, run_dir=folder.path, save_trajectories=True)
         try:
             pictures = folder.path / "trajectories"
             if pictures.exists() and not pictures.is_dir():
                 raise AblationError(f"{pictures} is not a folder; move it away so the run can save its pictures there")
             self.store = self.runner.state
             if resume and not self.store.persistent:
-                raise AblationError(f"state store {scenario.state.use!r} keeps no results across runs: "
+                raise AblationError(f"state store {self.scenario.state.use!r} keeps no results across runs: "
                                     "resuming needs a persistent store such as sqlite")
             store_path = getattr(self.store, "path", None)  # a store kept in a file says where
             self.store_file = Path(store_path) if isinstance(store_path, (str, Path)) else None
@@ -140,6 +87,13 @@ class Ablation:
             raise
         self.resumed = resume
         self._checked_at = time.monotonic()
+
+    @classmethod
+    def start(cls, plan: RunPlan, out_root: str | Path = "runs", *, resume: str | Path | None = None) -> "Ablation":
+        """The run ``plan`` prepared, in a new run folder under ``out_root`` (or in ``resume``'s, which
+        must have recorded the same scenario), ready to :meth:`run`; the caller closes it."""
+        folder = RunFolder(resume) if resume is not None else RunFolder.create(out_root, plan.scenario)
+        return cls(plan.scenario, plan.plugins, folder, resume=resume is not None, plan=plan)
 
     def _store_name(self) -> str:
         return str(self.store_file) if self.store_file else f"state store {self.scenario.state.use!r}"
@@ -217,7 +171,7 @@ class Ablation:
         if self.executor_name == "serial":
             return SerialExecutor(self.runner)
         if not self.store.persistent:  # checked before the run folder was made; a store may still change its mind
-            raise _not_persistent(self.executor_name, self.scenario)
+            raise not_persistent(self.executor_name, self.scenario)
         if self.executor_name == "process":
             return ProcessExecutor(scenario_json, str(self.folder.path), self.workers, self.concurrency)
         return self._ray_executor(scenario_json)
@@ -232,7 +186,7 @@ class Ablation:
         cache = ResponseCache(settings.path(self.folder.path), read=settings.read) if settings.enabled else None
         writes = RelayedWrites(self.store, str(self.folder.path), cache)
         return RayExecutor(scenario_json, writes, self.workers, self.address, self.concurrency,
-                           bag_storage=self.runner.bag_storage, cache=cache is not None,
+                           artefacts=self.runner.artefacts.settings, cache=cache is not None,
                            connect_timeout_s=self.connect_timeout_s or CONNECT_TIMEOUT_S)
 
     def redraw_missing_trajectories(self) -> int:
@@ -255,6 +209,7 @@ class Ablation:
         log.info("ablation.start", run=str(self.folder.path), pending=len(pending), executor=self.executor_name)
         fresh: list[TrialResult] = []
         executor = self._executor()
+        cap = self.plan.cap
         try:
             for result in executor.run(pending):
                 if self.executor_name == "process":
@@ -263,6 +218,8 @@ class Ablation:
                 fresh.append(result)
                 if on_result is not None:
                     on_result(result)
+                if cap is not None:  # the trial is recorded: the cap stops the ones after it
+                    cap.add(result, more=len(fresh) < len(pending))
         except BaseException:
             executor.abort()
             raise

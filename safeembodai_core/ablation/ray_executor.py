@@ -31,6 +31,7 @@ from typing import Any, Iterator
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import TrialResult, TrialSpec
+from ..trial_files import ArtefactSettings
 from .executors import POLL_S, WorkersLost
 from .relay import RelayedWrites, RelayError, RelayWorker
 
@@ -191,14 +192,14 @@ class RayExecutor:
     its node) is replaced by a new actor on a node that has lost none, up to :data:`MAX_RESTARTS` times."""
 
     def __init__(self, scenario_json: dict[str, Any], writes: RelayedWrites, workers: int, address: str | None,
-                 concurrency: int = 1, *, bag_storage: str | None = None, cache: bool = False,
+                 concurrency: int = 1, *, artefacts: ArtefactSettings = ArtefactSettings(), cache: bool = False,
                  connect_timeout_s: float = CONNECT_TIMEOUT_S) -> None:
         ray = self.ray = _ray()
         self.writes, self.concurrency = writes, concurrency
         self._owns_connection = not ray.is_initialized()
         if self._owns_connection:  # the CLI connects before making the run folder; a library caller may not have
             connect(ray, address, connect_timeout_s)
-        self._arguments = (scenario_json, concurrency, workers, bag_storage, cache)
+        self._arguments = (scenario_json, concurrency, workers, artefacts, cache)
         self._class = ray.remote(RelayWorker)
         self._lost = _lost_errors(ray)
         self._failed: tuple[type[BaseException], ...] = tuple(

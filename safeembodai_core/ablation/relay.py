@@ -2,7 +2,7 @@
 
 A Ray worker may run on a node with its own disk and its own working directory, so it never
 writes the run folder. Everything a trial leaves -- its steps as they are recorded (the one before
-a motion included), the result, the replies of a paid model, its picture and its bag -- travels to
+a motion included), the result, the replies of a paid model, its picture, its bag and its recording -- travels to
 the coordinator as a stream of events (a Ray streaming generator per trial), and the coordinator
 writes each as it arrives, in the order the trial made it: the same order as a worker writing
 directly. Not the same moment: nothing waits for the coordinator's write, so a worker may be a few
@@ -18,7 +18,8 @@ one the trial may write is refused.
 
 Events (a tuple each): ``("node", name)``, ``("begin", spec)``, ``("step", record)``,
 ``("reply", key, stored text)``, ``("end", result)`` (the result stored), ``("picture", png)``,
-``("bag", {file name: bytes})``, ``("done", result)`` (the trial is over), ``("failed", message)``.
+``("bag", {file name: bytes})``, ``("recording", rrd)``, ``("done", result)`` (the trial is over),
+``("failed", message)``.
 """
 
 from __future__ import annotations
@@ -33,8 +34,9 @@ from ..components import StateStore
 from ..errors import SafeEmbodAIError
 from ..models import ReferenceState, StepRecord, TrialResult, TrialSpec
 from ..models.reply import BackendReply
+from ..run_files import MAX_RECORDING_BYTES, RRD_MAGIC
 from ..text_safety import storable
-from ..trial_files import MAX_BAG_FILES, FolderFiles, TrialFiles, TrialOutputs, bag_bytes
+from ..trial_files import MAX_BAG_FILES, ArtefactSettings, FolderFiles, TrialFiles, TrialOutputs, bag_bytes
 
 #: The largest picture and bag file a worker may send (bytes).
 MAX_FILE_BYTES = 256 * 1024 * 1024
@@ -128,6 +130,9 @@ class RelayFiles(TrialFiles):
     def bag(self, trial_id: str, messages: Iterable[tuple[str, int, Any]], storage: str) -> None:
         self.hub.send(trial_id, ("bag", bag_bytes(trial_id, messages, storage)))
 
+    def recording(self, trial_id: str, rrd: bytes) -> None:
+        self.hub.send(trial_id, ("recording", bytes(rrd)))
+
 
 class RelayCache:
     """The response cache of a worker: the trial's kept replies, handed over with the trial, are read
@@ -154,9 +159,9 @@ class RelayCache:
             pass
 
 
-def relay_outputs(hub: RelayHub, bag_storage: str | None, cache: bool) -> TrialOutputs:
+def relay_outputs(hub: RelayHub, artefacts: ArtefactSettings, cache: bool) -> TrialOutputs:
     """What a relaying worker's runners write through."""
-    return TrialOutputs(files=RelayFiles(hub), bag_storage=bag_storage, cache=RelayCache(hub) if cache else None)
+    return TrialOutputs(files=RelayFiles(hub), settings=artefacts, cache=RelayCache(hub) if cache else None)
 
 
 def relay_trial(hub: RelayHub, pool: Any, node: str, spec_json: dict[str, Any],
@@ -189,7 +194,7 @@ class RelayWorker:
     """A Ray actor's body (``ray.remote(RelayWorker)``): runs trials with ``concurrency`` threads and
     streams what they leave (:func:`relay_trial`); writes nothing on its node but scratch bags."""
 
-    def __init__(self, scenario_json: dict[str, Any], concurrency: int, workers: int, bag_storage: str | None,
+    def __init__(self, scenario_json: dict[str, Any], concurrency: int, workers: int, artefacts: ArtefactSettings,
                  cache: bool) -> None:
         from .runner_pool import RATE_SHARE, RunnerPool, worker_logging
 
@@ -197,7 +202,7 @@ class RelayWorker:
         worker_logging()
         self.hub = RelayHub()
         self.pool = RunnerPool(scenario_json, None, concurrency, state=RelayStore(self.hub),
-                               outputs=relay_outputs(self.hub, bag_storage, cache))
+                               outputs=relay_outputs(self.hub, artefacts, cache))
         self.node = node_name()
 
     def run(self, spec_json: dict[str, Any], replies: dict[str, str]) -> Iterator[tuple[Any, ...]]:
@@ -268,6 +273,8 @@ class RelayedWrites:
             self.files.picture(trial, _bounded(payload[0], trial, "picture"))
         elif kind == "bag" and len(payload) == 1:
             self.files.bag_folder(trial, _bag_files(payload[0], trial))
+        elif kind == "recording" and len(payload) == 1 and isinstance(payload[0], bytes):
+            self.files.recording(trial, _recording(payload[0], trial))
         elif kind == "failed" and len(payload) == 1:
             raise RelayError(f"a worker failed on trial {trial}: {str(payload[0])[:500]}")
         else:
@@ -312,6 +319,13 @@ def _model(model: Any, payload: Any, trial: str) -> Any:
 def _bounded(data: bytes, trial: str, what: str) -> bytes:
     if len(data) > MAX_FILE_BYTES:
         raise RelayError(f"a worker sent a {what} of {len(data)} bytes for trial {trial} (at most {MAX_FILE_BYTES})")
+    return data
+
+
+def _recording(data: bytes, trial: str) -> bytes:
+    if len(data) > MAX_RECORDING_BYTES or not data.startswith(RRD_MAGIC):
+        raise RelayError(f"a worker sent a recording for trial {trial} that is not a Rerun recording of at most "
+                         f"{MAX_RECORDING_BYTES} bytes")
     return data
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SafeEmbodAIError
-from ..run_files import BAG_STORAGE_FILE, BAGS_DIR, read_run_text
+from ..run_files import read_run_text
 from ..scenario import Scenario
 
 SCENARIO_FILE = "scenario.json"
@@ -72,15 +72,6 @@ class RunFolder:
             self.ledger_path.write_text("", encoding="utf-8")
         except OSError as error:
             raise SafeEmbodAIError(f"cannot write the run folder {self.path}: {error}") from None
-
-    def record_bags(self, storage: str) -> None:
-        """From now on, every trial that ends writes its ROS 2 bag into ``bags/`` (``mcap`` or ``sqlite3``)."""
-        folder = self.path / BAGS_DIR
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-            (folder / BAG_STORAGE_FILE).write_text(storage + "\n", encoding="utf-8")
-        except OSError as error:
-            raise SafeEmbodAIError(f"cannot write {folder}: {error.strerror or error}") from None
 
     def recorded_scenario(self) -> dict[str, Any]:
         target = self.path / SCENARIO_FILE

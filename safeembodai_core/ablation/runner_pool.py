@@ -103,11 +103,10 @@ class RunnerPool:
 
     def _build_store(self) -> Any:
         """The scenario's state store, built once for the pool's threads."""
-        from ..runner import ScenarioRunner
+        from ..building import ComponentBuilder
         from ..scenario import Scenario
 
-        scenario = Scenario.model_validate(self.scenario_json)
-        return ScenarioRunner(scenario, self.plugins, run_dir=self.run_dir).build("state_store", scenario.state)
+        return ComponentBuilder(Scenario.model_validate(self.scenario_json), self.plugins, self.run_dir).state_store()
 
     def close(self) -> None:
         """Close every runner, then the shared store."""

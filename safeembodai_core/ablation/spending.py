@@ -21,9 +21,9 @@ from ..models import TrialResult
 def backend_price(scenario: Any, plugins: Any) -> Callable[[int, int], float | None]:
     """The scenario's backend's :meth:`~safeembodai_core.components.LLMBackend.cost` (the backend is
     built only to ask it, then closed: a price needs no connection and no key); raises what building raises."""
-    from ..runner import ScenarioRunner
+    from ..building import ComponentBuilder
 
-    backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend, only_to_describe=True)
+    backend = ComponentBuilder(scenario, plugins).backend(only_to_describe=True)
     backend.close()
     return backend.cost
 

@@ -66,14 +66,14 @@ def start_warm_server(scenario_json: dict[str, Any] | None) -> bool:
 def _warm_up(text: str) -> None:
     """In the fork server: import what a worker will need by doing what it will do first."""
     from ..plugins import load_plugins
-    from ..runner import ScenarioRunner
+    from ..building import ComponentBuilder
     from ..scenario import Scenario
 
     plugins = load_plugins()
     if not text:
         return
     scenario = Scenario.model_validate(json.loads(text))
-    backend = ScenarioRunner(scenario, plugins).build("llm_backend", scenario.backend)
+    backend = ComponentBuilder(scenario, plugins).backend()
     backend.close()
 
 

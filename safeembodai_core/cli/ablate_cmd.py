@@ -17,18 +17,6 @@ import click
 from .common import load, load_recorded, scenario_options
 
 
-def _connect_ray(address, timeout_s) -> str:
-    """Fail before a run folder is made, not after: the ray executor needs the ray extra and a cluster
-    that answers. Returns the address connected to, for the run's header line."""
-    from ..ablation.ray_executor import _ray, connect
-
-    ray = _ray()
-    connected = connect(ray, address, timeout_s)
-    if address == "auto":  # whatever Ray found (RAY_ADDRESS, a cluster started here) is named in the header
-        connected = f"auto: {ray.get_runtime_context().gcs_address}"
-    return connected
-
-
 @click.command("ablate")
 @scenario_options(required=False)
 @click.option("--workers", type=click.IntRange(min=1), default=1, show_default=True,
@@ -62,8 +50,12 @@ def _connect_ray(address, timeout_s) -> str:
                    "offline mock) and exit; nothing is sent, no folder is made.")
 @click.option("--bags", type=click.Choice(["mcap", "sqlite3"]), default=None,
               help="Also write each trial's ROS 2 bag into RUN/bags/ as it ends (docs/robots.md).")
+@click.option("--rerun", "recordings", is_flag=True,
+              help="Also write each trial's Rerun recording into RUN/recordings/ as it ends (the rerun extra; "
+                   "docs/view.md).")
 def ablate(scenario_path, backend, seed, overrides, workers, concurrency, executor, address, connect_timeout, out_root,
-           resume_dir, no_report, cache_dir, no_cache, refresh, max_tokens, max_cost, dry_run, bags) -> None:
+           resume_dir, no_report, cache_dir, no_cache, refresh, max_tokens, max_cost, dry_run, bags,
+           recordings) -> None:
     """Run the ablation of SCENARIO: environments x arms x conditions x trials.
 
     With --resume RUN, SCENARIO may be left out: the run's recorded scenario is used.
@@ -71,11 +63,11 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     from rich.console import Console
     from rich.markup import escape
 
-    from ..ablation import RunFolder
-    from ..ablation.engine import check_executor, executor_name
+    from ..ablation import Ablation
     from ..ablation.executors import WorkersLost
-    from ..ablation.relay import RelayError
     from ..ablation.lifeline import StopSignals
+    from ..ablation.plan import RunPlan, executor_name
+    from ..ablation.relay import RelayError
     from ..ablation.spending import SpendingCapReached
     from ..errors import SafeEmbodAIError
     from .summary import summary_table
@@ -96,23 +88,16 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
 
         show_estimate(scenario, plugins, resume_dir)
         return
-    where = _connect_ray(address, connect_timeout) if executor == "ray" else None
-    _warm_workers_early(scenario, plugins, workers, executor, concurrency)
-    from ..runner import preflight
-
-    suggested = preflight(scenario, plugins)  # a backend that cannot work fails here, before any folder or trial
-    if concurrency is None:
-        concurrency = _default_concurrency(scenario, plugins, suggested, workers, executor, address)
-    check_executor(scenario, plugins, workers=workers, executor=executor, address=address,
-                   concurrency=concurrency)  # e.g. store: memory
-    cap = _spending_cap(scenario, plugins, max_tokens, max_cost)  # before the folder: a refused cap leaves nothing
-    folder = RunFolder(resume_dir) if resume_dir else RunFolder.create(out_root, scenario)
+    plan = RunPlan.prepare(scenario, plugins, workers=workers, concurrency=concurrency, executor=executor,
+                           address=address, connect_timeout_s=connect_timeout, bags=bags, recordings=recordings,
+                           cache=cache, max_tokens=max_tokens, max_cost=max_cost, warm_workers=True,
+                           scenario_checked=True)  # every check, before any folder is made
     console = Console(emoji=False)
     with StopSignals() as stop:
+        ablation = Ablation.start(plan, out_root, resume=resume_dir)
+        folder = ablation.folder
         try:
-            results, report = _run(console, scenario, plugins, folder, resume_dir is not None, workers, executor,
-                                   address, bags, report=not no_report, concurrency=concurrency, cache=cache, cap=cap,
-                                   where=where)
+            results, report = _run(console, ablation, report=not no_report)
             console.print(summary_table(scenario, results, plugins=plugins))
             if report is not None:
                 console.print(f"report: {report}")
@@ -156,71 +141,25 @@ def _cache_settings(cache_dir, no_cache, refresh, resume_dir):
     return CacheSettings(enabled=not no_cache, folder=folder, read=not refresh)
 
 
-def _warm_workers_early(scenario, plugins, workers, executor, concurrency):
-    """Start the workers' fork server now, warming it while the coordinator runs its own checks,
-    when the run will likely use worker processes: ``--workers``/``--concurrency`` above 1, or the
-    backend's options asking for trials in flight (the litellm backends' ``concurrency``). A guess
-    only: the process executor starts the server itself when none runs."""
-    if executor not in (None, "process"):
-        return
-    wanted = concurrency
-    if wanted is None:
-        try:
-            options = plugins.registry.validate_options("llm_backend", scenario.backend.use, scenario.backend.options)
-            wanted = getattr(options, "concurrency", 1)
-        except Exception:  # noqa: BLE001 -- preflight reports a backend that cannot be built
-            wanted = 1
-    if workers > 1 or executor == "process" or (type(wanted) is int and wanted > 1):
-        from ..ablation.warm_start import start_warm_server
-
-        start_warm_server(scenario.model_dump(mode="json"))
-
-
-def _default_concurrency(scenario, plugins, suggested, workers, executor, address):
-    """The backend's ``concurrency`` where the run can take it (a persistent store, installed
-    plugins, not ``--executor serial``), else 1: a default never refuses a run."""
-    from ..ablation.engine import AblationError, check_executor
-
-    if suggested <= 1 or executor == "serial":
-        return 1
-    try:
-        check_executor(scenario, plugins, workers=workers, executor=executor, address=address, concurrency=suggested)
-    except AblationError:
-        return 1
-    return suggested
-
-
-def _spending_cap(scenario, plugins, max_tokens, max_cost):
-    """The run's :class:`~..ablation.spending.SpendingCap` (None without --max-tokens or --max-cost),
-    priced by the scenario's backend."""
-    if max_tokens is None and max_cost is None:
-        return None
-    from ..ablation.spending import SpendingCap, backend_price
-
-    return SpendingCap(max_tokens, max_cost, backend_price(scenario, plugins) if max_cost is not None else None)
-
-
-def _run(console, scenario, plugins, folder, resume, workers, executor, address, bags=None, report=False,
-         concurrency=1, cache=None, cap=None, where=None):
-    """Run the pending trials; return every result of the run and, with ``report``, the report
-    written from the run's own store (its steps give refusals and attack kinds) before it closes."""
+def _run(console, ablation, report=False):
+    """Run the pending trials of ``ablation`` (closed at the end); return every result of the run and,
+    with ``report``, the report written from the run's own store (its steps give refusals and attack
+    kinds) before it closes."""
     from rich.markup import escape
 
-    from ..ablation import Ablation
     from ..text_safety import terminal_text
     from ..trial_words import plural
     from .progress import AblationProgress
 
-    ablation = Ablation(scenario, plugins, folder, resume=resume, workers=workers, executor=executor, address=address,
-                        bags=bags, concurrency=concurrency, cache=cache)
+    plan, folder = ablation.plan, ablation.folder
     try:
         pending = ablation.pending()
         cells = {(s.environment, s.arm, s.condition) for s in pending}
         console.print(f"run folder: {escape(str(folder.path))}", soft_wrap=True)  # whole, to copy
-        in_flight = f", {concurrency} in flight per worker" if concurrency > 1 else ""
-        at = f" at {escape(terminal_text(where))}" if where else ""
+        in_flight = f", {plan.concurrency} in flight per worker" if plan.concurrency > 1 else ""
+        at = f" at {escape(terminal_text(plan.where))}" if plan.where else ""
         console.print(f"{plural(len(pending), 'trial')} to run in {plural(len(cells), 'cell')}"
-                      f" ({ablation.executor_name}{at}, {plural(workers, 'worker')}{in_flight})", soft_wrap=True)
+                      f" ({ablation.executor_name}{at}, {plural(plan.workers, 'worker')}{in_flight})", soft_wrap=True)
         left = {cell: sum(1 for s in pending if (s.environment, s.arm, s.condition) == cell) for cell in cells}
         with AblationProgress(console) as progress:
             trials = progress.add_task("trials", total=len(pending))
@@ -233,14 +172,13 @@ def _run(console, scenario, plugins, folder, resume, workers, executor, address,
                 progress.advance(trials)
                 if left[cell] == 0:
                     progress.advance(finished_cells)
-                if cap is not None:  # the trial is recorded: the cap stops the ones after it
-                    cap.add(result, more=any(left.values()))
 
             results = ablation.run(advance)
         if not report:
             return results, None
         from ..report import write_report
 
-        return results, write_report(folder.path, scenario, results, store=ablation.store, plugins=plugins)
+        return results, write_report(folder.path, ablation.scenario, results, store=ablation.store,
+                                     plugins=ablation.plugins)
     finally:
         ablation.close()

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 import click
@@ -35,29 +34,21 @@ def scenario_options(function: Callable[..., Any] | None = None, *, required: bo
 
 def load(scenario_path: str, backend: str | None, seed: int | None,
          overrides: tuple[str, ...]) -> tuple["Scenario", "Plugins"]:
-    """Load plugins, then the scenario with CLI overrides applied, checked against the registry."""
-    from ..plugins import load_plugins
-    from ..scenario import load_scenario
+    """The installed plugins and the scenario file with the CLI's overrides applied, checked as every
+    way into a run checks it (:func:`~safeembodai_core.ablation.plan.checked_scenario`)."""
+    from ..ablation.plan import checked_scenario
 
-    plugins = load_plugins()
     extra = []
     if backend is not None:
         extra.append(f"backend={backend}")
     if seed is not None:
         extra.append(f"seed={seed}")
-    scenario = load_scenario(scenario_path, [*extra, *overrides], plugins.registry)
-    return scenario, plugins
+    return checked_scenario(scenario_path, overrides=[*extra, *overrides])
 
 
 def load_recorded(run_dir: str) -> tuple["Scenario", "Plugins"]:
-    """Load plugins as :func:`load` does, then the scenario a run folder recorded in ``scenario.json``,
-    checked against the registry like a scenario file (a plugin it needs may have gone since)."""
-    from ..ablation.run_folder import SCENARIO_FILE, RunFolder
-    from ..plugins import load_plugins
-    from ..scenario.loader import check_components
+    """The installed plugins and the scenario a run folder recorded in ``scenario.json``, checked
+    like a scenario file (:func:`~safeembodai_core.ablation.plan.recorded_scenario`)."""
+    from ..ablation.plan import recorded_scenario
 
-    plugins = load_plugins()
-    scenario = RunFolder(run_dir).scenario()
-    recorded = str(Path(run_dir) / SCENARIO_FILE)
-    check_components(scenario, plugins.registry, lambda loc: recorded)
-    return scenario, plugins
+    return recorded_scenario(run_dir)

@@ -95,7 +95,8 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
                 if form == "rrd":
                     write_recording(path, spec, records, results.get(trial_id), capture, environment.robot)
                 else:
-                    messages = runner.bag_messages(spec, capture, records, results.get(trial_id), environment.robot)
+                    messages = runner.artefacts.bag_messages(spec, capture, records, results.get(trial_id),
+                                                             environment.robot)
                     write_bag(path, messages, FORMATS[form])
                 progress.advance(task)
                 console.print(f"{terminal_markup(trial_id)} -> {terminal_markup(str(path))}")

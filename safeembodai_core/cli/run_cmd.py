@@ -46,9 +46,9 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     preflight(scenario, plugins)  # a backend that cannot work fails here, before the folder is made
     folder = Path(out_dir or Path("runs") / f"{scenario.name}-run-{time.strftime('%Y%m%d-%H%M%S')}")
     if bag is not None:
-        from ..ablation import RunFolder
+        from ..trial_files import record_artefacts
 
-        RunFolder(folder).record_bags(bag)
+        record_artefacts(folder, bags=bag)
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)
     spec = trial_spec(scenario, env_label, arm, condition, index)
     console = Console(stderr=False, emoji=False)  # LLM text: ":warning:" stays literal
@@ -56,7 +56,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
         with console.status(f"running {terminal_markup(spec.trial_id)} (seed {spec.seed})"):
             result = runner.run(spec)
         steps = runner.state.steps(spec.trial_id)
-        picture = runner.trajectory_picture(runner.environment(env_label), result)  # captioned, as ablate's
+        picture = runner.artefacts.picture(runner.environment(env_label), result)  # captioned, as ablate's
         save_trial(folder, result, steps, picture)
     finally:
         runner.close()

@@ -105,7 +105,7 @@ def replay_trial(runner: Any, spec: TrialSpec, records: list[StepRecord]) -> tup
     environment, perception = capture.wrap(built.environment, built.perception)
     parts = TrialParts(environment=environment, perception=perception,
                        prompt_builder=capture.wrap_prompts(built.prompt_builder),
-                       state=runner.build("state_store", ref("memory")), backend=built.backend,
+                       state=runner.builder.state_store(ref("memory")), backend=built.backend,
                        validators=built.validators, attackers=built.attackers)
     result = run_trial(spec, parts, runner.settings(spec.arm))
     replayed = parts.state.steps(spec.trial_id)

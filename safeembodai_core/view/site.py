@@ -14,7 +14,7 @@ from typing import Any
 
 from ..logs import get_logger
 from ..runner import trajectory_file
-from ..run_files import RECORDINGS_DIR
+from ..run_files import MAX_RECORDING_BYTES, RECORDINGS_DIR, RRD_MAGIC
 from ..trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
@@ -27,12 +27,6 @@ from .trial_steps import replayed_prompts, step_views
 log = get_logger(__name__)
 #: Bumped whenever what the manifest keeps of a run changes: an older manifest is rendered anew.
 MANIFEST_VERSION = 2
-
-
-#: A trial's Rerun recording (``RUN/recordings/<trial>.rrd``) is copied into the site when it is one
-#: (its first bytes) and at most this large.
-RRD_MAGIC = b"RRF2"
-MAX_RECORDING_BYTES = 64 * 1024 * 1024
 
 
 def _recording_stamp(folder: Path, trial_id: str) -> str:

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from safeembodai_core.ablation.engine import AblationError, executor_name
+from safeembodai_core.ablation.plan import AblationError, executor_name
 
 
 def _ablate(repo, scenario, out, *args):

@@ -17,7 +17,7 @@ from safeembodai_core.ablation import Ablation, AblationError, RunFolder
 from safeembodai_core.ablation.error_kinds import crashed
 from safeembodai_core.cli import main
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
-from safeembodai_core.runner import ScenarioRunner
+from safeembodai_core.trial_artefacts import TrialArtefacts
 from safeembodai_core.scenario import load_scenario
 
 
@@ -132,7 +132,7 @@ def test_report_on_a_scenario_json_that_is_not_a_recorded_scenario(tmp_path, cap
 def test_a_picture_lost_to_an_interruption_is_drawn_again_on_resume(repo, plugins, tmp_path, monkeypatch):
     scenario = quickstart(repo, plugins)
     folder = RunFolder(tmp_path / "run")
-    real_save = ScenarioRunner._save_trajectory
+    real_save = TrialArtefacts.save_picture
     saved: list[str] = []
 
     def interrupted_after_the_result(self, environment, result):  # kill between result write and PNG save
@@ -141,10 +141,10 @@ def test_a_picture_lost_to_an_interruption_is_drawn_again_on_resume(repo, plugin
         saved.append(result.spec.trial_id)
         return real_save(self, environment, result)
 
-    monkeypatch.setattr(ScenarioRunner, "_save_trajectory", interrupted_after_the_result)
+    monkeypatch.setattr(TrialArtefacts, "save_picture", interrupted_after_the_result)
     with pytest.raises(KeyboardInterrupt):
         run(scenario, plugins, folder)
-    monkeypatch.setattr(ScenarioRunner, "_save_trajectory", real_save)
+    monkeypatch.setattr(TrialArtefacts, "save_picture", real_save)
     recorded = stored_ids(folder.path)
     assert len(recorded) == 4 and len(list((folder.path / "trajectories").glob("*.png"))) == 3
 

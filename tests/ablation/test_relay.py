@@ -16,6 +16,7 @@ from safeembodai_core.models.reply import BackendReply
 from safeembodai_core.plugins import load_plugins
 from safeembodai_core.runner import ScenarioRunner
 from safeembodai_core.scenario import load_scenario
+from safeembodai_core.trial_files import ArtefactSettings, recording_file
 
 
 @pytest.fixture(scope="module")
@@ -24,11 +25,11 @@ def scenario(repo):
     return load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=3"], plugins.registry)
 
 
-def _relayed(scenario, spec, replies=None, bags=None):
+def _relayed(scenario, spec, replies=None, bags=None, recordings=False):
     """Every event one trial sends from a relaying worker."""
     hub = RelayHub()
     pool = RunnerPool(scenario.model_dump(mode="json"), None, 1, state=RelayStore(hub),
-                      outputs=relay_outputs(hub, bags, cache=True))
+                      outputs=relay_outputs(hub, ArtefactSettings(bags, recordings), cache=True))
     try:
         return list(relay_trial(hub, pool, "127.0.0.9/abcdef01", spec.model_dump(mode="json"), replies or {}))
     finally:
@@ -89,6 +90,24 @@ def test_a_bag_travels_as_its_files_and_lands_whole(scenario, tmp_path):
         runner.close()
     folder = tmp_path / "bags" / spec.trial_id.replace("/", "__")
     assert sorted(p.name for p in folder.iterdir()) == sorted(bag)
+
+
+def test_a_recording_travels_and_lands_where_view_links_it(scenario, tmp_path):
+    pytest.importorskip("rerun", reason="the rerun extra (pip install -e '.[rerun]') writes recordings")
+    spec = ScenarioRunner(scenario, load_plugins()).specs()[0]
+    events = _relayed(scenario, spec, recordings=True)
+    [rrd] = [event[1] for event in events if event[0] == "recording"]
+    kinds = [event[0] for event in events]
+    assert rrd.startswith(b"RRF2") and kinds.index("end") < kinds.index("recording") < kinds.index("done")
+    runner, writes = _coordinator(scenario, tmp_path)
+    try:
+        for event in events:
+            writes.receive(spec, event)
+        with pytest.raises(RelayError, match="not a Rerun recording"):
+            writes.receive(spec, ("recording", b"<html>not one</html>"))
+    finally:
+        runner.close()
+    assert recording_file(tmp_path, spec.trial_id).read_bytes() == rrd
 
 
 def _reply(text="ok") -> BackendReply:

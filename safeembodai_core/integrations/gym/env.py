@@ -32,7 +32,7 @@ from ...models import (
 )
 from ...models.reply import as_reply, read_reply
 from ...models.response import describe_schema_error
-from ...plugins import Plugins, load_plugins
+from ...plugins import Plugins
 from ...runner import ScenarioRunner, trial_seed
 from ...scenario import Scenario
 from . import spaces
@@ -64,7 +64,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
                  environment: str | None = None, condition: str = "no_attack", arm: str = "safeembodai",
                  action_format: str = "commands", max_steps: int | None = None, render_mode: str | None = None,
                  plugins: Plugins | None = None) -> None:
-        self.scenario = resolve(scenario, room)
+        self.scenario, self.plugins = resolve(scenario, room, plugins)
         labels = [ref.key for ref in self.scenario.environments]
         self.label = environment or (room if room in labels else labels[0])
         if self.label not in labels:
@@ -79,7 +79,6 @@ class SafeEmbodAIEnv(gymnasium.Env):
         self.max_steps = max_steps or self.scenario.max_steps
         self.action_format = action_format
         self.render_mode = render_mode
-        self.plugins = plugins or load_plugins()
         self.runner = ScenarioRunner(self.scenario, self.plugins)
         self.world = self.runner.environment(self.label)
         first = self.world.reset(0)  # the sensors' shapes make the observation space
@@ -159,7 +158,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
             self.trial_seed = int(seed)
         else:
             self.trial_seed = int(self.np_random.integers(0, 2**63 - 1))
-        self._attackers = [(ref.key, self.runner.build("attacker", ref, self.trial_seed))
+        self._attackers = [(ref.key, self.runner.builder.build("attacker", ref, self.trial_seed))
                            for ref in self.condition.attackers]
         self._step, self._attempt, self._outcome = 1, 0, None
         self._sensed_truth = None  # a reading of the last episode says nothing of this one

@@ -12,7 +12,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ...scenario import Scenario, load_scenario
+from ...plugins import Plugins
+from ...scenario import Scenario
 
 ROOMS = ("OF", "SO", "DO", "MO")
 
@@ -38,10 +39,11 @@ def default_scenario(room: str) -> Scenario:
     })
 
 
-def resolve(scenario: Scenario | str | Path | None, room: str) -> Scenario:
-    """``scenario`` as given (a :class:`Scenario`, or a YAML path), else the id's default."""
-    if scenario is None:
-        return default_scenario(room)
-    if isinstance(scenario, Scenario):
-        return scenario
-    return load_scenario(scenario)
+def resolve(scenario: Scenario | str | Path | None, room: str,
+            plugins: Plugins | None = None) -> tuple[Scenario, Plugins]:
+    """``scenario`` as given (a :class:`Scenario`, or a YAML path), else the id's default, checked
+    against ``plugins`` (default: the installed ones) as every way into a run checks it
+    (:func:`~safeembodai_core.ablation.plan.checked_scenario`); returns it and the plugins."""
+    from ...ablation.plan import checked_scenario
+
+    return checked_scenario(default_scenario(room) if scenario is None else scenario, plugins)

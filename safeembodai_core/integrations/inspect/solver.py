@@ -27,6 +27,7 @@ from inspect_ai.log import transcript
 from inspect_ai.model import ChatMessageAssistant, ContentImage, ContentText, ModelOutput, get_model
 from inspect_ai.solver import Generate, Solver, TaskState, solver
 
+from ...building import ComponentBuilder
 from ...loop import TrialParts, run_trial
 from ...loop.trial import error_result
 from ...errors import SafeEmbodAIError
@@ -80,7 +81,7 @@ class RunnerPool:
             if self._idle:
                 return self._idle.pop()
         tap = _StepTap(self.plugins)
-        memory = ScenarioRunner(self.scenario, self.plugins).build("state_store", ComponentRef(use="memory"))
+        memory = ComponentBuilder(self.scenario, self.plugins).state_store(ComponentRef(use="memory"))
         return ScenarioRunner(self.scenario, tap, state=memory), tap  # type: ignore[arg-type]
 
     def release(self, lent: tuple[ScenarioRunner, _StepTap]) -> None:

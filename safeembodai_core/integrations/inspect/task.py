@@ -16,10 +16,10 @@ from inspect_ai import Task
 from inspect_ai.dataset import MemoryDataset, Sample
 
 from ...errors import SafeEmbodAIError
-from ...plugins import Plugins, load_plugins
+from ...ablation.plan import checked_scenario
+from ...plugins import Plugins
 from ...report.cells import attacked
 from ...runner import ScenarioRunner
-from ...scenario import load_scenario
 from .providers import check_active_model
 from .scorers import CELL, catalog_scorers
 from .solver import RunnerPool, trial_solver
@@ -74,8 +74,7 @@ def scenario_task(scenario: str | None, trials: int | None = None, seed: int | N
     set it already, else by the solver (:mod:`.providers`).
     """
     check_active_model()
-    plugins = plugins or load_plugins()
-    loaded = load_scenario(scenario_path(scenario), _overrides(trials, seed, max_steps, set), plugins.registry)
+    loaded, plugins = checked_scenario(scenario_path(scenario), plugins, _overrides(trials, seed, max_steps, set))
     runner = ScenarioRunner(loaded, plugins)
     specs = {spec.trial_id: spec for spec in runner.specs()}
     samples = [

@@ -1,0 +1,46 @@
+"""Build a scenario's components from its references: the one place a plugin's factory is called.
+
+:class:`ComponentBuilder` is what everything that needs one component of a scenario uses -- the
+trial runner (:class:`~safeembodai_core.runner.ScenarioRunner`, for every trial's parts), the
+run plan's checks (the backend's preflight and price, whether the store persists), the Inspect
+solver's memory store, the warm-up of worker processes -- so none of them builds a whole trial
+runner just to call a factory.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .components import BuildContext, LLMBackend, StateStore
+from .plugins import Plugins
+from .refs import ComponentRef
+from .scenario import Scenario
+
+
+class ComponentBuilder:
+    """Builds components of ``scenario`` with ``plugins``; ``run_dir`` is the folder a component
+    may keep files in (a SQLite store's database), None for none."""
+
+    def __init__(self, scenario: Scenario, plugins: Plugins, run_dir: str | Path | None = None) -> None:
+        self.scenario, self.plugins = scenario, plugins
+        self.run_dir = str(run_dir) if run_dir is not None else None
+
+    def build(self, kind: str, ref: ComponentRef, seed: int = 0, only_to_describe: bool = False) -> Any:
+        """Component ``ref`` of ``kind`` (``only_to_describe``: :class:`BuildContext`'s flag); raises
+        the registry's error naming the plugin when its options or its factory fail."""
+        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir, label=ref.key,
+                               only_to_describe=only_to_describe)
+        return self.plugins.registry.build(kind, ref.use, ref.options, context)
+
+    def backend(self, seed: int = 0, only_to_describe: bool = False) -> LLMBackend:
+        """The scenario's LLM backend (the caller closes it)."""
+        return self.build("llm_backend", self.scenario.backend, seed, only_to_describe)
+
+    def state_store(self, ref: ComponentRef | None = None) -> StateStore:
+        """The scenario's state store, or the store ``ref`` names (the caller closes it)."""
+        return self.build("state_store", ref or self.scenario.state)
+
+    def environment(self, label: str) -> Any:
+        """A new instance of the environment labelled ``label`` (the caller closes it)."""
+        return self.build("environment", self.scenario.environment(label))
