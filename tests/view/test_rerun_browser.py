@@ -33,8 +33,8 @@ FLAGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader
 VIEWER_CALLS_HOME = {"fonts.googleapis.com", "fonts.gstatic.com", "api.github.com", "tel.rerun.io"}
 
 
-def make_run(folder: Path, steps: int = 3) -> Path:
-    """quickstart (flatland, the mock pilot), one trial per cell, exported as recordings."""
+def make_run(folder: Path, steps: int = 3, scenario: Path = REPO / "scenarios" / "quickstart.yaml") -> Path:
+    """``scenario`` (quickstart: flatland, the mock pilot), one trial per cell, exported as recordings."""
     from click.testing import CliRunner
 
     from safeembodai_core.ablation import Ablation, RunFolder
@@ -43,9 +43,8 @@ def make_run(folder: Path, steps: int = 3) -> Path:
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins(environ={})
-    scenario = load_scenario(REPO / "scenarios" / "quickstart.yaml", ["trials=1", f"max_steps={steps}"],
-                             plugins.registry)
-    ablation = Ablation(scenario, plugins, RunFolder(folder))
+    ablation = Ablation(load_scenario(scenario, ["trials=1", f"max_steps={steps}"], plugins.registry), plugins,
+                        RunFolder(folder))
     try:
         ablation.run()
     finally:
