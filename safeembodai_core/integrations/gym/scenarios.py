@@ -2,7 +2,7 @@
 
 ``safeembodai/SO-v0`` is the room, the attack condition and the SafeEmbodAI arm of
 ``scenarios/so.yaml`` (the wheel ships no ``scenarios/`` folder, so the ids cannot read it;
-``tests/integrations/test_gym.py`` keeps the two equal). ``flatland-v0`` takes the same arms
+``tests/core/integrations/gym/test_gym.py`` keeps the two equal). ``flatland-v0`` takes the same arms
 and conditions around the numpy ``flatland`` room with the four obstacles of
 ``scenarios/quickstart.yaml``. Pass ``scenario=`` to ``gymnasium.make`` for any other.
 """

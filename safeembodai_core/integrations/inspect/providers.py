@@ -1,7 +1,7 @@
 """Which of Inspect's model providers the solver runs a trial with, and why not the others.
 
 The loop executes only a reply that the one strict reading takes (:func:`~safeembodai_core.models.read_reply`
-after :func:`~safeembodai_core.models.chat_completion.reply_from_body` for a server's body): a
+after :func:`~safeembodai_core.models.chat_completion.reply_from_chat_completion` for a server's body): a
 duplicate key in the envelope, a BOM, ``native_finish_reason``, string indices, an unusual
 finish reason are refused there. Inspect's own providers (``openai/``, ``openai-api/``,
 ``anthropic/``, ...) parse the server's body themselves and hand over a ``ModelOutput``, from which
