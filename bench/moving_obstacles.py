@@ -9,7 +9,8 @@ crossing. Each line says whether the signal was accepted or refused: a refusal i
 for the longest safe straight (about ten more checks). Median and 90th percentile, microseconds,
 one process. ``--scenario movers --arm moving --scans 5 --set '{"park_check": true}'`` times another
 arm's options (here the learned rule with five scans of history, so it follows each mover back
-through four earlier pairs), with overrides on top.
+through four earlier pairs), with overrides on top; ``--arm told`` the rule told the rooms' Labbots
+(``scenarios/dynamic.yaml``'s ``moving`` arm until issue 39, the learned rule since).
 
 ``python bench/moving_obstacles.py ablation RUN [RUN ...]`` reads run folders of
 ``safeembodai ablate scenarios/dynamic.yaml`` (``--set trials=N``; several runs with other
