@@ -53,7 +53,7 @@ class Ablation:
         if plan is None:
             plan = RunPlan.prepare(scenario, plugins, workers=workers, concurrency=concurrency, executor=executor,
                                    address=address, connect_timeout_s=connect_timeout_s, bags=bags,
-                                   recordings=recordings, cache=cache)
+                                   recordings=recordings, cache=cache, resume=folder.path if resume else None)
         self.plan = plan
         self.scenario, self.plugins, self.folder = plan.scenario, plan.plugins, folder
         self.workers, self.address, self.concurrency = plan.workers, plan.address, plan.concurrency
@@ -89,9 +89,11 @@ class Ablation:
         self._checked_at = time.monotonic()
 
     @classmethod
-    def start(cls, plan: RunPlan, out_root: str | Path = "runs", *, resume: str | Path | None = None) -> "Ablation":
-        """The run ``plan`` prepared, in a new run folder under ``out_root`` (or in ``resume``'s, which
-        must have recorded the same scenario), ready to :meth:`run`; the caller closes it."""
+    def start(cls, plan: RunPlan, out_root: str | Path = "runs") -> "Ablation":
+        """The run ``plan`` prepared, in a new run folder under ``out_root`` (or in the folder it
+        resumes, :attr:`RunPlan.resume`, which must have recorded the same scenario), ready to
+        :meth:`run`; the caller closes it."""
+        resume = plan.resume
         folder = RunFolder(resume) if resume is not None else RunFolder.create(out_root, plan.scenario)
         return cls(plan.scenario, plan.plugins, folder, resume=resume is not None, plan=plan)
 

@@ -31,6 +31,7 @@ from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..plugins import Plugins, load_plugins
 from ..scenario import Scenario
+from ..trial_files import ArtefactSettings
 
 if TYPE_CHECKING:
     from .spending import SpendingCap
@@ -139,6 +140,8 @@ class RunPlan:
     #: folder's default on a new run, what it recorded on a resume)
     cache: Any = None
     cap: "SpendingCap | None" = None
+    #: the run folder this plan finishes (None: a new run)
+    resume: str | Path | None = None
     #: whether the store keeps records across processes (asked once, in check 5)
     persistent: bool | None = field(default=None, repr=False)
 
@@ -147,11 +150,12 @@ class RunPlan:
                 executor: str | None = None, address: str | None = None, connect_timeout_s: float | None = None,
                 bags: str | None = None, recordings: bool = False, cache: Any = None,
                 max_tokens: int | None = None, max_cost: float | None = None, warm_workers: bool = False,
-                scenario_checked: bool = False) -> "RunPlan":
+                scenario_checked: bool = False, resume: str | Path | None = None) -> "RunPlan":
         """Run checks 1 to 6 (the module docstring) on ``scenario``; ``concurrency`` None takes the
         backend's suggestion where the run can take it. ``warm_workers`` starts the worker processes'
         fork server while the checks run (when the run will likely use it). ``scenario_checked``: the
-        caller read it through :func:`checked_scenario` or :func:`recorded_scenario` already."""
+        caller read it through :func:`checked_scenario` or :func:`recorded_scenario` already.
+        ``resume``: the run folder to finish (the recordings it asked for need the extra too)."""
         executor_name(workers, executor, address, concurrency or 1)  # 1
         if not scenario_checked:
             scenario, plugins = checked_scenario(scenario, plugins)  # 2
@@ -162,11 +166,12 @@ class RunPlan:
 
         suggested = preflight(scenario, plugins)  # 4
         plan = cls(scenario, plugins, executor="", workers=workers, address=address,
-                   connect_timeout_s=connect_timeout_s, where=where, bags=bags, recordings=recordings, cache=cache)
+                   connect_timeout_s=connect_timeout_s, where=where, bags=bags, recordings=recordings, cache=cache,
+                   resume=resume)
         plan.concurrency = concurrency if concurrency is not None else plan._default_concurrency(executor, suggested)
         plan.executor = plan._check_executor(executor)  # 5
         plan.cap = _spending_cap(scenario, plugins, max_tokens, max_cost)  # 6
-        if recordings:
+        if recordings or (resume is not None and ArtefactSettings.recorded(resume).recordings):
             from ..rerun_export import import_rerun
 
             import_rerun()

@@ -91,10 +91,10 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     plan = RunPlan.prepare(scenario, plugins, workers=workers, concurrency=concurrency, executor=executor,
                            address=address, connect_timeout_s=connect_timeout, bags=bags, recordings=recordings,
                            cache=cache, max_tokens=max_tokens, max_cost=max_cost, warm_workers=True,
-                           scenario_checked=True)  # every check, before any folder is made
+                           scenario_checked=True, resume=resume_dir)  # every check, before any folder is made
     console = Console(emoji=False)
     with StopSignals() as stop:
-        ablation = Ablation.start(plan, out_root, resume=resume_dir)
+        ablation = Ablation.start(plan, out_root)
         folder = ablation.folder
         try:
             results, report = _run(console, ablation, report=not no_report)

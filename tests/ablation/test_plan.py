@@ -128,3 +128,24 @@ def test_ablate_rerun_without_the_extra_fails_before_any_folder(repo, tmp_path, 
               "--out", str(tmp_path / "runs")])
     assert done.value.code == 1 and "rerun extra" in capsys.readouterr().err
     assert not (tmp_path / "runs").exists()
+
+
+def test_resuming_a_run_that_writes_recordings_needs_the_extra_before_anything_runs(repo, tmp_path, monkeypatch):
+    from safeembodai_core import rerun_export
+    from safeembodai_core.errors import SafeEmbodAIError
+    from safeembodai_core.trial_files import record_artefacts
+
+    scenario, plugins = checked_scenario(repo / "scenarios" / "quickstart.yaml", load_plugins(), ["trials=1"])
+    folder = RunFolder(tmp_path / "run")
+    folder.start(scenario)
+    record_artefacts(folder.path, recordings=True)  # the run was started with --rerun
+
+    def missing():
+        raise SafeEmbodAIError("Rerun recordings need the rerun extra")
+
+    monkeypatch.setattr(rerun_export, "import_rerun", missing)
+    with pytest.raises(SafeEmbodAIError, match="rerun extra"):
+        RunPlan.prepare(scenario, plugins, resume=folder.path)
+    with pytest.raises(SafeEmbodAIError, match="rerun extra"):
+        Ablation(scenario, plugins, folder, resume=True)
+    assert not (folder.path / "results.sqlite").exists()
