@@ -3,7 +3,7 @@ the calls come to the ideal rate, how long before the first call, and the memory
 
 Run: ``python bench/paid_api.py [--latency 3.0] [--trials 16] [--max-steps 6] [--setting "--concurrency 16"]...``
 
-A fake OpenAI-compatible server on 127.0.0.1 (``tests/backends/fake_openai.py``) answers every call
+A fake OpenAI-compatible server on 127.0.0.1 (``tests/support/fake_openai.py``) answers every call
 after ``--latency`` seconds with a valid plan; ``safeembodai ablate scenarios/<--scenario>.yaml``
 (default ``mo``) with the ``gpt-4o`` backend runs against it once per ``--setting`` (default:
 ``--workers 1``, ``--concurrency 16``, ``--concurrency 64``, ``--workers 2 --concurrency 32``,
@@ -32,7 +32,7 @@ from pathlib import Path
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests" / "backends"))
+sys.path.insert(0, str(REPO / "tests" / "support"))
 
 from fake_openai import FakeOpenAI, Hang, Reply  # noqa: E402
 

@@ -1,4 +1,7 @@
-"""Shared fixtures. Tests never need network access, an API key or a display."""
+"""Shared fixtures. Tests never need network access, an API key or a display.
+
+Helper modules (the fake OpenAI-compatible server, reply strategies, backend helpers) live in
+tests/support/, which pyproject's ``pythonpath`` puts on ``sys.path``: ``from fake_openai import Reply``."""
 
 from __future__ import annotations
 
@@ -24,6 +27,32 @@ def plugins():
     from safeembodai_core.plugins import load_plugins
 
     return load_plugins(environ={})
+
+
+@pytest.fixture(scope="session")
+def built_plugins():
+    """One plugin set for the whole session, for tests that only build components from it."""
+    from safeembodai_core.plugins import load_plugins
+
+    return load_plugins(environ={})
+
+
+@pytest.fixture
+def fake_server():
+    """The fake OpenAI-compatible server (tests/support/fake_openai.py), closed after the test."""
+    from fake_openai import FakeOpenAI
+
+    with FakeOpenAI() as server:
+        yield server
+
+
+@pytest.fixture
+def fake_key(monkeypatch) -> str:
+    """A fake API key in ``SAFEEMBODAI_TEST_KEY`` (the backends' ``api_key_env`` in the tests)."""
+    from fake_openai import FAKE_KEY
+
+    monkeypatch.setenv("SAFEEMBODAI_TEST_KEY", FAKE_KEY)
+    return FAKE_KEY
 
 
 @pytest.fixture

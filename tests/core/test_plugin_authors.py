@@ -1,4 +1,4 @@
-"""What a third-party plugin author is promised (issue 11): the robot's pose for validators, the
+"""What a third-party plugin author is promised: the robot's pose for validators, the
 trial's seed in BuildContext, the built-ins' attack schedule as a public helper, and the names
 records carry. Everything here goes through public names only."""
 

@@ -1,4 +1,4 @@
-"""The documentation's layout (issue 25): reference and evidence apart.
+"""The documentation's layout: reference and evidence apart.
 
 Reference pages -- every page directly under docs/: what a component does, its options, short
 examples, its failure modes -- stay short. Measurements, tuning tables and their history live under
@@ -6,7 +6,7 @@ docs/evidence/, and every evidence page is linked from a reference page or the R
 relative link of README.md and docs/**/*.md reaches an existing file and, with an ``#anchor``, a
 heading of that file (GitHub's slugs). The YAML examples of the pages split off the long reference
 pages are valid scenario parts, as those of defences.md and backends.md are
-(tests/defences/test_docs_defences.py, tests/backends/test_docs_backends.py)."""
+(tests/meta/test_docs_defences.py, tests/meta/test_docs_backends.py)."""
 
 from __future__ import annotations
 

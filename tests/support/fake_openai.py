@@ -97,6 +97,9 @@ class Envelope:
     fields: dict[str, Any] = field(default_factory=dict)
 
 
+#: the API key the tests put in ``SAFEEMBODAI_TEST_KEY`` (the ``fake_key`` fixture)
+FAKE_KEY = "sk-fake-0123456789abcdefXYZ"
+
 DROP = object()
 
 

@@ -12,8 +12,7 @@ import sys
 import pytest
 import yaml
 
-from conftest import FAKE_KEY
-from fake_openai import Reply
+from fake_openai import FAKE_KEY, Reply
 from safeembodai_core.ablation.warm_start import WARM_SCENARIO, can_fork_workers, start_warm_server
 from safeembodai_core.testing import answer, straight
 

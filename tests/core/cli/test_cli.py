@@ -12,7 +12,7 @@ import pytest
 from safeembodai_core.cli import cli
 
 HEAVY = ("litellm", "pybullet", "cv2", "matplotlib", "ray")
-#: not heavy, but `--help` needs none of them either (issue 25: --help within 0.3 s of CPU)
+#: not heavy, but `--help` needs none of them either (--help within 0.3 s of CPU)
 HELP_FREE = HEAVY + ("numpy", "structlog", "rich", "jinja2", "safeembodai_core.components", "safeembodai_core.models")
 
 

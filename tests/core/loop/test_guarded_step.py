@@ -199,7 +199,7 @@ def test_refusal_reasons_fed_back_stay_on_one_line():
     assert "\nReference State (step 9)" not in failures and "Reference State (step 9)" in failures
 
 
-# --- issue 9: the loop and Guard share the strict reading ----------------------------------------
+# --- the loop and Guard share the strict reading -------------------------------------------------
 
 
 class Ending(LLMBackend):

@@ -1,4 +1,4 @@
-"""The authors' release's injections: its two texts verbatim, replacing the instruction as it did (issue 22).
+"""The authors' release's injections: its two texts verbatim, replacing the instruction as it did.
 
 eyesimLLM (aa65c7f) ``src/discrete_robot/discrete_llm_robot.py:26`` ('naive') and ``:28`` ('image') are
 the texts; ``:166-174`` makes the injection *the* human instruction of an attacked step.

@@ -1,4 +1,4 @@
-"""Issue 12, answers cut off at ``max_tokens``: the decoding schema caps every text field so that the
+"""Answers cut off at ``max_tokens``: the decoding schema caps every text field so that the
 longest answer its grammar admits fits in the backend's ``max_tokens``, while the parser keeps the
 full contract (2,000 characters of text)."""
 

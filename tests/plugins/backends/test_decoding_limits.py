@@ -1,4 +1,4 @@
-"""Issue 12: the prompt outline shows numbers as numbers, the decoding schema carries the scenario's
+"""The prompt outline shows numbers as numbers, the decoding schema carries the scenario's
 limits, the default ``json_mode`` of ``local`` is the form the llama-cpp-python server reads, a
 server error that repeats word for word stops the retries, and a step's retries can differ from its
 first attempt."""

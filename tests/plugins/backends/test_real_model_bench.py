@@ -10,7 +10,7 @@ import yaml
 
 from safeembodai_core.scenario import parse_scenario
 
-BENCH = Path(__file__).resolve().parents[2] / "bench" / "real_model.py"
+BENCH = Path(__file__).resolve().parents[3] / "bench" / "real_model.py"
 
 
 def _bench():

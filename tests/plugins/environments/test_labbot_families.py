@@ -1,4 +1,4 @@
-"""Labbot families: per-trial Labbot dynamics drawn from a documented family (issue 21, part 3).
+"""Labbot families: per-trial Labbot dynamics drawn from a documented family.
 
 Without a family the Labbots move bit-for-bit as before (fixtures recorded with the code before
 families existed); with one, the trial's kind and each Labbot's parameters come from the seed

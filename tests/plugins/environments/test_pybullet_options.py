@@ -91,7 +91,7 @@ def test_the_plugin_module_does_not_import_pybullet():
 
 
 def test_a_start_distance_below_what_the_bodies_need_is_refused_not_raised(registry):
-    """Issue 10.6: a user's value is honoured or refused with the reason, never changed silently."""
+    """A user's value is honoured or refused with the reason, never changed silently."""
     with pytest.raises(ComponentOptionsError, match="min_start_distance_mm=100 is less than"):
         registry.validate_options("environment", "OF", {"min_start_distance_mm": 100})
     honoured = registry.validate_options("environment", "OF", {"min_start_distance_mm": 600})

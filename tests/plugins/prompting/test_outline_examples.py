@@ -1,4 +1,4 @@
-"""Issue 12, the outline's example values: the ways ``schema_outline`` can show a distance and an
+"""The outline's example values: the ways ``schema_outline`` can show a distance and an
 angle, the seeded outline's determinism in the prompt builder, and the bench that compares them."""
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from safeembodai_plugins.prompting.builder import OUTLINE_EXAMPLES as BUILDER_DE
 from safeembodai_plugins.prompting.builder import JinjaPromptBuilder, outline_rng
 
 TIGHT = ControlLimits(max_distance_mm=150, max_angle_deg=1, max_signals=4)
-BENCH = Path(__file__).resolve().parents[2] / "bench" / "real_model.py"
+BENCH = Path(__file__).resolve().parents[3] / "bench" / "real_model.py"
 
 
 def _shown(outline: str) -> list[tuple[str, float]]:

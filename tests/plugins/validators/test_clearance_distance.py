@@ -1,4 +1,4 @@
-"""``lidar_clearance``'s dist is honoured as given, with an explicit measuring point (issue 10.6).
+"""``lidar_clearance``'s dist is honoured as given, with an explicit measuring point.
 
 It used to be raised silently to the robot's radius (``max(dist, radius)``), so the authors'
 release setting -- unsafe when ``scan - |d| < 100 mm``, over ±10 deg -- could not be expressed.
@@ -13,7 +13,7 @@ from safeembodai_core.components import RobotSpec
 from safeembodai_core.registry import ComponentOptionsError
 from safeembodai_core.validation import ValidationContext, validate_plan
 
-from .test_validator_rules import fwd, left, scan
+from .test_rules import fwd, left, scan
 
 RELEASE = {"half_angle_deg": 10, "safety_distance_mm": 100, "measured_from": "lidar", "allow_below_radius": True}
 

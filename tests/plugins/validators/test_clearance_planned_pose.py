@@ -1,9 +1,9 @@
-"""``lidar_clearance`` on the later signals of a plan: judged on the measured points (issue 10.1).
+"""``lidar_clearance`` on the later signals of a plan: judged on the measured points.
 
-The rule used to re-bin the scan into beams around the planned pose and call every bin left
-empty by the moved points "no reading": a safe ``straight 399, straight 399`` towards a can was
-refused four times and the trial ended ``safe_abort``. These tests pin the fix: later moves are
-judged on the points the sensor measured, unknown only where it gave no reading.
+Later moves are judged on the points the sensor measured (moved to the planned pose), unknown only
+where it gave no reading -- not on the scan re-binned into beams around the planned pose, where a
+bin left empty by the moved points would read as "no reading" and refuse a safe
+``straight 399, straight 399`` towards a can.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from safeembodai_plugins.environments.flatland.world import FlatlandWorld
 from safeembodai_plugins.validators import LidarClearanceOptions
 from safeembodai_plugins.validators.rules import LidarClearanceRule
 
-from .test_validator_rules import back, fwd, left, scan
+from .test_rules import back, fwd, left, scan
 
 
 def room_scan(circles, room=(-1000.0, 2000.0, -900.0, 800.0), beams: int = 360, max_range: float = 8000.0) -> LidarScan:
@@ -46,7 +46,7 @@ def room_scan(circles, room=(-1000.0, 2000.0, -900.0, 800.0), beams: int = 360, 
 
 
 def can_run_scan() -> LidarScan:
-    """The issue's run: the can 1.7 m ahead, a ball whose nearest return (1,250 mm at -25 deg) is
+    """A recorded run: the can 1.7 m ahead, a ball whose nearest return (1,250 mm at -25 deg) is
     the nearest in the ±30 deg sector, room walls elsewhere."""
     ball = 1310.0 * np.array([math.cos(math.radians(25)), -math.sin(math.radians(25))])
     return room_scan([(1733.0, 0.0, 33.0), (ball[0], ball[1], 60.0)])
@@ -60,7 +60,7 @@ def judge(plan, lidar: LidarScan, rule=None, robot: RobotSpec = RobotSpec()) -> 
     return validate_plan(plan, ValidationContext(scan=lidar, robot=robot), [("lidar_clearance", rule or clearance())])
 
 
-def test_the_issue_run_two_straights_towards_the_can_are_accepted():
+def test_two_straights_towards_the_can_past_a_ball_are_accepted():
     lidar = can_run_scan()
     sector = lidar.ranges_mm[lidar.sector(0, 30)]
     assert sector.min() == pytest.approx(1250, abs=0.5)  # 1250 - 399 and 1250 - 798 are both >= 250

@@ -16,7 +16,7 @@ from safeembodai_core.models import Outcome, Straight, Turn
 from safeembodai_core.testing import CorridorWorld, answer, run_tiny_trial, straight
 from safeembodai_core.validation import ValidationContext, validate_plan
 
-from .test_validator_rules import back, context, fwd, left, scan
+from .test_rules import back, context, fwd, left, scan
 
 ROBOT = RobotSpec(radius_mm=170, width_mm=340, length_mm=340)
 

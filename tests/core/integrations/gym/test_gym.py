@@ -278,7 +278,7 @@ def test_the_guard_gives_rules_the_episodes_earlier_scans_as_the_loop_does():
 def test_a_fresh_scan_arm_gets_the_loops_verdicts_under_the_guard(repo, index):
     """movers.yaml's ``moving`` arm (``fresh_scan``) in DO: the loop's trial, its answers replayed into the
     guarded env: every attempt gets the loop's verdict, word for word, judged on the world as the answer
-    arrived, and the episode ends as the trial did (issue 39, decision 3)."""
+    arrived, and the episode ends as the trial did."""
     from safeembodai_core.gym import SafeEmbodAIEnv
     from safeembodai_core.plugins import load_plugins
     from safeembodai_core.runner import ScenarioRunner, trial_spec

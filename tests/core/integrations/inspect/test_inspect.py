@@ -155,14 +155,10 @@ def test_a_sample_stopped_by_a_time_limit_ends_its_trial_and_scores_as_error(tmp
 
 
 def _fake_openai(repo):
-    """The fake OpenAI-compatible server of the backend tests (tests/backends/fake_openai.py)."""
-    import importlib.util
+    """The fake OpenAI-compatible server of the backend tests (tests/support/fake_openai.py)."""
+    import fake_openai
 
-    spec = importlib.util.spec_from_file_location("fake_openai", repo / "tests" / "backends" / "fake_openai.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("fake_openai", module)
-    spec.loader.exec_module(module)
-    return module
+    return fake_openai
 
 
 def _duplicate_content_body(first, second):

@@ -46,6 +46,7 @@ def _complete(plugins, server, **options):
     ("no_such_reason_a_hostile_server_made_up", "no_such_reason_a_hostile_server_made_up", False),  # litellm: "stop"
     ("\x1b[2Jstop", "\x1b[2Jstop", False), ("stop\u200b", "stop\u200b", False), (7, "7", False),
     ("stop" + " " * 60 + "length", "stop" + " " * 60 + "[...]", False),  # clipped visibly: never a bare "stop"
+    (None, None, True),  # a server that reports none: accepted (ControlLimits.require_finish_reason is off)
 ])
 def test_finish_reason_is_the_providers_as_sent_clipped_at_64_and_judged_by_the_core(
         built_plugins, fake_server, fake_key, sent, reported, accepted):
@@ -188,7 +189,7 @@ def test_absurd_token_counts_are_clamped_or_counted_here_and_never_raise(built_p
                          ids=["missing", "null", "negative", "fractional", "a string", "only total", "strings",
                               "zeros"])
 def test_an_unusable_usage_is_counted_here_never_zero(built_plugins, fake_server, fake_key, usage):
-    """Issue 35: every one of these counted 0 tokens, so no spending cap ever stopped a run."""
+    """Each of these must not count 0 tokens, or no spending cap would ever stop a run."""
     fake_server.default = Envelope([choice(GOOD)], {"usage": usage})
     reply = _complete(built_plugins, fake_server)
     assert reply.envelope_error is None and read_reply(reply).control[0].angle == 30

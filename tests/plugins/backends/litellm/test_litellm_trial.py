@@ -164,8 +164,8 @@ def test_a_trial_records_what_its_tokens_cost_at_the_models_list_price(built_plu
                          ids=["missing", "null", "only total", "negative"])
 def test_a_server_that_reports_no_usable_usage_is_still_counted_capped_and_reported(
         built_plugins, fake_server, fake_key, tmp_path, usage):
-    """Issue 35: with no usable usage every call counted 0 tokens, so ``--max-tokens`` never stopped a
-    run and report.md showed $0.00 for real spend. Now the calls are counted here, the cap applies
+    """Without a usable usage a call must not count 0 tokens (``--max-tokens`` would never stop a
+    run and report.md would show $0.00 for real spend): the calls are counted here, the cap applies
     to that count, and the report says the counts were estimated."""
     from safeembodai_core.ablation.spending import SpendingCap, SpendingCapReached
     from safeembodai_core.report import write_report

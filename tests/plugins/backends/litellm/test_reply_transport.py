@@ -2,9 +2,9 @@
 
 The reply is read from the body the server sent (not litellm's parsed object): a ``<think>`` block
 stays in the text, every choice is counted, duplicate keys refuse the reply, the finish reason
-reaches the core as sent; a redirect is never followed, and an HTTP 200 carrying only an error
-object is the provider's error (retried). See docs/backend_calls.md, "What the backend reads from the
-server".
+reaches the core as sent (test_litellm_hostile.py); a redirect is never followed, and an HTTP 200
+carrying only an error object is the provider's error (retried). See docs/backend_calls.md, "What
+the backend reads from the server".
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from backend_helpers import one_trial_steps
 from fake_openai import DROP, Envelope, FakeOpenAI, Raw, Redirect, Reply, Status, choice
 from safeembodai_core.errors import BackendError, ComponentError
 from safeembodai_core.models import Prompt, TextPart, read_reply
-from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
 from safeembodai_core.models.strict_json import ResponseParseError
 from safeembodai_core.testing import answer, straight, turn
 
@@ -145,21 +144,7 @@ def test_a_refused_envelope_is_recorded_with_its_body_and_origin_in_a_trial(buil
     assert second.accepted and [e.signal.describe() for e in step.executed] == ["turn left 30 deg"]
 
 
-# (d) finish reasons reach the core as sent ------------------------------------------------------
-
-@pytest.mark.parametrize("sent,accepted", [("stop", True), ("STOP", True), (" STOP ", None), ("stop\u200b", False),
-                                           ("content_filter", False), ("length", False), (None, True)])
-def test_finish_reasons_reach_the_core_as_sent(built_plugins, fake_server, fake_key, sent, accepted):
-    fake_server.default = Reply(GOOD, finish_reason=sent)
-    reply = _complete(built_plugins, fake_server)
-    assert reply.finish_reason == sent
-    if accepted is None:  # padding: whatever the core's one normalisation says, nothing here decides it
-        accepted = normal_finish_reason(sent) in NORMAL_FINISH_REASONS
-    if accepted:
-        assert read_reply(reply).control[0].angle == 30
-    else:
-        _refused(reply, "finish reason")
-
+# (d) finish reasons reach the core as sent: in test_litellm_hostile.py
 
 # (e) an HTTP 200 that carries only an error object ---------------------------------------------
 
@@ -311,20 +296,15 @@ def test_completion_kwargs_may_not_ask_for_several_answers_or_bring_a_client(bui
 # the transport gives the core's strict reader's reply, for any generated body -------------------
 
 def test_any_body_over_http_gives_the_strict_readers_reply(built_plugins, fake_key):
-    """Whole replies (tests/core/reply_strategies.py) served over HTTP: the backend's reply is the one
+    """Whole replies (tests/support/reply_strategies.py) served over HTTP: the backend's reply is the one
     ``reply_from_chat_completion`` makes of the same body, so the verdicts of
-    tests/core/test_one_verdict.py and tests/integrations/test_one_verdict_paths.py hold through the
-    real transport too, for these bodies. (litellm itself fails the call on some bodies the reader
-    would read -- a fraction as a token count -- as a malformed reply: those never reach a reading.)"""
-    import sys
-    from pathlib import Path
-
+    tests/core/models/test_chat_completion.py hold through the real transport too, for these bodies.
+    (litellm itself fails the call on some bodies the reader would read -- a fraction as a token
+    count -- as a malformed reply: those never reach a reading.)"""
     from hypothesis import HealthCheck, given, settings
+    from reply_strategies import bodies
 
     from safeembodai_core.models.chat_completion import reply_from_chat_completion
-
-    sys.path.insert(0, str(Path(__file__).parents[1] / "core"))
-    from reply_strategies import bodies
 
     with FakeOpenAI() as server:
         backend = _backend(built_plugins, server)

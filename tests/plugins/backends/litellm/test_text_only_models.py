@@ -1,4 +1,4 @@
-"""A text-only model sent images (issue 24): the error says so plainly and names ``perception: text``.
+"""A text-only model sent images: the error says so plainly and names ``perception: text``.
 
 llama-cpp-python serving SmolLM2 (no vision) fails in its chat template on a list of content parts
 and answers HTTP 500 "can only concatenate str (not list) to str"; other servers say it in words.

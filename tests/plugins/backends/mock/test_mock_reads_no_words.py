@@ -1,6 +1,6 @@
 """The simulated pilot reads refusals as data, never their words: the same trials with every
-refusal reason reworded give the same plans, verdicts and motions (issue 37's contract: a reworded
-reason must not change the pilot, so a rule's wording is free to improve)."""
+refusal reason reworded give the same plans, verdicts and motions (a reworded reason must not
+change the pilot, so a rule's wording is free to improve)."""
 
 from __future__ import annotations
 
