@@ -24,7 +24,10 @@ class Defences(BaseModel):
     * ``failure_threshold``: N of Algorithm 1, the retries allowed after a refused answer. Answers
       that do not parse are refused and retried in every arm: the robot cannot execute them.
     * ``on_exhausted``: when N retries are spent, ``abort`` ends the trial (``safe_abort``, the
-      paper's "mission failed"); ``hold`` skips the step without moving and carries on.
+      paper's "mission failed"); ``hold`` skips the step without moving and carries on; ``enforce``
+      (ours, not the paper's) runs the rules' own cut of the last parsed, refused answer -- what its
+      refusals' advice allows, judged again by every rule -- and holds when nothing of it is safe
+      (:mod:`safeembodai_core.loop.enforce`); with ``failure_threshold: 0``: cut at the first refusal.
     * ``fresh_scan``: the validators judge a LiDAR scan read when the LLM's answer arrives (the
       environment's :meth:`~safeembodai_core.components.Environment.sense`, after the think
       time), not the scan the step's prompt was built from; the step's scan joins
@@ -42,7 +45,7 @@ class Defences(BaseModel):
     safety_validation: bool = False
     validators: list[ComponentRef] = Field(default_factory=lambda: [ComponentRef(use=n) for n in DEFAULT_RULES])
     failure_threshold: int = Field(3, ge=0, le=20)
-    on_exhausted: Literal["abort", "hold"] = "abort"
+    on_exhausted: Literal["abort", "hold", "enforce"] = "abort"
     fresh_scan: bool = False
     told: bool = False
 

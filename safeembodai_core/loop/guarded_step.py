@@ -89,6 +89,7 @@ def decide(
     seed: int,
     fresh: Callable[[], ValidationContext] | None = None,
     ended: Callable[[], bool] | None = None,
+    judged: dict[int, ValidationContext] | None = None,
 ) -> tuple[list[Attempt], LLMResponse | None]:
     """Run Algorithm 1 for one step; return every attempt and the accepted answer (or None).
 
@@ -98,6 +99,8 @@ def decide(
     the LLM thought): no retry follows a refusal then. A
     :class:`~safeembodai_core.errors.BackendError` from the backend propagates to the trial, its
     ``spent`` grown by the usage of the step's attempts answered before it (nothing paid is lost).
+    ``judged``, when given, receives the context each judged attempt was judged on, by attempt index
+    (what ``on_exhausted: enforce`` judges the cut on, :mod:`~safeembodai_core.loop.enforce`).
     """
     attempts: list[Attempt] = []
     failures: list[str] = []
@@ -128,7 +131,10 @@ def decide(
         else:
             attempt.response = response
             if validators:
-                attempt.verdicts = validate_plan(response.control, fresh() if fresh else context, validators)
+                judging = fresh() if fresh else context
+                attempt.verdicts = validate_plan(response.control, judging, validators)
+                if judged is not None:
+                    judged[index] = judging
         attempts.append(attempt)
         if attempt.accepted:
             return attempts, attempt.response

@@ -6,8 +6,9 @@ them: the trial's components from the recorded scenario, the world reset to the 
 backend (:class:`RecordedAnswers`) that hands back, in order, the replies the LLM gave. Everything
 else -- attackers, perception, prompts, Algorithm 1, the rules, the physics -- runs as it ran, so a
 deterministic world gives the same trial again. That is checked, not assumed: every replayed step
-must agree with the recorded one (each attempt's acceptance and verdicts, each executed command and
-its result, the poses), or :class:`ReplayDiverged` names the first step that did not.
+must agree with the recorded one (each attempt's acceptance and verdicts, the rules' cut an arm with
+``on_exhausted: enforce`` ran or held, each executed command and its result, the poses), or
+:class:`ReplayDiverged` names the first step that did not.
 """
 
 from __future__ import annotations
@@ -77,6 +78,15 @@ def difference(recorded: StepRecord, replayed: StepRecord | None) -> str | None:
         if [(v.rule, v.valid, v.signal_index) for v in old.verdicts] != \
                 [(v.rule, v.valid, v.signal_index) for v in new.verdicts]:
             return f"attempt {old.index + 1}: the rules' verdicts differ"
+    was, now = recorded.enforced, replayed.enforced  # on_exhausted: enforce -- the rules' cut, judged again
+    if (was is None) != (now is None) or (was is not None and now is not None and (
+            was.attempt != now.attempt or was.ran != now.ran or was.plan != now.plan
+            or [(v.rule, v.valid, v.signal_index) for v in was.verdicts] !=
+            [(v.rule, v.valid, v.signal_index) for v in now.verdicts])):
+        def told(enforced: Any) -> str:
+            return "no cut" if enforced is None else enforced.note or "a cut"
+
+        return f"the rules' cut differs: recorded {told(was)}; replayed {told(now)}"
     if not _same_pose(recorded.pose_before, replayed.pose_before):
         return f"the robot started the step at {replayed.pose_before}, recorded {recorded.pose_before}"
     if len(recorded.executed) != len(replayed.executed):

@@ -48,6 +48,7 @@ from ..text_safety import one_line, storable
 from ..validation import PastScan, ValidationContext
 from .defences import Defences
 from .fresh_scan import fresh_context, require_sense
+from .enforce import enforce
 from .guarded_step import decide
 
 
@@ -122,6 +123,7 @@ class _Totals:
     self_hit: dict[str, int] = field(default_factory=dict)  # self collisions by what was hit
     interventions: int = 0
     retries: int = 0
+    enforced_steps: int = 0
     attacked: int = 0
     flagged: int = 0
     caught: int = 0
@@ -140,6 +142,7 @@ class _Totals:
         self.estimated = self.estimated or usage.estimated
         self.interventions += record.interventions
         self.retries += record.retries
+        self.enforced_steps += record.enforced is not None and record.enforced.ran
         self.attacked += bool(record.attacks)
         self.flagged += record.flagged_attack
         for attempt in record.attempts:
@@ -192,7 +195,8 @@ class _Totals:
             collisions_struck=self.collisions_struck, self_collisions_hit=dict(self.self_hit),
             collisions_struck_standing=self.collisions_struck_standing,
             interventions=self.interventions,
-            retries=self.retries, attacked_steps=self.attacked, flagged_steps=self.flagged,
+            retries=self.retries, enforced_steps=self.enforced_steps, attacked_steps=self.attacked,
+            flagged_steps=self.flagged,
             flagged_attacked_steps=self.caught, target_visible_steps=self.visible, first_seen_step=self.first_seen,
             lost_after_seen_steps=self.lost, detail=one_line(detail), trajectory=self.trajectory,
             wall_time_s=wall_time_s, error_kind=error_kind if outcome == Outcome.ERROR else None, world=self.world,
@@ -358,17 +362,27 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
         fresh = partial(fresh_context, context, observation, parts=parts, seed=spec.seed, step=step,
                         instruction=settings.instruction, reference=reference, limits=settings.limits,
                         on_sensed=on_sensed or (lambda reading: None))
+    validators = parts.validators if defences.safety_validation else []
+    judged: dict[int, ValidationContext] = {}
     attempts, response = decide(
         request, builder=parts.prompt_builder, backend=parts.backend,
-        validators=parts.validators if defences.safety_validation else [],
+        validators=validators,
         context=context, failure_threshold=defences.failure_threshold, seed=spec.seed, fresh=fresh,
-        ended=(lambda: parts.environment.outcome() is not None) if fresh else None,
+        ended=(lambda: parts.environment.outcome() is not None) if fresh else None, judged=judged,
     )
     planned = list(response.control) if response is not None else []
+    enforced = None
+    # on_exhausted: enforce -- the rules' cut of the last refused answer, judged again (never when the world
+    # ended while the LLM thought: nothing runs then)
+    if response is None and defences.on_exhausted == "enforce" and not (
+            fresh is not None and parts.environment.outcome() is not None):
+        enforced = enforce(attempts, judged, validators)
+        planned = list(enforced.plan) if enforced.ran else []
     return StepRecord(
         trial_id=spec.trial_id, step=step, instruction=surface.instruction, attacks=attacks, attempts=attempts,
         planned=planned, accepted=response is not None, pose_before=observation.pose,
         truth=observation.truth, sim_time_s=observation.sim_time_s, status="executing" if planned else "done",
+        enforced=enforced,
     )
 
 

@@ -7,6 +7,7 @@ from .records import (
     Advice,
     Attempt,
     AttackRecord,
+    Enforced,
     ExecutedSignal,
     ExecutionResult,
     Outcome,
@@ -22,7 +23,7 @@ from .response import LLMResponse, PerceptionEntry, ResponseParseError, response
 from .reply import BackendReply, parse_response, read_reply
 
 __all__ = [
-    "DEFAULT_LIMITS", "Advice", "Attempt", "BackendReply", "AttackRecord", "ControlLimits", "ControlSignal",
+    "DEFAULT_LIMITS", "Advice", "Attempt", "Enforced", "BackendReply", "AttackRecord", "ControlLimits", "ControlSignal",
     "ExecutedSignal",
     "ExecutionResult", "GroundTruth", "ImagePart", "LLMResponse", "LidarScan", "Modalities",
     "Observation", "Outcome", "PerceptionEntry", "Pose", "Prompt", "PromptRequest",

@@ -181,6 +181,33 @@ class Refusal(_Record):
     advice_end: int | None = Field(None, ge=0)
 
 
+class Enforced(_Record):
+    """``on_exhausted: enforce`` (ours, not the paper's): what the loop made of a step whose N retries
+    were spent -- the rules' own cut of the LLM's last parsed, refused answer, judged again.
+
+    ``attempt``: the :attr:`Attempt.index` of the answer cut (None: no answer of the step parsed,
+    nothing to cut); ``source``: ``cut`` (the signals before the first refused one, that one shortened
+    to the least ``safe_mm``/``safe_deg`` its refusals allow, the rest dropped), ``step_aside`` (a
+    refusal's whole alternative plan) or ``none``; ``plan``: that plan as built; ``verdicts``: every
+    rule's verdict on it, on the context the cut answer was judged on; ``ran``: the plan passed and
+    was handed to the environment (``StepRecord.planned``); otherwise the step held, without
+    motion. ``note``: the same in one line. The LLM never wrote ``plan``: the rules cut it from its answer.
+    """
+
+    attempt: int | None = None
+    source: Literal["cut", "step_aside", "none"] = "none"
+    plan: list[ControlSignal] = Field(default_factory=list)
+    verdicts: list[Verdict] = Field(default_factory=list)
+    ran: bool = False
+    note: str = ""
+
+    @model_validator(mode="after")
+    def _ran_only_if_valid(self) -> "Enforced":
+        if self.ran and (not self.plan or not all(v.valid for v in self.verdicts)):
+            raise ValueError("an enforced plan runs only when it is not empty and every rule passed it")
+        return self
+
+
 class AttackRecord(_Record):
     """Ground truth of an attack on a step: who, through which channel, with what payload."""
 
@@ -223,6 +250,9 @@ class StepRecord(_Record):
     pose_after: Pose | None = None
     truth: GroundTruth = Field(default_factory=GroundTruth)
     sim_time_s: float = 0.0
+    #: ``on_exhausted: enforce``: the rules' cut of the last refused answer (``accepted`` stays False: no
+    #: answer of the LLM passed; ``planned`` holds the cut when it ran); None for every other step
+    enforced: Enforced | None = None
 
     @property
     def usage(self) -> TokenUsage:
@@ -256,12 +286,16 @@ class StepRecord(_Record):
 
     def to_reference(self) -> ReferenceState:
         accepted = next((a for a in reversed(self.attempts) if a.accepted), None)
+        if accepted is None and self.enforced is not None and self.enforced.ran:  # what the LLM saw and planned
+            accepted = next((a for a in self.attempts if a.index == self.enforced.attempt), None)
         response = accepted.response if accepted else None
         return ReferenceState(
             step=self.step,
             executed=self.executed,
             perception=[e.model_dump() for e in response.perception] if response else [],
             planning=response.planning if response else "",
+            # the robot did not run the LLM's answer but the rules' cut of it: R_{i-1} says so
+            outcome_note=self.enforced.note if self.enforced is not None else "",
         )
 
 
@@ -327,6 +361,8 @@ class TrialResult(_Record):
         return None if standing is None else self.collisions_struck - standing
     interventions: int = 0
     retries: int = 0
+    #: steps whose spent retries ended in the rules' cut of a refused answer running (``on_exhausted: enforce``)
+    enforced_steps: int = 0
     attacked_steps: int = 0
     flagged_steps: int = 0
     flagged_attacked_steps: int = 0  # steps both attacked (ground truth) and flagged by the LLM
