@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -28,40 +29,46 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
-def ablate(scenario, plugins, folder: Path, recordings: bool, writes: list[float]) -> tuple[float, list[float]]:
-    """The run's seconds and each trial's own seconds (from the previous trial's end to its end)."""
+def ablate(scenario, plugins, folder: Path, recordings: bool, writes: list[tuple[float, float]]
+           ) -> tuple[float, list[tuple[float, float]]]:
+    """The run's seconds and each trial's own (wall, CPU) seconds (from the previous trial's end to its
+    end; CPU: this process's, every thread's); ``writes`` gets each recording's (wall, CPU) seconds."""
     from safeembodai_core import rerun_export
     from safeembodai_core.ablation import Ablation, RunFolder
 
     real = rerun_export.recording_bytes
 
     def timed(*args, **kwargs):
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         try:
             return real(*args, **kwargs)
         finally:
-            writes.append(time.perf_counter() - started)
+            writes.append((time.perf_counter() - started, time.process_time() - cpu))
 
     rerun_export.recording_bytes = timed
-    ends: list[float] = []
+    ends: list[tuple[float, float]] = []
     try:
         ablation = Ablation(scenario, plugins, RunFolder(folder), recordings=recordings)
         try:
-            started = time.perf_counter()
-            ablation.run(lambda result: ends.append(time.perf_counter()))
-            total = time.perf_counter() - started
+            started = (time.perf_counter(), time.process_time())
+            ablation.run(lambda result: ends.append((time.perf_counter(), time.process_time())))
+            total = time.perf_counter() - started[0]
         finally:
             ablation.close()
     finally:
         rerun_export.recording_bytes = real
-    return total, [b - a for a, b in zip([started, *ends], ends)]
+    return total, [(b[0] - a[0], b[1] - a[1]) for a, b in zip([started, *ends], ends)]
 
 
-def view(run: Path, site: Path) -> float:
+def view(run: Path, site: Path) -> tuple[float, float]:
+    """Seconds of ``safeembodai view RUN --out SITE`` in a fresh process: wall, and CPU (its own)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
     subprocess.run([sys.executable, "-m", "safeembodai_core", "view", str(run), "--out", str(site)], check=True,
                    capture_output=True)
-    return time.perf_counter() - started
+    wall = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def main() -> None:
@@ -84,39 +91,39 @@ def main() -> None:
         ablate(warm, plugins, root / "warm", True, [])  # imports, physics clients, rerun-sdk, once
         plain: list[float] = []
         recorded: list[float] = []
-        shares: list[float] = []
-        writes_all: list[float] = []
-        trials_all: list[float] = []
+        writes_all: list[tuple[float, float]] = []
+        trials_all: list[tuple[float, float]] = []
         for round_ in range(args.repeat):
             total, _ = ablate(scenario, plugins, root / f"plain{round_}", False, [])
             plain.append(total)
-            writes: list[float] = []
+            writes: list[tuple[float, float]] = []
             total, trials = ablate(scenario, plugins, root / f"rrd{round_}", True, writes)
             recorded.append(total)
             assert len(writes) == len(trials), (len(writes), len(trials))
-            shares += [w / t for w, t in zip(writes, trials)]
             writes_all += writes
             trials_all += trials
             n = len(trials)
             print(f"round {round_ + 1}: {n} trials; {plain[-1] / n:.3f} s per trial without recordings, "
                   f"{recorded[-1] / n:.3f} s with (x{recorded[-1] / plain[-1]:.2f}); load {os.getloadavg()[0]:.1f}")
-        print(f"writing a trial's .rrd: median {statistics.median(writes_all) * 1000:.0f} ms, "
-              f"mean {statistics.mean(writes_all) * 1000:.0f} ms")
-        print(f"as a share of its trial's own time: median {statistics.median(shares):.1%}, "
-              f"mean {statistics.mean(shares):.1%}, max {max(shares):.1%}; all writing / all trials' time "
-          f"{sum(writes_all) / sum(trials_all):.1%} (bar: <= 15%)")
+        for kind, i in (("wall", 0), ("CPU", 1)):
+            shares = [w[i] / t[i] for w, t in zip(writes_all, trials_all)]
+            print(f"{kind}: writing a trial's .rrd median {statistics.median(w[i] for w in writes_all) * 1000:.0f} ms "
+                  f"of a trial's {statistics.median(t[i] for t in trials_all) * 1000:.0f} ms; per trial, its share "
+                  f"median {statistics.median(shares):.1%}, mean {statistics.mean(shares):.1%}, max {max(shares):.1%}; "
+                  f"all writing / all trials {sum(w[i] for w in writes_all) / sum(t[i] for t in trials_all):.1%} "
+                  "(bar: <= 15%)")
         print(f"whole run with recordings / without: x{statistics.median(recorded) / statistics.median(plain):.3f}")
         run = root / "rrd0"
         recordings = sorted((run / "recordings").glob("*.rrd"))
         size = sum(p.stat().st_size for p in recordings) / max(1, len(recordings)) / 1024
         print(f"{len(recordings)} recordings, {size:.0f} KiB each on average")
-        cold = view(run, root / "site")
-        again = view(run, root / "site")
-        print(f"safeembodai view of the {len(recordings)}-trial run: cold {cold:.1f} s (bar: <= 20 s on 2 cores), "
-              f"unchanged rebuild {again:.1f} s; load {os.getloadavg()[0]:.1f}")
-        plain_view = view(root / "plain0", root / "site-plain")
-        print(f"the same run without recordings: cold {plain_view:.1f} s; load {os.getloadavg()[0]:.1f}")
-
+        cold, cold_cpu = view(run, root / "site")
+        again, _ = view(run, root / "site")
+        print(f"safeembodai view of the {len(recordings)}-trial run: cold {cold:.1f} s wall, {cold_cpu:.1f} s CPU "
+              f"(bar: <= 20 s on 2 cores), unchanged rebuild {again:.1f} s; load {os.getloadavg()[0]:.1f}")
+        plain_view, plain_cpu = view(root / "plain0", root / "site-plain")
+        print(f"the same run without recordings: cold {plain_view:.1f} s wall, {plain_cpu:.1f} s CPU; "
+              f"load {os.getloadavg()[0]:.1f}")
 
 if __name__ == "__main__":
     main()
