@@ -6,7 +6,7 @@ docs/evidence/, and every evidence page is linked from a reference page or the R
 relative link of README.md and docs/**/*.md reaches an existing file and, with an ``#anchor``, a
 heading of that file (GitHub's slugs). The YAML examples of the pages split off the long reference
 pages are valid scenario parts, as those of defences.md and backends.md are
-(tests/meta/test_docs_defences.py, tests/meta/test_docs_backends.py)."""
+(tests/meta/test_docs_components.py)."""
 
 from __future__ import annotations
 
