@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from .processes import processes_naming
+from processes import processes_naming
 
 pytest.importorskip("ray", reason='the ray extra is not installed: pip install -e ".[ray]"')
 

@@ -20,13 +20,13 @@ from pathlib import Path
 
 import pytest
 
-from .processes import processes_naming
+from processes import processes_naming
 
 pytest.importorskip("ray", reason='the ray extra is not installed: pip install -e ".[ray]"')
 
 pytestmark = [pytest.mark.ray, pytest.mark.slow, pytest.mark.timeout(900)]
 
-HERE = Path(__file__).resolve().parent
+SUPPORT = Path(__file__).resolve().parents[2] / "support"
 
 
 def _namespaces_or_skip() -> None:
@@ -46,7 +46,7 @@ def cluster_report(repo):
     work = tempfile.mkdtemp(prefix="sr-", dir="/tmp")  # short: Ray's socket paths live under it
     try:
         done = subprocess.run(["unshare", "--net", "--pid", "--fork", "--mount-proc", sys.executable,
-                               str(HERE / "ray_cluster_check.py"), str(repo), work],
+                               str(SUPPORT / "ray_cluster_check.py"), str(repo), work],
                               capture_output=True, text=True, timeout=840)
         assert done.returncode == 0, done.stderr[-3000:]
         report = json.loads(done.stdout)

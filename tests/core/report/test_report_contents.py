@@ -51,7 +51,7 @@ def scripted_run(tmp_path_factory, ablated):
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins(environ={})
-    repo = Path(__file__).resolve().parents[2]
+    repo = Path(__file__).resolve().parents[3]
     scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=3", "max_steps=6"], plugins.registry)
     return ablated(scenario, plugins, tmp_path_factory.mktemp("run") / "quickstart")
 
