@@ -38,8 +38,8 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int, viewer
     if serve:  # before the build: the trial pages with a recording link to the viewer
         try:
             viewer = start_web_viewer(viewer_port)
-        except ViewerUnavailable as why:
-            console.print(f"Rerun's web viewer is not served: {terminal_markup(str(why))}; the trial pages "
+        except ViewerUnavailable as unavailable:
+            console.print(f"Rerun's web viewer is not served: {terminal_markup(str(unavailable))}; the trial pages "
                           "link their recordings only")
     with console.status("rendering"):
         counts = build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None)
