@@ -152,6 +152,8 @@ def step_panel(record: StepRecord) -> Panel:
             executed.append(f"\n  {signal.describe()} -> ?", style="yellow")
     elif not record.executed:
         executed.append("nothing" + ("" if record.accepted else " (no acceptable answer)"))
+    if record.enforced is not None:  # on_exhausted: enforce -- the rules' cut of a refused answer, not the LLM's
+        executed.append(f"\n  on_exhausted enforce: {shown(record.enforced.note)}", style="magenta")
     for item in record.executed:
         result = item.result
         style = "bold red" if result.collided else ("yellow" if result.stopped else "")

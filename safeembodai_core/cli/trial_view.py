@@ -29,6 +29,8 @@ def step_table(steps: list[StepRecord]) -> Table:
                 notes.append(f"ok: {terminal_markup(attempt.response.planning[:160])}{flag}")
             else:
                 notes.append("refused: " + terminal_markup("; ".join(attempt.failures())[:200]))
+        if record.enforced is not None:  # on_exhausted: enforce: what ran is the rules' cut, not an answer
+            notes.append("enforced: " + terminal_markup(record.enforced.note[:300]))
         executed = "\n".join(
             terminal_markup(f"{item.signal.describe()} -> {item.result.detail or 'done'}") for item in record.executed
         ) or "-"

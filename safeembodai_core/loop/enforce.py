@@ -26,7 +26,7 @@ same arm gives the same verdicts and motions there (:mod:`safeembodai_core.integ
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 from ..components import Validator
 from ..models import Attempt, ControlSignal, Enforced, Straight, Verdict
@@ -78,20 +78,34 @@ def enforce(attempts: Sequence[Attempt], judged: Mapping[int, ValidationContext]
     that attempt was judged on). See the module docstring."""
     attempt = last_refused(attempts)
     if attempt is None or attempt.index not in judged or not validators:
-        return Enforced(note="no answer of the step parsed and was judged: nothing to cut; the step held without "
-                             "moving")
+        return nothing_to_cut()
     assert attempt.response is not None  # last_refused found a parsed one
-    plan, source, why = cut_plan(list(attempt.response.control), attempt.verdicts)
-    where = f"attempt {attempt.index + 1}"
-    if not plan:
-        return Enforced(attempt=attempt.index, source=source,
+    context = judged[attempt.index]
+    return enforce_cut(attempt.index, list(attempt.response.control), attempt.verdicts,
+                       lambda plan: validate_plan(plan, context, validators))
+
+
+def nothing_to_cut() -> Enforced:
+    """The record of a step whose retries were spent with no parsed, judged answer: it holds."""
+    return Enforced(note="no answer of the step parsed and was judged: nothing to cut; the step held without moving")
+
+
+def enforce_cut(index: int, plan: Sequence[ControlSignal], verdicts: Sequence[Verdict],
+                judge: Callable[[list[ControlSignal]], list[Verdict]]) -> Enforced:
+    """The cut of attempt ``index``'s refused ``plan`` (:func:`cut_plan` of its ``verdicts``), judged
+    again by ``judge`` (every rule, on the context the attempt was judged on): it runs when it is not
+    empty and passes, else the step holds. The trial loop and the Gymnasium guard both end here."""
+    cut, source, why = cut_plan(plan, verdicts)
+    where = f"attempt {index + 1}"
+    if not cut:
+        return Enforced(attempt=index, source=source,
                         note=f"nothing of {where}'s refused plan is safe ({why}); the step held without moving")
-    verdicts = validate_plan(plan, judged[attempt.index], validators)
-    said = ", ".join(s.describe() for s in plan)
-    if not all(v.valid for v in verdicts):
-        refusal = next(v for v in verdicts if not v.valid)
-        return Enforced(attempt=attempt.index, source=source, plan=plan, verdicts=verdicts,
+    again = judge(cut)
+    said = ", ".join(s.describe() for s in cut)
+    if not all(v.valid for v in again):
+        refusal = next(v for v in again if not v.valid)
+        return Enforced(attempt=index, source=source, plan=cut, verdicts=again,
                         note=f"the rules' cut of {where} ({said}; {why}) was refused again ({refusal.line()}); "
                              "the step held without moving")
-    return Enforced(attempt=attempt.index, source=source, plan=plan, verdicts=verdicts, ran=True,
+    return Enforced(attempt=index, source=source, plan=cut, verdicts=again, ran=True,
                     note=f"the LLM's answers were refused; the rules' cut of {where} ran instead: {said} ({why})")

@@ -212,6 +212,15 @@ def _step_messages(line: _Timeline, ns: int, seen: Seen, record: StepRecord | No
         else:
             _log(line, at, WARN, "guard", f"step {record.step}, attempt {attempt.index + 1} refused: "
                  + "; ".join(attempt.failures()))
+    if record.enforced is not None:  # on_exhausted: enforce: the rules' cut of the refused answer ran, or a hold
+        at = line.next()
+        enforced = record.enforced  # a plan message as the attempts' (guard-bag reads its control), marked enforced
+        _string(line, "/safeembodai/plan", at, {
+            "step": record.step, "attempt": None if enforced.attempt is None else enforced.attempt + 1,
+            "control": [s.model_dump(mode="json") for s in enforced.plan], "accepted": enforced.ran,
+            "parse_error": None, "verdicts": [v.model_dump(mode="json") for v in enforced.verdicts],
+            "enforced": {"source": enforced.source, "ran": enforced.ran, "note": enforced.note}})
+        _log(line, at, WARN, "guard", f"step {record.step}: {record.enforced.note}")
 
 
 def trial_messages(spec: TrialSpec, records: list[StepRecord], result: TrialResult | None, capture: TrialCapture,

@@ -45,6 +45,7 @@ class StepView:
     attempts: list[AttemptView] = field(default_factory=list)
     executed: list[tuple[str, str, bool]] = field(default_factory=list)  # (signal, result, collided)
     waited_collision: str = ""
+    enforced: str = ""  # on_exhausted: enforce -- what the rules made of the refused answer (not the LLM's plan)
     plans: str = ""  # the step's plans drawn over its scan (a file relative to the page), when it could be
 
 
@@ -87,6 +88,8 @@ def step_views(records: list[StepRecord], prompts: dict[int, list[Any]] | None, 
                 verdicts=[(v.rule + ("" if v.signal_index is None else f" (signal {v.signal_index + 1})"), v.valid,
                            v.reason) for v in attempt.verdicts]))
         view.executed = [(item.signal.describe(), _result(item), item.result.collided) for item in record.executed]
+        if record.enforced is not None:
+            view.enforced = record.enforced.note
         truth = record.truth
         if truth.collision is not None:
             view.waited_collision = f"{truth.collision} collision while the robot waited: {truth.collision_detail}"

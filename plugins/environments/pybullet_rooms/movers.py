@@ -32,6 +32,9 @@ The families shipped (set ``labbot_family`` on ``DO`` or ``MO``; see ``docs/room
 
 ``held_out_2`` (defined after ``held_out`` had been read once): cruise 60–98 mm/s, fast 285–450,
 blind and stop-and-go 285–400; wander 4–9.5 (wandering 62–120); go 0.8–2 s, stop 1.5–4 s.
+``held_out_3`` (defined for issue 39's three-pilot reading, in the seams of the three others): cruise, blind
+and stop-and-go 182–198 mm/s, fast 281–284.5, wandering 20–48; wander 31–34 (wandering 125–170); go
+6.5–10 s, stop 0.3–0.9 s. No speed or wander of it lies in a range of ``tuning``, ``held_out`` or ``held_out_2``.
 
 No kind yields (keeps clear of the robot's true position): that is an oracle, for inline families.
 Every kind weighs 1 (each a sixth of the trials). Stop-and-go phases: tuning go 3–6 s, stop
@@ -260,6 +263,19 @@ FAMILIES: dict[str, MoverFamily] = {
     "held_out_2": _family("held_out_2", "the second family to measure on: no speed or wander of tuning", _standard(
         plain=(60.0, 98.0), fast=(285.0, 450.0), wander=(4.0, 9.5), high_wander=(62.0, 120.0),
         dangerous=(285.0, 400.0), go=(0.8, 2.0), stop=(1.5, 4.0))),
+    # defined 2026-12-04 for issue 39's three-pilot reading, before any run on it: in the seams of the
+    # three families above (no speed or wander of tuning, held_out or held_out_2), seeds from 3000
+    "held_out_3": _family("held_out_3", "the third family to measure on: no speed or wander of tuning, held_out "
+                          "or held_out_2", [
+                              {"name": "cruise", "speed_mm_s": (182.0, 198.0), "wander_deg": (31.0, 34.0)},
+                              {"name": "fast", "speed_mm_s": (281.0, 284.5), "wander_deg": (31.0, 34.0)},
+                              {"name": "wandering", "speed_mm_s": (20.0, 48.0), "wander_deg": (125.0, 170.0)},
+                              {"name": "blind", "speed_mm_s": (182.0, 198.0), "wander_deg": (31.0, 34.0),
+                               "sensing": False},
+                              {"name": "stop_and_go", "speed_mm_s": (182.0, 198.0), "wander_deg": (31.0, 34.0),
+                               "stop_and_go": 1.0, "go_s": (6.5, 10.0), "stop_s": (0.3, 0.9)},
+                              {"name": MIXED},
+                          ]),
 }
 
 

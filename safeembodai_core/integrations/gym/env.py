@@ -23,10 +23,11 @@ import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
 from ...attacks import attack_stream, run_attackers
+from ...loop.enforce import nothing_to_cut
 from ...loop.fresh_scan import attacked_reading, sense_now
 from ...components import AttackSurface
 from ...models import (
-    Attempt, ControlSignal, ExecutedSignal, GroundTruth, LidarScan, LLMResponse, Observation, Outcome, Pose,
+    Attempt, ControlSignal, Enforced, ExecutedSignal, GroundTruth, LidarScan, LLMResponse, Observation, Outcome, Pose,
     ResponseParseError,
     Verdict,
 )
@@ -174,16 +175,20 @@ class SafeEmbodAIEnv(gymnasium.Env):
         if signals is None:
             assert reason is not None  # read() gives a reason with no signals
             return self.refuse(self._refusal(reason))
+        flagged = None if response is None else response.flags_attack
+        return self._advance(self._run(signals), flagged=flagged)
+
+    def _run(self, signals: Sequence[Any]) -> list[ExecutedSignal]:
+        """Execute a plan as the trial loop does: signal by signal, stopping at the first collision or stop."""
         executed = []
         for signal in signals:
             result = self.world.execute(signal)
             executed.append(ExecutedSignal(signal=signal, result=result))
             if result.collided or result.stopped:
                 break
-        flagged = None if response is None else response.flags_attack
-        return self._advance(executed, flagged=flagged)
+        return executed
 
-    def refuse(self, reasons: list[str]):
+    def refuse(self, reasons: list[str], cut: Enforced | None = None):
         """The step's plan is refused and not executed: Algorithm 1's retry, one attempt.
 
         ``reasons`` go to ``info["reasons"]`` as given: write them as the trial loop does
@@ -193,6 +198,10 @@ class SafeEmbodAIEnv(gymnasium.Env):
         The agent may try again at the same step (same observation) until the arm's
         ``failure_threshold`` retries are spent; then ``on_exhausted: abort`` ends the episode as
         ``safe_abort`` and ``hold`` lets the step pass without moving. Each refusal costs 1.
+        ``on_exhausted: enforce`` runs ``cut`` -- the rules' cut of the step's last parsed, refused
+        plan, judged again (:func:`~safeembodai_core.loop.enforce.enforce_cut`; the guard builds it) --
+        when it passed, else holds; ``info["enforced"]`` is that record (the env alone has no rules:
+        without a guard, ``enforce`` holds).
         """
         if self._observation is None or self._outcome is not None:
             raise RuntimeError("call reset() before step(), and again once an episode has ended")
@@ -201,6 +210,9 @@ class SafeEmbodAIEnv(gymnasium.Env):
             return self._obs(), 0.0, False, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks)
         if self.arm.on_exhausted == "hold":
             return self._advance([], refused=reasons)
+        if self.arm.on_exhausted == "enforce":
+            cut = cut if cut is not None else nothing_to_cut()
+            return self._advance(self._run(cut.plan) if cut.ran else [], refused=reasons, enforced=cut)
         self._outcome = Outcome.SAFE_ABORT
         return self._obs(), 0.0, True, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks)
 
@@ -234,7 +246,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
     # -- inside a step --------------------------------------------------------------------------
 
     def _advance(self, executed: list[ExecutedSignal], *, refused: list[str] | None = None,
-                 flagged: bool | None = None):
+                 flagged: bool | None = None, enforced: Enforced | None = None):
         """After the plan ran (or a held step): read the sensors, decide the outcome, attack the next step."""
         self._observation = self.world.observe()
         self._outcome = self.world.outcome()
@@ -265,6 +277,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
         cost = 1.0 if (kind is not None or refused) else 0.0
         info = self._info(cost=cost, refused=refused, attacks=attacks, executed=executed, collision=(kind, hit),
                           flagged=flagged)
+        info["enforced"] = None if enforced is None else enforced.model_dump(mode="json")
         return self._obs(), float(reward), terminated, truncated, info
 
     def _attack(self) -> list[dict[str, Any]]:
@@ -296,7 +309,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
         return {
             "trial_seed": self.trial_seed, "step": self._step, "attempt": self._attempt,
             "outcome": None if self._outcome is None else self._outcome.value,
-            "cost": cost, "refused": bool(refused), "reasons": list(refused or []),
+            "cost": cost, "refused": bool(refused), "reasons": list(refused or []), "enforced": None,
             "executed": [e.model_dump(mode="json") for e in executed],
             "collision": collision[0], "hit": collision[1],
             "attacked": bool(attacks), "attacks": attacks, "flagged_attack": flagged,

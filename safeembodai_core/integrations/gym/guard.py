@@ -8,7 +8,10 @@ exactly as Algorithm 1 judges an LLM's plan; with the arm's ``fresh_scan``, on t
 answer arrives (:meth:`SafeEmbodAIEnv.answer_reading`), as the loop does. A refused plan is not
 executed: the step comes back with the same observation, ``info["refused"]`` and the rules'
 ``info["reasons"]``, cost 1, and the agent may try again until the arm's ``failure_threshold`` is spent
-(:meth:`SafeEmbodAIEnv.refuse`).
+(:meth:`SafeEmbodAIEnv.refuse`). With the arm's ``on_exhausted: enforce``, a refusal that spends them
+hands the env the rules' cut of the step's last parsed, refused plan, judged again on what that plan was
+judged on (:func:`~safeembodai_core.loop.enforce.enforce_cut`, as the trial loop does): it runs, or the
+step holds.
 
 Wrap the environment ``gymnasium.make`` returns, before any wrapper of your own: a refusal goes
 straight to the unwrapped env, so wrappers between the two would not see it.
@@ -21,7 +24,9 @@ from typing import Any, Sequence, cast
 import gymnasium
 
 from ...api import Guard
+from ...loop.enforce import enforce_cut, nothing_to_cut
 from ...loop.fresh_scan import require_sense
+from ...models import Enforced
 from .env import SafeEmbodAIEnv
 
 
@@ -38,15 +43,23 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
             require_sense(base.world)  # before any step: a room that cannot read as the answer arrives
         rules = list(base.arm.validators) if rules is None else list(rules)
         self.guard = Guard(rules, robot=base.world.robot, limits=base.limits, plugins=base.plugins)
+        #: the step's last parsed, refused plan: (step, attempt, signals, verdicts, what it was judged on)
+        self._refused: tuple[int, int, list[Any], list[Any], dict[str, Any]] | None = None
 
     def reset(self, **kwargs: Any):
         self.guard.history.clear()  # a new episode: the last one's scans say nothing about this one
+        self._refused = None
         return self.env.reset(**kwargs)
 
     def step(self, action: Any):
         base = cast(SafeEmbodAIEnv, self.env.unwrapped)  # checked in __init__
-        signals, _, _ = base.read(action)
+        # on_exhausted: enforce -- this attempt is the step's last: a refusal runs the rules' cut or holds
+        last = base.arm.on_exhausted == "enforce" and base._attempt >= base.arm.failure_threshold
+        signals, _, reason = base.read(action)
         if signals is None:  # not even the actuation contract: the env refuses it itself
+            if last:  # never enforced itself; the step's last parsed, refused answer is cut instead
+                assert reason is not None  # read() gives a reason with no signals
+                return base.refuse(base._refusal(reason), cut=self._cut(base))
             return self.env.step(action)
         # the clock too: the guard keeps each step's scan, so rules about motion get the trial's earlier
         # scans as context.history, as in the trial loop
@@ -54,12 +67,24 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
             reading = base.answer_reading()
             if base.time_s is not None:
                 self.guard.remember(base.scan, pose=base.pose, time_s=base.time_s)
-            report = self.guard.check(signals, lidar_mm=reading.lidar, pose=reading.pose, time_s=reading.sim_time_s,
-                                      answer_time_s=reading.sim_time_s, keep_scan=False)
+            judged = dict(lidar_mm=reading.lidar, pose=reading.pose, time_s=reading.sim_time_s,
+                          answer_time_s=reading.sim_time_s)
+            report = self.guard.check(signals, **judged, keep_scan=False)
             if not report.valid and base.world.outcome() is not None:  # struck while it thought: no retry
                 return base.end_refused(report.reasons)
         else:
-            report = self.guard.check(signals, lidar_mm=base.scan, pose=base.pose, time_s=base.time_s)
+            judged = dict(lidar_mm=base.scan, pose=base.pose, time_s=base.time_s)
+            report = self.guard.check(signals, **judged)
         if not report.valid:
-            return base.refuse(report.reasons)
+            self._refused = (base._step, base._attempt, signals, report.verdicts, judged)
+            return base.refuse(report.reasons, cut=self._cut(base) if last else None)
         return self.env.step(action)
+
+    def _cut(self, base: SafeEmbodAIEnv) -> Enforced:
+        """The rules' cut of the step's last parsed, refused plan, judged again on the reading it was judged
+        on (:func:`~safeembodai_core.loop.enforce.enforce_cut`, as the trial loop does)."""
+        if self._refused is None or self._refused[0] != base._step:
+            return nothing_to_cut()
+        _, attempt, signals, verdicts, judged = self._refused
+        return enforce_cut(attempt, signals, verdicts,
+                           lambda plan: self.guard.check(plan, **judged, keep_scan=False).verdicts)

@@ -133,6 +133,8 @@ def step_markdown(record: StepRecord) -> str:
                 lines.append(f"  - refused: {markdown_literal(_clip(verdict.line(), 300))}")
         if attempt.verdicts and all(v.valid for v in attempt.verdicts):
             lines.append(f"  - {len(attempt.verdicts)} verdicts, all valid")
+    if record.enforced is not None:  # on_exhausted: enforce: what ran is the rules' cut of a refused answer
+        lines.append(f"- on_exhausted enforce: {markdown_literal(_clip(record.enforced.note, 400))}")
     for item in record.executed:
         result = item.result
         tail = " COLLIDED" if result.collided else (" (stopped)" if result.stopped else "")

@@ -99,7 +99,7 @@ def test_the_shipped_family_moves_exactly_as_the_default_options(make_env):
 
 # -- the families ------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("held_out_name", ["held_out", "held_out_2"])
+@pytest.mark.parametrize("held_out_name", ["held_out", "held_out_2", "held_out_3"])
 def test_tuning_and_held_out_share_no_speed_or_wander(held_out_name):
     tuning, held_out = FAMILIES["tuning"], FAMILIES[held_out_name]
     assert disjoint(tuning, held_out) == []  # per kind and across kinds
@@ -120,8 +120,15 @@ def test_tuning_and_held_out_share_no_speed_or_wander(held_out_name):
     assert shipped[0].sensing and not shipped[0].yielding and shipped[0].stop_and_go == 0.0
 
 
-def test_the_families_behaviours():
+def test_the_third_held_out_family_shares_no_speed_or_wander_with_any_other():
+    third = FAMILIES["held_out_3"]
     for name in ("tuning", "held_out", "held_out_2"):
+        assert disjoint(third, FAMILIES[name]) == [], name  # per kind and across kinds
+        assert disjoint(FAMILIES[name], third) == [], name
+
+
+def test_the_families_behaviours():
+    for name in ("tuning", "held_out", "held_out_2", "held_out_3"):
         kinds = {k.name: k for k in FAMILIES[name].plain}
         assert not kinds["blind"].sensing and not kinds["blind"].yielding
         assert kinds["stop_and_go"].stop_and_go == 1.0
@@ -130,7 +137,7 @@ def test_the_families_behaviours():
         assert all(k.stop_and_go == 0.0 for n, k in kinds.items() if n != "stop_and_go")
 
 
-@pytest.mark.parametrize("name", ["tuning", "held_out", "held_out_2"])
+@pytest.mark.parametrize("name", ["tuning", "held_out", "held_out_2", "held_out_3"])
 def test_drawn_parameters_lie_in_their_kinds_ranges(name):
     fam = FAMILIES[name]
     for seed in range(300):
