@@ -73,6 +73,15 @@ class Served:
             self.url = found.group(1) if found else ""
         assert self.url, "".join(self.lines)
 
+    def listening(self) -> set[int] | None:
+        """The ports the process listens on (None without psutil)."""
+        try:
+            import psutil
+        except ImportError:
+            return None
+        return {c.laddr.port for c in psutil.Process(self.process.pid).net_connections(kind="inet")
+                if c.status == psutil.CONN_LISTEN}
+
     def stop(self) -> None:
         self.process.terminate()
         self.process.wait(timeout=30)
@@ -141,6 +150,7 @@ def test_a_recording_opens_in_the_served_web_viewer_with_no_console_error(runs, 
                 seen = open_in_viewer(page, served, f"runs/quick/trials/{recording.stem}.html", expected, tmp_path)
                 viewer = urlsplit(page.url)
                 assert viewer.port != urlsplit(served.url).port and viewer.hostname == "127.0.0.1"
+                assert served.listening() in (None, {urlsplit(served.url).port, viewer.port})  # no gRPC server
                 response = seen["recording"]
                 assert response is not None and response.status == 200
                 assert response.url == f"{served.url}/runs/quick/recordings/{recording.name}"
