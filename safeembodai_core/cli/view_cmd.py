@@ -42,7 +42,7 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int, viewer
             console.print(f"Rerun's web viewer is not served: {terminal_markup(str(unavailable))}; the trial pages "
                           "link their recordings only")
     with console.status("rendering"):
-        counts = build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None)
+        counts = build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None, parallel=True)
     console.print(f"{counts['found']} run(s) found, {counts['runs']} rendered anew ({counts['trials']} trial "
                   f"page(s)), the others unchanged, into {terminal_markup(str(target))}")
     for name, why in counts["skipped"]:
@@ -50,8 +50,8 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int, viewer
     if not serve:
         console.print(f"open {terminal_markup(str(target / 'index.html'))}")
         return
-    server = SiteServer(target, lambda: build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None),
-                        host, port, viewer_port=viewer).start()
+    server = SiteServer(target, lambda: build_site(root, target, plugins, refresh=refresh, viewer=viewer is not None,
+                                                   parallel=True), host, port, viewer_port=viewer).start()
     if viewer is not None:
         console.print(f"Rerun's web viewer on port {viewer} (every interface): each trial page with a recording "
                       "links to it")

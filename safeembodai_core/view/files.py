@@ -44,7 +44,12 @@ def read_run_file(path: Path, max_bytes: int = MAX_PICTURE_BYTES, png: bool = Fa
 class Site:
     """The site folder: created or reused (when it is ours), written file by file (module docstring)."""
 
-    def __init__(self, out: Path) -> None:
+    def __init__(self, out: Path, checked: bool = False) -> None:
+        """``checked``: the build that started this process checked ``out`` (a helper process's site,
+        written before its manifest is)."""
+        if checked:
+            self.out, self.root = out, Path(os.path.realpath(out))
+            return
         if out.is_symlink():
             raise SafeEmbodAIError(f"{out} is a symlink: give a real folder as --out")
         if out.exists():

@@ -3,12 +3,15 @@
 Static and self-contained: HTML, one stylesheet, one script, and the images copied in -- nothing
 fetched from elsewhere when it is read. Incremental: a run whose folder has not changed since the
 last build (:func:`~safeembodai_core.view.runs.signature`, kept in ``manifest.json``) is not
-rendered again, and within a run only new or changed trials' pages are.
+rendered again, and within a run only new or changed trials' pages are. A run with many trial pages
+to render shares them with helper processes, one per further core (:data:`PARALLEL_FROM`): a page
+replays its trial, most of a cold build's time.
 """
 
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +30,24 @@ from .trial_steps import replayed_prompts, step_views
 log = get_logger(__name__)
 #: Bumped whenever what the manifest keeps of a run changes: an older manifest is rendered anew.
 MANIFEST_VERSION = 2
+
+
+#: A run with at least this many trial pages to render shares them with helper processes (spawned:
+#: each loads the plugins and opens the run again, about 2 s), one per core beyond the first, at most
+#: :data:`MAX_HELPERS`, and only when the site is built with the installed plugins (``parallel``).
+PARALLEL_FROM = 8
+MAX_HELPERS = 3
+
+
+def helpers_for(pages: int) -> int:
+    """How many helper processes render ``pages`` trial pages beside this one."""
+    if pages < PARALLEL_FROM:
+        return 0
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    return max(0, min(cores - 1, MAX_HELPERS, pages // (PARALLEL_FROM // 2) - 1))
 
 
 def _recording_stamp(folder: Path, trial_id: str) -> str:
@@ -58,12 +79,15 @@ def _cached(known: dict[str, Any], folder: Path) -> RunSummary | None:
 
 
 def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh: int = 0,
-               viewer: bool = False) -> dict[str, Any]:
+               viewer: bool = False, parallel: bool = False) -> dict[str, Any]:
     """Render the site of ``source`` (a run folder, or a folder of them) into ``out``; return how many
     runs were found (``found``) and how many runs and trial pages were (re)rendered. ``refresh``:
     seconds after which the index and the pages of running runs ask the browser to reload (0: never).
     ``viewer``: the site is served with Rerun's web viewer beside it (``view --serve``,
-    :mod:`.rerun_viewer`): a trial page with a recording links to it there too."""
+    :mod:`.rerun_viewer`): a trial page with a recording links to it there too. ``parallel``: helper
+    processes may render trial pages (:func:`helpers_for`): spawned, they load the installed plugins
+    and import the caller's main module again (``safeembodai view`` builds so; a script that does
+    must be ``if __name__ == "__main__"``-guarded and build with the installed plugins)."""
     from ..plugins import load_plugins
 
     source = Path(source)
@@ -89,7 +113,7 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
             continue
         try:
             summary, trials = _render_run(folder, site, f"runs/{name}", plugins, known.get("trials", {}), refresh,
-                                          viewer)
+                                          viewer, parallel)
         except Exception as error:  # one unreadable folder must not hide the others
             log.warning("view.run_unreadable", run=str(folder), error=str(error))
             summary, trials = broken(folder, error), {}
@@ -114,7 +138,7 @@ def _plain(summary: RunSummary) -> dict[str, Any]:
 
 
 def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[str, Any],
-                refresh: int, viewer: bool = False) -> tuple[RunSummary, dict]:
+                refresh: int, viewer: bool = False, parallel: bool = False) -> tuple[RunSummary, dict]:
     summary, runner, results = summarise(folder, plugins)
     try:
         shown = []
@@ -125,6 +149,7 @@ def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[s
                 shown.append(safe_name(name))
         summary.figures = shown
         trials: dict[str, dict[str, Any]] = {}
+        todo = []
         for result in results:
             spec = result.spec
             recorded = _recording_stamp(folder, spec.trial_id)
@@ -132,13 +157,58 @@ def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[s
             page = site.out / base / "trials" / f"{trial_page(spec.trial_id)}.html"
             rendered = not (known.get(spec.trial_id, {}).get("key") == key and page.is_file())
             if rendered:
-                _render_trial(folder, site, base, runner, summary, result, viewer)
+                todo.append(result)
             trials[spec.trial_id] = {"key": key, "rendered": rendered}
+        _render_trials(folder, site, base, runner, summary, todo, viewer, helpers_for(len(todo)) if parallel else 0)
         site.write(f"{base}/index.html", render("run.html.j2", run=summary,
                                                refresh=refresh if summary.status == "running" else 0))
     finally:
         runner.close()
     return summary, trials
+
+
+def _render_trials(folder: Path, site: Site, base: str, runner: Any, summary: RunSummary, todo: list[Any],
+                   viewer: bool, helpers: int) -> None:
+    """Render the trial pages of ``todo``: here, and shared with ``helpers`` spawned processes (each
+    its own runner of the run: pybullet and threads are never forked); an error in one is raised here."""
+    if not helpers:
+        for result in todo:
+            _render_trial(folder, site, base, runner, summary, result, viewer)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from concurrent.futures.process import BrokenProcessPool
+
+    shares = [todo[i::helpers + 1] for i in range(helpers + 1)]  # interleaved: cells alike in cost
+    with ProcessPoolExecutor(helpers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = [pool.submit(_render_share, str(folder), str(site.out), base, summary, share, viewer)
+                   for share in shares[1:]]
+        for result in shares[0]:
+            _render_trial(folder, site, base, runner, summary, result, viewer)
+        for future, share in zip(futures, shares[1:]):
+            try:
+                future.result()
+            except BrokenProcessPool as error:  # a helper could not start or died: its pages here
+                log.warning("view.helper_failed", error=str(error))
+                for result in share:
+                    _render_trial(folder, site, base, runner, summary, result, viewer)
+
+
+def _render_share(folder: str, out: str, base: str, summary: RunSummary, share: list[Any], viewer: bool) -> None:
+    """A helper process's share of a run's trial pages: the installed plugins, a runner of its own."""
+    from ..ablation.run_folder import RunFolder
+    from ..plugins import load_plugins
+    from ..runner import ScenarioRunner
+
+    run = Path(folder)
+    runner = ScenarioRunner(RunFolder(run).scenario(), load_plugins(), run_dir=run)
+    try:
+        site = Site(Path(out), checked=True)
+        for result in share:
+            _render_trial(run, site, base, runner, summary, result, viewer)
+    finally:
+        runner.close()
 
 
 def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: RunSummary, result: Any,

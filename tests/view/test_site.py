@@ -197,3 +197,32 @@ def test_status_says_running_interrupted_or_finished(runs_dir, tmp_path):
                    "and condition = 'attack'")
     build_site(folder, tmp_path / "site2")
     assert "interrupted" in (tmp_path / "site2" / "index.html").read_text()
+
+
+def test_pages_shared_with_a_helper_process_are_the_pages_rendered_here(repo, tmp_path, monkeypatch):
+    """``view`` builds with ``parallel``: a spawned helper renders a share of a run's trial pages
+    with the installed plugins and a runner of its own; the site is the same, byte for byte."""
+    from safeembodai_core.ablation import Ablation, RunFolder
+    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.scenario import load_scenario
+    from safeembodai_core.view import site as site_module
+
+    plugins = load_plugins(environ={})
+    scenario = load_scenario(repo / "scenarios" / "quickstart.yaml", ["trials=1", "max_steps=2"], plugins.registry)
+    ablation = Ablation(scenario, plugins, RunFolder(tmp_path / "run"))
+    try:
+        ablation.run()
+    finally:
+        ablation.close()
+    build_site(tmp_path / "run", tmp_path / "here")
+    monkeypatch.setattr(site_module, "helpers_for", lambda pages: 1)
+    shared = []
+    real = site_module._render_trial
+    monkeypatch.setattr(site_module, "_render_trial", lambda *args, **kwargs: shared.append(1) or real(*args, **kwargs))
+    counts = build_site(tmp_path / "run", tmp_path / "shared", parallel=True)
+    assert counts["trials"] == 4 and len(shared) == 2  # two here, two in the helper
+    here = {p.relative_to(tmp_path / "here"): p.read_bytes() for p in (tmp_path / "here").rglob("*") if p.is_file()}
+    there = {p.relative_to(tmp_path / "shared"): p.read_bytes() for p in (tmp_path / "shared").rglob("*")
+             if p.is_file()}
+    assert here.keys() == there.keys() and len(here) > 10
+    assert [name for name in here if here[name] != there[name]] == []
