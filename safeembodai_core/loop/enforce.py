@@ -26,14 +26,17 @@ same arm gives the same verdicts and motions there (:mod:`safeembodai_core.integ
 
 from __future__ import annotations
 
-from typing import Callable, Mapping, Sequence
+from typing import Callable, Literal, Mapping, Sequence
 
 from ..components import Validator
 from ..models import Attempt, ControlSignal, Enforced, Straight, Verdict
 from ..validation import ValidationContext, validate_plan
 
 
-def cut_plan(plan: Sequence[ControlSignal], verdicts: Sequence[Verdict]) -> tuple[list[ControlSignal], str, str]:
+Source = Literal["cut", "step_aside"]
+
+
+def cut_plan(plan: Sequence[ControlSignal], verdicts: Sequence[Verdict]) -> tuple[list[ControlSignal], Source, str]:
     """The plan ``verdicts``' refusals allow of ``plan``: ``(signals, source, why)``; ``source`` is
     ``step_aside`` or ``cut``, ``why`` says in words what was kept (see the module docstring)."""
     refused = [v for v in verdicts if not v.valid]

@@ -67,8 +67,8 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
             reading = base.answer_reading()
             if base.time_s is not None:
                 self.guard.remember(base.scan, pose=base.pose, time_s=base.time_s)
-            judged = dict(lidar_mm=reading.lidar, pose=reading.pose, time_s=reading.sim_time_s,
-                          answer_time_s=reading.sim_time_s)
+            judged: dict[str, Any] = dict(lidar_mm=reading.lidar, pose=reading.pose, time_s=reading.sim_time_s,
+                                          answer_time_s=reading.sim_time_s)
             report = self.guard.check(signals, **judged, keep_scan=False)
             if not report.valid and base.world.outcome() is not None:  # struck while it thought: no retry
                 return base.end_refused(report.reasons)
