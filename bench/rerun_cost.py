@@ -7,7 +7,8 @@
    share of that trial's own wall time (bar: at most 15%).
 2. ``safeembodai view RUN --out SITE`` of the 40-trial run with recordings, cold (no site yet), in a
    fresh process as a user runs it: seconds (bar: at most 20 s on 2 cores), then again unchanged;
-   and the run without recordings, cold, for what the recordings add.
+   the same build in one process (no helper process); and the run without recordings, cold, for
+   what the recordings add.
 
 The machine's load (``os.getloadavg``) and cores are printed with the numbers.
 
@@ -60,12 +61,15 @@ def ablate(scenario, plugins, folder: Path, recordings: bool, writes: list[tuple
     return total, [(b[0] - a[0], b[1] - a[1]) for a, b in zip([started, *ends], ends)]
 
 
-def view(run: Path, site: Path) -> tuple[float, float]:
-    """Seconds of ``safeembodai view RUN --out SITE`` in a fresh process: wall, and CPU (its own)."""
+def view(run: Path, site: Path, serial: bool = False) -> tuple[float, float]:
+    """Seconds of ``safeembodai view RUN --out SITE`` in a fresh process: wall, and CPU (its own and its
+    helpers'); ``serial``: the same build in one process (``build_site(parallel=False)``)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "safeembodai_core", "view", str(run), "--out", str(site)], check=True,
-                   capture_output=True)
+    command = ([sys.executable, "-c", "import sys; from safeembodai_core.view import build_site; "
+                "build_site(sys.argv[1], sys.argv[2], parallel=False)", str(run), str(site)] if serial else
+               [sys.executable, "-m", "safeembodai_core", "view", str(run), "--out", str(site)])
+    subprocess.run(command, check=True, capture_output=True)
     wall = time.perf_counter() - started
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -121,6 +125,9 @@ def main() -> None:
         again, _ = view(run, root / "site")
         print(f"safeembodai view of the {len(recordings)}-trial run: cold {cold:.1f} s wall, {cold_cpu:.1f} s CPU "
               f"(bar: <= 20 s on 2 cores), unchanged rebuild {again:.1f} s; load {os.getloadavg()[0]:.1f}")
+        serial, serial_cpu = view(run, root / "site-serial", serial=True)
+        print(f"the same build in one process: cold {serial:.1f} s wall, {serial_cpu:.1f} s CPU; "
+              f"load {os.getloadavg()[0]:.1f}")
         plain_view, plain_cpu = view(root / "plain0", root / "site-plain")
         print(f"the same run without recordings: cold {plain_view:.1f} s wall, {plain_cpu:.1f} s CPU; "
               f"load {os.getloadavg()[0]:.1f}")
