@@ -5,7 +5,7 @@ A small run of SCENARIO (one trial per cell, the mock pilot) is written and expo
 in a scratch folder; ``safeembodai view --serve`` serves it; headless Chromium (WebGL on SwiftShader)
 follows the trial page's "open in Rerun's web viewer" link for the trial with the largest recording,
 waits until the viewer holds all of it, and saves the picture. The same steps as the browser test
-(tests/view/test_rerun_browser.py, whose helpers this uses); prints how long each part took.
+(tests/core/view/test_rerun_browser.py, whose helpers this uses); prints how long each part took.
 
     python bench/rerun_viewer_screenshot.py [--scenario scenarios/mo.yaml] [--steps 8] [--out FILE.png]
 """
@@ -22,7 +22,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def browser_test_helpers():
-    spec = importlib.util.spec_from_file_location("rerun_browser", REPO / "tests" / "view" / "test_rerun_browser.py")
+    helpers = REPO / "tests" / "core" / "view" / "test_rerun_browser.py"
+    spec = importlib.util.spec_from_file_location("rerun_browser", helpers)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

@@ -2,7 +2,7 @@
 with values the command accepts: each is parsed by the CLI itself (nothing is run). A path the
 example names that does not exist here (``runs/mo-<time>``) is the reader's to have; anything else
 a command refuses fails the test. (The Python examples run: test_docs_examples.py; docs/robots.md's
-commands run: tests/ros/test_robots_doc.py.)"""
+commands run: tests/meta/test_docs_robots.py.)"""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 Ported line by line from ros-navigation/navigation2 at commit a3a97043 (2026-08-21),
 ``nav2_collision_monitor``; each function names the lines it follows. Nothing here is used by the
-project's code: it is the outside reference the guard is compared with (tests/ros/test_nav2_conformance.py).
+project's code: it is the outside reference the guard is compared with (tests/core/ros/test_nav2_conformance.py).
 Units are Nav2's: metres, seconds, radians. Nav2 keeps its numbers in ``double`` and Python's float
 is a double, so the arithmetic (including the loop's accumulated ``time += dt``) is the same.
 """

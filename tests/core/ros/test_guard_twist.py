@@ -19,7 +19,7 @@ from safeembodai_core.ros import messages as m
 from safeembodai_core.ros.bag_export import write_bag
 from safeembodai_core.ros.bag_guard import guard_bag
 
-from . import nav2_reference as nav2
+import nav2_reference as nav2
 
 LONG = [(400.0, 150.0), (-400.0, 150.0), (-400.0, -150.0), (400.0, -150.0)]
 

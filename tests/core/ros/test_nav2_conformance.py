@@ -27,7 +27,7 @@ from safeembodai_core import Guard, RobotSpec, SlowdownZone
 from safeembodai_core.models import LidarScan
 from safeembodai_core.ros import LaserScan, Twist
 
-from . import nav2_reference as nav2
+import nav2_reference as nav2
 
 SQUARE_05 = [(0.5, 0.5), (0.5, -0.5), (-0.5, -0.5), (-0.5, 0.5)]  # polygons_test.cpp:48-49
 # SIMULATION_TIME_STEP, TIME_BEFORE_COLLISION: polygons_test.cpp:70-71, collision_monitor_node_test.cpp:63-64

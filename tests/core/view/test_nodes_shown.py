@@ -12,7 +12,7 @@ from safeembodai_core.report.markdown import nodes
 from safeembodai_core.scenario import load_scenario
 from safeembodai_core.view import build_site
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def _run_on_nodes(folder: Path, names: list[str | None]) -> None:

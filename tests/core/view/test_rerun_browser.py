@@ -26,7 +26,7 @@ playwright = pytest.importorskip("playwright.sync_api", reason="the browser extr
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 pytestmark = [pytest.mark.slow,
               pytest.mark.skipif(CHROMIUM is None, reason="no Chromium: apt-get install chromium (.ci/run does)")]
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 #: WebGL 2 on the CPU: no GPU in CI (the viewer asks for WebGPU first and falls back to WebGL).
 FLAGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist"]
 #: Where Rerun's web viewer (rerun-sdk 0.41) goes by itself: its font, the latest release, telemetry.

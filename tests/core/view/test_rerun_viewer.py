@@ -3,7 +3,7 @@ links to ``/rerun-viewer/<the recording>``, which the site's server redirects to
 recording's absolute address (escaped as one query value); a ``.rrd`` -- and only a ``.rrd`` -- answers
 the viewer's origin, and only it, with a CORS header; the static site keeps the plain link; without
 rerun-sdk ``--serve`` serves as before and says once why there is no viewer. No browser, no viewer
-process: the viewer's port is a number here (the browser test is tests/view/test_rerun_browser.py)."""
+process: the viewer's port is a number here (the browser test is tests/core/view/test_rerun_browser.py)."""
 
 from __future__ import annotations
 
