@@ -2,7 +2,7 @@
 
 Runs the scenario's trials with the mock pilot, whose usage is counted with litellm's gpt-4o
 tokenizer (images at low detail: 85 tokens each), and prints prompt + completion tokens per LLM
-call and per step for every arm and condition, against the paper's ~1,190 tokens per step for
+call and per step for every arm and condition, against the paper's ~1,213 tokens per step (10,918 / 9) for
 SafeEmbodAI (Figure 8: 10,918 tokens over 9 steps in OF) and the target of <= 1,000.
 
     python bench/tokens.py [SCENARIO] [--trials 3] [--set key=value ...]
