@@ -22,27 +22,9 @@ from safeembodai_core.validation import PastScan, ValidationContext, validate_pl
 from safeembodai_plugins.validators import MovingObstaclesOptions
 from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
-ROOM_MM = 6000.0
-THINK_S = 5.0
-LABBOT_MM = 120.0
+from mover_scenes import LABBOT_MM, ROBOT, ROOM_MM, THINK_S, go, rotate, scan_from
+
 BALL_MM = 110.0
-
-
-def scan_from(pose: Pose, discs, beams: int = 360, max_range_mm: float = 8000.0) -> LidarScan:
-    """Ranges from ``pose`` to the room's walls (a 0..ROOM_MM square) and to discs (x, y, radius)."""
-    angles = np.radians(pose.heading_deg + np.arange(beams) * 360.0 / beams)
-    ux, uy = np.cos(angles), np.sin(angles)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        tx = np.where(ux > 0, (ROOM_MM - pose.x_mm) / ux, np.where(ux < 0, -pose.x_mm / ux, np.inf))
-        ty = np.where(uy > 0, (ROOM_MM - pose.y_mm) / uy, np.where(uy < 0, -pose.y_mm / uy, np.inf))
-    ranges = np.minimum(tx, ty)
-    for x, y, r in discs:
-        dx, dy = x - pose.x_mm, y - pose.y_mm
-        along = dx * ux + dy * uy
-        across2 = dx * dx + dy * dy - along * along
-        t = along - np.sqrt(np.maximum(r * r - across2, 0.0))
-        ranges = np.where((along > 0) & (across2 <= r * r) & (t < ranges), t, ranges)
-    return LidarScan(ranges_mm=np.where(ranges > max_range_mm, np.inf, ranges), max_range_mm=max_range_mm)
 
 
 def context_for(pose: Pose, now, before=None, before_pose: Pose | None = None, dt_s: float = 5.0) -> ValidationContext:
@@ -56,20 +38,11 @@ def rule(**options) -> MovingObstaclesRule:
     return MovingObstaclesRule(MovingObstaclesOptions(**{"think_time_s": THINK_S, **options}))
 
 
-def go(distance: float) -> Straight:
-    return Straight(command="straight", direction="forward" if distance > 0 else "backward", distance=abs(distance))
-
-
-def rotate(angle: float) -> Turn:
-    return Turn(command="turn", direction="left" if angle > 0 else "right", angle=abs(angle))
-
-
 def refusals(plan, context, validator=None):
     verdicts = validate_plan(plan, context, [("moving_obstacles", validator or rule())])
     return [v for v in verdicts if not v.valid]
 
 
-ROBOT = Pose(x_mm=1000.0, y_mm=3000.0, heading_deg=0.0)
 BALL = (4500.0, 1500.0, BALL_MM)
 # a Labbot crossing 2 m ahead from left to right at 150 mm/s (750 mm further on than 5 s ago), due
 # to cross the robot's line 13.5 s after the scan
@@ -209,7 +182,7 @@ def _shipped(path: str = "scenarios/dynamic.yaml", arm: str = "told") -> dict:
     from safeembodai_core.plugins import load_plugins
     from safeembodai_core.scenario import load_scenario
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[4]
     scenario = load_scenario(str(root / path), [], load_plugins(environ={}).registry)
     ref = next(v for v in scenario.arms[arm].validators if getattr(v, "use", v) == "moving_obstacles")
     return dict(ref.options)

@@ -1,10 +1,9 @@
 """``moving_obstacles`` with ``walls``: predicted courses turn where the step's scan shows something
 standing, instead of passing through it (issue 21: fast movers turn at walls and come back).
-Synthetic scans of the 6 m square room of test_moving_obstacles.py."""
+Synthetic scans of the 6 m square room of tests/support/mover_scenes.py."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,9 +12,8 @@ from safeembodai_plugins.validators.moving.futures import WanderingFutures, Wand
 from safeembodai_plugins.validators.moving.tracking import Blob
 from safeembodai_plugins.validators.moving.walls import Walls
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_learned_movers import history_context, refused, rule  # noqa: E402
-from test_moving_obstacles import LABBOT_MM, ROBOT, ROOM_MM, go, scan_from  # noqa: E402
+from mover_scenes import LABBOT_MM, ROBOT, ROOM_MM, go, history_context, refused, scan_from
+from mover_scenes import learned_rule as rule
 
 
 def room_walls() -> Walls:

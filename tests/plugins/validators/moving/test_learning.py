@@ -1,5 +1,5 @@
 """``moving_obstacles`` learning its movers from the trial's scans, and judging where a plan leaves
-the robot (issue 21): synthetic scans of a square room with discs, as in test_moving_obstacles.py.
+the robot (issue 21): synthetic scans of a square room with discs, as in tests/support/mover_scenes.py.
 
 * a mover faster than anything the rule assumes is seen as fast as its chords say;
 * a mover followed over many scans keeps its own wander, one seen twice gets the prior;
@@ -12,7 +12,6 @@ the robot (issue 21): synthetic scans of a square room with discs, as in test_mo
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,28 +23,8 @@ from safeembodai_plugins.validators import MovingObstaclesOptions
 from safeembodai_plugins.validators.moving.learning import LearningSettings, Track
 from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_moving_obstacles import LABBOT_MM, ROBOT, go, rotate, scan_from  # noqa: E402
-
-THINK_S = 5.0
-LEARNING = {"history_scans": 4, "wander_deg": 45.0, "think_time_s": THINK_S, "futures": 256, "max_risk": 0.05}
-
-
-def history_context(pose: Pose, positions: list[tuple[float, float]], dt_s: float = 6.0) -> ValidationContext:
-    """The robot standing at ``pose`` for every scan; one Labbot at ``positions`` (oldest first), one
-    scan each ``dt_s`` apart; the last is the step's scan."""
-    scans = [PastScan(scan_from(pose, [(x, y, LABBOT_MM)]), pose, 10.0 + i * dt_s)
-             for i, (x, y) in enumerate(positions)]
-    now = scans[-1]
-    return ValidationContext(scan=now.scan, start_pose=pose, sim_time_s=now.sim_time_s, history=tuple(scans[:-1]))
-
-
-def rule(**options) -> MovingObstaclesRule:
-    return MovingObstaclesRule(MovingObstaclesOptions(**{**LEARNING, **options}))
-
-
-def refused(plan, context, validator) -> list[str]:
-    return [v.reason for v in validate_plan(plan, context, [("moving_obstacles", validator)]) if not v.valid]
+from mover_scenes import LABBOT_MM, LEARNING, ROBOT, THINK_S, go, history_context, refused, rotate, scan_from
+from mover_scenes import learned_rule as rule
 
 
 def test_the_wander_estimate_pools_the_prior_with_the_movers_own_chords():
@@ -168,7 +147,7 @@ def test_the_shipped_options_of_the_moving_arm_name_nothing_of_the_labbots():
 
     from safeembodai_core.world_private import private_fields
 
-    scenario = yaml.safe_load((Path(__file__).parents[2] / "scenarios" / "movers.yaml").read_text())
+    scenario = yaml.safe_load((Path(__file__).resolve().parents[4] / "scenarios" / "movers.yaml").read_text())
     [rule_ref] = [v for v in scenario["arms"]["moving"]["validators"] if isinstance(v, dict)]
     options = rule_ref.get("options", {})
     assert not private_fields(MovingObstaclesOptions) & set(options)  # declared world-private (issue 39)
