@@ -18,12 +18,11 @@ import numpy as np
 import pytest
 
 from safeembodai_core.models import Pose
-from safeembodai_core.validation import PastScan, ValidationContext, validate_plan
 from safeembodai_plugins.validators import MovingObstaclesOptions
 from safeembodai_plugins.validators.moving.learning import LearningSettings, Track
 from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
-from mover_scenes import LABBOT_MM, LEARNING, ROBOT, THINK_S, go, history_context, refused, rotate, scan_from
+from mover_scenes import ROBOT, THINK_S, go, history_context, refused, rotate
 from mover_scenes import learned_rule as rule
 
 

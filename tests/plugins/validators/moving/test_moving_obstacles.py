@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
-from safeembodai_core.models import LidarScan, Pose, Straight, Turn
+from safeembodai_core.models import Pose, Straight, Turn
 from safeembodai_core.validation import PastScan, ValidationContext, validate_plan
 from safeembodai_plugins.validators import MovingObstaclesOptions
 from safeembodai_plugins.validators.moving import MovingObstaclesRule

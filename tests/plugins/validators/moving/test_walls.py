@@ -4,7 +4,6 @@ Synthetic scans of the 6 m square room of tests/support/mover_scenes.py."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
