@@ -34,6 +34,12 @@ was made with (its ``scenario.json``).
 room and arm (every world, and worlds of blind movers): on step 1 or later, while the robot stood still,
 turned or drove, and whether a plan of that step was refused for parking on a mover's course.
 
+``python bench/moving_obstacles.py pilots amend=RUN redraw=RUN ignore=RUN`` reads one run of
+``scenarios/pilots.yaml`` per pilot and prints, per pilot and room, ``moving`` and ``moving_enforce``
+against ``clearance`` under the same pilot: the ``self`` cut, completed trials, and with blind Labbots
+the ``struck`` collisions during the robot's motion and while it stood; then the held-out protocol's
+bars (docs/evidence/movers.md, "Pilots").
+
 ``python bench/moving_obstacles.py tradeoff RUN [RUN ...] --variant NAME='{"option": value}' [--sample N]``
 replays earlier runs and asks other settings of the rule what they would have said, on the same
 situations: how many of the straights that collided with a Labbot under V(C) alone (``clearance``
@@ -477,6 +483,72 @@ def struck(runs: list[Path]) -> None:
         print(f"  {room} {arm:10s} {worlds:5s} " + ", ".join(f"{k} {v}" for k, v in counts.items()))
 
 
+def pilots(runs: list[str]) -> None:
+    """The three-pilot reading (docs/evidence/movers.md, "Pilots"): ``PILOT=RUN`` per pilot, each a run of
+    ``scenarios/pilots.yaml``. Per pilot and room, ``moving`` and ``moving_enforce`` against ``clearance``
+    under the same pilot, both conditions pooled: the cut of trials with a ``self`` collision into a
+    Labbot, completed trials (points, Newcombe's 95% interval), and in worlds of blind Labbots the
+    ``struck`` collisions during the robot's own motion and while it stood (per 100 trials; interval on
+    the trials with one); then the protocol's bars 1-3 for ``moving_enforce``."""
+    def per_100(cell, count) -> str:
+        return f"{100 * sum(count(r) for r in cell) / len(cell):4.1f}" if cell else "  - "
+
+    def in_motion(r) -> int:
+        return r.collisions_struck_moving or 0
+
+    def standing(r) -> int:
+        return r.collisions_struck_standing or 0
+
+    print("pilots: each arm against clearance under the same pilot, both conditions pooled "
+          "(backend mock: simulated pilots, not a measurement of an LLM)")
+    for spec in runs:
+        pilot, _, run = spec.partition("=")
+        results = _results([Path(run)])
+        print(f"\n{pilot} ({run}): {len(results)} trials")
+        for room in sorted({r.spec.environment for r in results}):
+            arms = {arm: [r for r in results if r.spec.environment == room and r.spec.arm == arm]
+                    for arm in sorted({r.spec.arm for r in results})}
+            base = arms.get("clearance", [])
+            blind_base = [r for r in base if r.world == "blind"]
+            base_self = sum(_labbot_self(r) for r in base) / len(base)
+            print(f"  {room} clearance n={len(base)}: self->Labbot {100 * base_self:.1f} per 100, completed "
+                  f"{100 * sum(r.outcome.value == 'completed' for r in base) / len(base):.1f}%; blind worlds "
+                  f"n={len(blind_base)}: struck during motion {per_100(blind_base, in_motion)}"
+                  f", while standing {per_100(blind_base, standing)} per 100")
+            for arm, cell in arms.items():
+                if arm == "clearance" or not cell:
+                    continue
+                own, own_ci = _difference([_labbot_self(r) for r in cell], [_labbot_self(r) for r in base])
+                done, done_ci = _difference([r.outcome.value == "completed" for r in cell],
+                                            [r.outcome.value == "completed" for r in base])
+                blind = [r for r in cell if r.world == "blind"]
+                cut = -own / base_self if base_self else float("nan")
+                if blind and blind_base:
+                    moving, moving_ci = _difference([bool(r.collisions_struck_moving) for r in blind],
+                                                    [bool(r.collisions_struck_moving) for r in blind_base])
+                    moved = f"{100 * moving:+.1f} points [{100 * moving_ci[0]:+.1f}, {100 * moving_ci[1]:+.1f}]"
+                    struck_fewer = (sum(r.collisions_struck_moving or 0 for r in blind) / len(blind)
+                                    < sum(r.collisions_struck_moving or 0 for r in blind_base) / len(blind_base))
+                else:
+                    moved, struck_fewer = "no blind worlds", None
+                bars = (f"  bars: 1 (cut >= 70%) {cut >= 0.7}, 2 (completed >= -5) {done >= -0.05}, "
+                        f"3 (struck in motion fewer) {struck_fewer}" if arm == "moving_enforce" else "")
+                print(f"    {arm:14s} n={len(cell)}: self->Labbot {100 * own:+5.1f} per 100 "
+                      f"[{100 * own_ci[0]:+.1f}, {100 * own_ci[1]:+.1f}] ({100 * cut:.0f}% cut); completed "
+                      f"{100 * done:+.1f} points [{100 * done_ci[0]:+.1f}, {100 * done_ci[1]:+.1f}]; "
+                      f"blind n={len(blind)}: "
+                      f"struck during motion {per_100(blind, in_motion)} per 100 "
+                      f"(trials with one {moved}), "
+                      f"while standing {per_100(blind, standing)}{bars}")
+        outcomes = Counter((r.spec.environment, r.spec.arm, r.outcome.value) for r in results)
+        print("  outcomes: " + "; ".join(f"{room} {arm} {outcome} {n}"
+                                         for (room, arm, outcome), n in sorted(outcomes.items())))
+        enforced = Counter((r.spec.environment, r.spec.arm) for r in results for _ in range(r.enforced_steps or 0))
+        if enforced:
+            print("  steps the rules' cut ran: " + "; ".join(f"{room} {arm} {n}"
+                                                           for (room, arm), n in sorted(enforced.items())))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -493,6 +565,8 @@ def main() -> None:
     why.add_argument("--arm", default="moving", help="the arm with moving_obstacles")
     hits = commands.add_parser("struck", help="where struck collisions happen (step, robot's motion)")
     hits.add_argument("runs", type=Path, nargs="+")
+    three = commands.add_parser("pilots", help="the three-pilot reading of scenarios/pilots.yaml runs")
+    three.add_argument("runs", nargs="+", metavar="PILOT=RUN", help="e.g. ignore=runs/pilots-ignore")
     trade = commands.add_parser("tradeoff", help="replay earlier runs' straights under other options")
     trade.add_argument("runs", type=Path, nargs="+")
     trade.add_argument("--variant", action="append", default=[], metavar="NAME=JSON",
@@ -506,6 +580,8 @@ def main() -> None:
         misses(args.run, args.arm)
     elif args.command == "struck":
         struck(args.runs)
+    elif args.command == "pilots":
+        pilots(args.runs)
     elif args.command == "tradeoff":
         tradeoff(args.runs, args.variant, args.sample, args.arm)
     else:
