@@ -26,7 +26,7 @@ _EXPORTS = {
     "StateStore": "components", "Validator": "components",
     "BackendError": "errors", "ComponentError": "errors", "PluginError": "errors",
     "SafeEmbodAIError": "errors", "ScenarioError": "errors", "StateStoreError": "errors",
-    "hookimpl": "hookspecs", "Defences": "loop", "DEFAULT_PLUGINS": "plugins", "load_plugins": "plugins",
+    "hookimpl": "hookspecs", "Defences": "loop", "builtin_plugins": "plugins", "load_plugins": "plugins",
     "ValidationContext": "validation",
 }
 
@@ -59,5 +59,5 @@ if TYPE_CHECKING:  # pragma: no cover
     from .errors import BackendError, ComponentError, PluginError, SafeEmbodAIError, ScenarioError, StateStoreError  # noqa: F401
     from .hookspecs import hookimpl  # noqa: F401
     from .loop import Defences  # noqa: F401
-    from .plugins import DEFAULT_PLUGINS, load_plugins  # noqa: F401
+    from .plugins import builtin_plugins, load_plugins  # noqa: F401
     from .validation import ValidationContext  # noqa: F401

@@ -1,9 +1,9 @@
 """The plugin manager: which plugins a run uses and how they are loaded.
 
-Built-in plugins (the modules in :data:`DEFAULT_PLUGINS`, also declared as entry points of the
-``safeembodai`` group in ``pyproject.toml``) register first, then every other entry point of
-the group. Nothing is loaded at import time: :func:`load_plugins` builds a fresh manager per
-call, so library users and tests never share state.
+Every plugin is an entry point of the ``safeembodai`` group. The built-ins are the ones this
+package declares (``pyproject.toml``, as a third party declares its own: :func:`builtin_plugins`);
+they register first, then every other distribution's. Nothing is loaded at import time:
+:func:`load_plugins` builds a fresh manager per call, so library users and tests never share state.
 
 Environment variables:
 
@@ -14,8 +14,8 @@ Environment variables:
 
 from __future__ import annotations
 
-import importlib
 import os
+import re
 from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any, Iterable, Mapping
@@ -33,20 +33,29 @@ if TYPE_CHECKING:
 
 ENTRY_POINT_GROUP = "safeembodai"
 
-#: Built-in plugins: (registered name, module). The same names are entry points in pyproject.toml.
-DEFAULT_PLUGINS: tuple[tuple[str, str], ...] = (
-    ("flatland", "safeembodai_plugins.environments.flatland"),
-    ("perception", "safeembodai_plugins.perception"),
-    ("prompting", "safeembodai_plugins.prompting"),
-    ("state_memory", "safeembodai_plugins.state.memory"),
-    ("validators", "safeembodai_plugins.validators"),
-    ("attackers", "safeembodai_plugins.attackers"),
-    ("backend_scripted", "safeembodai_plugins.backends.scripted"),
-    ("pybullet_rooms", "safeembodai_plugins.environments.pybullet_rooms"),
-    ("state_sqlite", "safeembodai_plugins.state.sqlite_store"),
-    ("backend_litellm", "safeembodai_plugins.backends.litellm"),
-    ("backend_mock", "safeembodai_plugins.backends.mock"),
-)
+#: The distribution whose entry points in ENTRY_POINT_GROUP are the built-in plugins (pyproject.toml's
+#: ``[project] name``): built-ins register through the same mechanism a third party uses.
+DISTRIBUTION = "safeembodai"
+
+
+def _entry_points() -> list[Any]:
+    """Every installed entry point of ENTRY_POINT_GROUP (one distribution of each name)."""
+    return list(metadata.entry_points(group=ENTRY_POINT_GROUP))
+
+
+def _distribution(entry_point: Any) -> tuple[str, str]:
+    """(name, version) of the distribution that declares ``entry_point`` ("" where unknown)."""
+    dist = getattr(entry_point, "dist", None)
+    return getattr(dist, "name", "") or "", getattr(dist, "version", "") or ""
+
+
+def _is_builtin(entry_point: Any) -> bool:
+    return re.sub(r"[-_.]+", "-", _distribution(entry_point)[0]).lower() == DISTRIBUTION
+
+
+def builtin_plugins() -> tuple[tuple[str, str], ...]:
+    """The built-in plugins as installed: (name, module) of each entry point this package declares."""
+    return tuple((ep.name, ep.value) for ep in _entry_points() if _is_builtin(ep))
 
 
 @dataclass(frozen=True)
@@ -157,13 +166,6 @@ class Plugins:
         return rows
 
 
-def _import_plugin(name: str, module_name: str) -> Any:
-    try:
-        return importlib.import_module(module_name)
-    except Exception as error:
-        raise PluginError(name, f"failed to import module {module_name!r}: {type(error).__name__}: {error}") from error
-
-
 def load_plugins(
     extra: Iterable[Any] = (),
     *,
@@ -190,31 +192,29 @@ def load_plugins(
     def wanted(name: str) -> bool:
         return name not in blocked and (allow is None or name in allow)
 
-    if builtins:
-        for name, module_name in DEFAULT_PLUGINS:
-            if wanted(name):
-                _register(plugins, name, _import_plugin(name, module_name), PluginOrigin(name, "built-in", module_name))
-    if entry_points:
-        for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-            if not wanted(ep.name):
-                continue
-            if pm.has_plugin(ep.name):
-                registered = plugins.origins[ep.name].module
-                if registered != ep.value:  # a different package took a built-in's name: say so
-                    raise PluginError(ep.name, f"entry point {ep.value!r} uses the name of the plugin from "
-                                               f"{registered!r}; rename the entry point")
-                continue
-            dist = getattr(ep, "dist", None)
-            origin = PluginOrigin(
-                ep.name, "entry point", ep.value,
-                getattr(dist, "name", "") or "", getattr(dist, "version", "") or "",
-            )
-            try:
-                plugin = ep.load()
-            except Exception as error:
-                raise PluginError(ep.name, f"failed to load entry point {ep.value!r}: "
-                                           f"{type(error).__name__}: {error}") from error
-            _register(plugins, ep.name, plugin, origin)
+    found = _entry_points()
+    if builtins and not any(_is_builtin(ep) for ep in found):
+        raise PluginError(DISTRIBUTION, f"no built-in plugins: the {DISTRIBUTION!r} distribution's entry points "
+                                        f"(group {ENTRY_POINT_GROUP!r}) are not installed; install the project as "
+                                        "the README says (pip install -e .), again after editing pyproject.toml")
+    # the built-ins first, then third parties': a third party cannot take a built-in's name
+    for ep in sorted(found, key=lambda ep: not _is_builtin(ep)):
+        builtin = _is_builtin(ep)
+        if not (builtins if builtin else entry_points) or not wanted(ep.name):
+            continue
+        if pm.has_plugin(ep.name):
+            registered = plugins.origins[ep.name].module
+            if registered != ep.value:  # a different package took a registered plugin's name: say so
+                raise PluginError(ep.name, f"entry point {ep.value!r} uses the name of the plugin from "
+                                           f"{registered!r}; rename the entry point")
+            continue
+        origin = PluginOrigin(ep.name, "built-in" if builtin else "entry point", ep.value, *_distribution(ep))
+        try:
+            plugin = ep.load()
+        except Exception as error:
+            raise PluginError(ep.name, f"failed to load entry point {ep.value!r}: "
+                                       f"{type(error).__name__}: {error}") from error
+        _register(plugins, ep.name, plugin, origin)
     for item in extra:
         name, plugin = item if isinstance(item, tuple) else (None, item)
         name = name or getattr(plugin, "__name__", None) or type(plugin).__name__

@@ -10,7 +10,7 @@ from pydantic import BaseModel, ConfigDict
 
 from safeembodai_core import hookimpl
 from safeembodai_core.errors import PluginError
-from safeembodai_core.plugins import DEFAULT_PLUGINS, load_plugins
+from safeembodai_core.plugins import builtin_plugins, load_plugins
 from safeembodai_core.registry import ComponentRegistry
 
 
@@ -27,14 +27,15 @@ def _plugin(name: str, **hooks) -> types.SimpleNamespace:
 
 def test_builtins_are_the_entry_points_declared_in_pyproject(repo):
     declared = tomllib.loads((repo / "pyproject.toml").read_text())["project"]["entry-points"]["safeembodai"]
-    assert declared == dict(DEFAULT_PLUGINS)
+    assert dict(builtin_plugins()) == declared
 
 
-def test_every_builtin_loads_and_reports_its_origin(plugins):
+def test_every_builtin_loads_from_its_entry_point_and_reports_its_origin(plugins):
     names = {row["name"]: row for row in plugins.describe()}
-    for name, module in DEFAULT_PLUGINS:
+    for name, module in builtin_plugins():
         assert names[name]["source"] == "built-in"
         assert names[name]["module"] == module
+        assert names[name]["distribution"].startswith("safeembodai ")
     assert "validator:lidar_clearance" in names["validators"]["components"]
     assert "register_validators" in names["validators"]["hooks"]
 
@@ -123,11 +124,47 @@ def test_a_lifecycle_hook_that_raises_is_reported_by_name():
         plugins.notify("after_trial", spec=None, result=None)
 
 
+class _EntryPoint:
+    """An installed entry point as importlib.metadata gives it: name, value, its distribution, load()."""
+
+    def __init__(self, name: str, value: str, distribution: str):
+        self.name, self.value = name, value
+        self.dist = types.SimpleNamespace(name=distribution, version="1.0")
+
+    def load(self):
+        import importlib
+
+        return importlib.import_module(self.value)
+
+
 def test_a_plugin_module_that_fails_to_import_is_named(monkeypatch):
     import safeembodai_core.plugins as manager
 
-    monkeypatch.setattr(manager, "DEFAULT_PLUGINS", (("ghost", "safeembodai_plugins.does_not_exist"),))
-    with pytest.raises(PluginError, match="ghost.*failed to import module 'safeembodai_plugins.does_not_exist'"):
+    monkeypatch.setattr(manager, "_entry_points", lambda: [
+        _EntryPoint("ghost", "safeembodai_plugins.does_not_exist", "safeembodai")])
+    with pytest.raises(PluginError, match="ghost.*failed to load entry point 'safeembodai_plugins.does_not_exist'"):
+        manager.load_plugins(environ={})
+
+
+def test_without_the_packages_entry_points_no_builtin_loads_and_the_error_says_to_install(monkeypatch):
+    import safeembodai_core.plugins as manager
+
+    monkeypatch.setattr(manager, "_entry_points", lambda: [
+        _EntryPoint("example", "safeembodai_plugins.validators", "safeembodai-example-plugin")])
+    with pytest.raises(PluginError, match="no built-in plugins.*pip install -e"):
+        manager.load_plugins(environ={})
+    only_theirs = manager.load_plugins(environ={}, builtins=False)
+    assert [row["source"] for row in only_theirs.describe()] == ["entry point"]
+
+
+def test_a_third_party_entry_point_cannot_take_a_builtins_name(monkeypatch):
+    import safeembodai_core.plugins as manager
+
+    ours = [ep for ep in manager._entry_points() if manager._is_builtin(ep)]
+    theirs = _EntryPoint("validators", "safeembodai_plugins.attackers", "someone-else")
+    monkeypatch.setattr(manager, "_entry_points", lambda: [theirs, *ours])  # theirs listed first
+    with pytest.raises(PluginError,
+                       match="validators.*uses the name of the plugin from 'safeembodai_plugins.validators'"):
         manager.load_plugins(environ={})
 
 

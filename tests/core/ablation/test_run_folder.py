@@ -12,7 +12,7 @@ import pytest
 
 from safeembodai_core import hookimpl
 from safeembodai_core.ablation import Ablation, RunFolder
-from safeembodai_core.errors import PluginError, SafeEmbodAIError, ScenarioError
+from safeembodai_core.errors import SafeEmbodAIError, ScenarioError
 from safeembodai_core.models import Outcome
 from safeembodai_core.plugins import load_plugins
 from safeembodai_core.scenario import load_scenario, parse_scenario
@@ -178,18 +178,6 @@ def test_two_unlabelled_uses_of_one_attacker_or_validator_are_refused():
         "[lidar_clearance, lidar_clearance]", "[lidar_clearance]")
     assert ([r.key for r in parse_scenario(labelled, "t.yaml").conditions["double"].attackers]
             == ["prompt_injection", "second"])
-
-
-def test_an_entry_point_cannot_take_a_builtin_plugin_name(monkeypatch):
-    from importlib import metadata
-
-    import safeembodai_core.plugins as manager
-
-    impostor = metadata.EntryPoint(name="validators", value="acme_rules.plugin", group="safeembodai")
-    monkeypatch.setattr(manager.metadata, "entry_points", lambda group: [impostor])
-    with pytest.raises(PluginError,
-                       match="'acme_rules.plugin' uses the name of the plugin from 'safeembodai_plugins.validators'"):
-        manager.load_plugins(environ={})
 
 
 @pytest.mark.slow
