@@ -27,7 +27,7 @@ from ..runner import ScenarioRunner
 from ..scenario import Scenario
 from .error_kinds import store_failed
 from .executors import ProcessExecutor, SerialExecutor
-from .plan import AblationError, RunPlan, not_persistent
+from .plan import AblationError, RunPlan, check_resumable, not_persistent
 from .run_folder import RunFolder, RunLock
 from ..trial_files import record_artefacts
 
@@ -59,10 +59,10 @@ class Ablation:
         self.workers, self.address, self.concurrency = plan.workers, plan.address, plan.concurrency
         self.connect_timeout_s = plan.connect_timeout_s
         self.executor_name = plan.executor
-        if resume:
-            folder.check_same(self.scenario)
-        else:
+        if not resume:
             folder.start(self.scenario)
+        elif plan.resume is None or Path(plan.resume) != folder.path:  # the plan checked no folder, or another
+            check_resumable(folder.path, self.scenario, self.plugins)
         self.lock = RunLock(folder.path)
         self.lock.acquire()
         # before any runner: every worker's reads them from the folder
@@ -71,13 +71,7 @@ class Ablation:
             plan.cache.write(folder.path)
         self.runner = ScenarioRunner(self.scenario, self.plugins, run_dir=folder.path, save_trajectories=True)
         try:
-            pictures = folder.path / "trajectories"
-            if pictures.exists() and not pictures.is_dir():
-                raise AblationError(f"{pictures} is not a folder; move it away so the run can save its pictures there")
             self.store = self.runner.state
-            if resume and not self.store.persistent:
-                raise AblationError(f"state store {self.scenario.state.use!r} keeps no results across runs: "
-                                    "resuming needs a persistent store such as sqlite")
             store_path = getattr(self.store, "path", None)  # a store kept in a file says where
             self.store_file = Path(store_path) if isinstance(store_path, (str, Path)) else None
             self.store_identity = self._identity()

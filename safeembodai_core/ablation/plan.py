@@ -7,7 +7,8 @@ before anything is written (a refused run leaves no folder):
 
 1. options the executor would ignore (``--workers 2 --executor serial``, ``--address`` without Ray);
 2. the scenario and its plugins: every component exists and its options validate, the metric
-   catalog has no clash (:func:`checked_scenario`);
+   catalog has no clash (:func:`checked_scenario`); resuming, the folder recorded the same scenario,
+   its ``trajectories`` is a folder, and the state store keeps results across runs;
 3. ``--executor ray``: the cluster answers (the address it found is named in the run's header);
 4. the backend can work: it is built (a missing key fails its factory) and its own ``preflight()``
    runs (a litellm server must accept a connection); it suggests how many trials to keep in flight;
@@ -159,6 +160,8 @@ class RunPlan:
         executor_name(workers, executor, address, concurrency or 1)  # 1
         if not scenario_checked:
             scenario, plugins = checked_scenario(scenario, plugins)  # 2
+        if resume is not None:
+            check_resumable(Path(resume), scenario, plugins)  # 2
         where = cls._connect_ray(address, connect_timeout_s) if executor == "ray" else None  # 3
         if warm_workers:
             _warm_workers_early(scenario, plugins, workers, executor, concurrency)
@@ -167,7 +170,7 @@ class RunPlan:
         suggested = preflight(scenario, plugins)  # 4
         plan = cls(scenario, plugins, executor="", workers=workers, address=address,
                    connect_timeout_s=connect_timeout_s, where=where, bags=bags, recordings=recordings, cache=cache,
-                   resume=resume)
+                   resume=resume, persistent=True if resume is not None else None)  # resuming: asked at 2
         plan.concurrency = concurrency if concurrency is not None else plan._default_concurrency(executor, suggested)
         plan.executor = plan._check_executor(executor)  # 5
         plan.cap = _spending_cap(scenario, plugins, max_tokens, max_cost)  # 6
@@ -218,6 +221,19 @@ class RunPlan:
         if problem is not None:
             raise AblationError(problem)
         return name
+
+
+def check_resumable(folder: Path, scenario: Scenario, plugins: Plugins) -> None:
+    """The run folder to finish recorded ``scenario``, can take its pictures, and its results outlive a run."""
+    from .run_folder import RunFolder
+
+    RunFolder(folder).check_same(scenario)
+    pictures = folder / "trajectories"
+    if pictures.exists() and not pictures.is_dir():
+        raise AblationError(f"{pictures} is not a folder; move it away so the run can save its pictures there")
+    if not store_is_persistent(scenario, plugins):
+        raise AblationError(f"state store {scenario.state.use!r} keeps no results across runs: "
+                            "resuming needs a persistent store such as sqlite")
 
 
 def _warm_workers_early(scenario: Scenario, plugins: Plugins, workers: int, executor: str | None,

@@ -66,13 +66,12 @@ def ablate(scenario_path, backend, seed, overrides, workers, concurrency, execut
     from ..ablation import Ablation
     from ..ablation.executors import WorkersLost
     from ..ablation.lifeline import StopSignals
-    from ..ablation.plan import RunPlan, executor_name
+    from ..ablation.plan import RunPlan
     from ..ablation.relay import RelayError
     from ..ablation.spending import SpendingCapReached
     from ..errors import SafeEmbodAIError
     from .summary import summary_table
 
-    executor_name(workers, executor, address, concurrency or 1)  # options the executor would ignore: refused at once
     cache = _cache_settings(cache_dir, no_cache, refresh, resume_dir)
     if scenario_path is not None:
         scenario, plugins = load(scenario_path, backend, seed, overrides)

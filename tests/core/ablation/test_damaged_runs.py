@@ -101,10 +101,10 @@ def test_a_run_folder_that_cannot_be_locked_is_an_error_naming_the_lock(repo, pl
     before = stored_ids(folder.path)
     real_open = os.open
 
-    def read_only_folder(path, flags, *args):  # as root chmod cannot refuse, so the refusal is simulated
+    def read_only_folder(path, flags, *args, **kwargs):  # as root chmod cannot refuse, so the refusal is simulated
         if str(path).endswith(".lock") and flags & (os.O_RDWR | os.O_WRONLY):
             raise PermissionError(13, "Permission denied")
-        return real_open(path, flags, *args)
+        return real_open(path, flags, *args, **kwargs)
 
     monkeypatch.setattr(os, "open", read_only_folder)
     code, stderr = cli(capsys, "ablate", str(repo / "scenarios" / "quickstart.yaml"), "--set", "trials=2",

@@ -10,7 +10,7 @@ from safeembodai_core.ablation import plan as run_plan
 from safeembodai_core.ablation.plan import AblationError, RunPlan, checked_scenario
 from safeembodai_core.ablation.spending import SpendingCapReached
 from safeembodai_core.cli import main
-from safeembodai_core.errors import ScenarioError
+from safeembodai_core.errors import SafeEmbodAIError, ScenarioError
 from safeembodai_core.plugins import load_plugins
 import safeembodai_core.runner as runner_module
 from safeembodai_core.runner import PreflightError
@@ -64,6 +64,35 @@ def test_a_refused_plan_leaves_no_folder_and_the_library_is_refused_alike(quicks
     with pytest.raises(AblationError, match="--executor serial runs one trial at a time"):
         Ablation(scenario, plugins, folder, workers=2, executor="serial")
     assert not folder.path.exists()
+
+
+def test_resuming_is_checked_by_the_plan_once_before_the_backend_or_the_folder_is_touched(quickstart, counted,
+                                                                                             tmp_path, monkeypatch):
+    scenario, plugins = quickstart
+    ablation = Ablation.start(RunPlan.prepare(scenario, plugins, scenario_checked=True), tmp_path / "runs")
+    folder = ablation.folder.path
+    ablation.close()
+    counted.update(store=0, preflight=0)
+    plan = RunPlan.prepare(scenario, plugins, workers=2, scenario_checked=True, resume=folder)
+    assert counted == {"store": 1, "preflight": 1}  # the persistent store asked once, for the resume and the workers
+    Ablation.start(plan).close()
+    assert counted == {"store": 1, "preflight": 1}
+
+    other = scenario.model_copy(update={"max_steps": 2})
+    with pytest.raises(SafeEmbodAIError, match="differs from the one .* was started with .*max_steps"):
+        RunPlan.prepare(other, plugins, scenario_checked=True, resume=folder)
+    memory = scenario.model_copy(update={"state": scenario.state.model_copy(update={"use": "memory"})})
+    with pytest.raises(SafeEmbodAIError, match="differs"):  # the folder recorded sqlite: refused as another scenario
+        RunPlan.prepare(memory, plugins, scenario_checked=True, resume=folder)
+    assert not (folder / "trajectories").exists()  # no trial ran
+    (folder / "trajectories").write_text("not a folder")
+    before = sorted(p.name for p in folder.iterdir())
+    with pytest.raises(AblationError, match="trajectories is not a folder"):
+        RunPlan.prepare(scenario, plugins, scenario_checked=True, resume=folder)
+    with pytest.raises(AblationError, match="trajectories is not a folder"):  # a library user's Ablation alike
+        Ablation(scenario, plugins, RunFolder(folder), resume=True)
+    assert counted["preflight"] == 1  # refused before the backend was asked anything
+    assert sorted(p.name for p in folder.iterdir()) == before
 
 
 def test_a_library_ablation_runs_the_backends_preflight(quickstart, tmp_path, monkeypatch):
