@@ -28,7 +28,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
-from .components import BuildContext, Environment, LLMBackend, RobotSpec, as_llm_backend
+from .components import Environment, LLMBackend, RobotSpec, as_llm_backend
 from .guard_reports import GuardReport, LimitReport, TwistReport
 from .loop import Defences, LoopSettings, TrialParts, run_trial
 from .loop.trial import DEFAULT_INSTRUCTION
@@ -75,8 +75,7 @@ def _components(plugins: Plugins, kind: str, items: Iterable[Any], seed: int = 0
     for item in items:
         if isinstance(item, (str, dict, ComponentRef)):
             r = ref(item)
-            context = BuildContext(r.use, kind, seed=seed, label=r.key)
-            built.append((r.key, plugins.registry.build(kind, r.use, r.options, context)))
+            built.append((r.key, plugins.registry.build_ref(kind, r, seed=seed)))
         else:
             built.append((getattr(item, "name", type(item).__name__), as_llm_backend(item) if kind == "llm_backend"
                           else item))

@@ -4,7 +4,8 @@
 trial runner (:class:`~safeembodai_core.runner.ScenarioRunner`, for every trial's parts), the
 run plan's checks (the backend's preflight and price, whether the store persists), the Inspect
 solver's memory store, the warm-up of worker processes -- so none of them builds a whole trial
-runner just to call a factory.
+runner just to call a factory. What is built without a scenario (``Guard``'s rules, Inspect's
+provider, the scenario checks' prompt builder) goes through the same call, the registry's ``build_ref``.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .components import BuildContext, LLMBackend, StateStore
+from .components import LLMBackend, StateStore
 from .plugins import Plugins
 from .refs import ComponentRef
 from .scenario import Scenario
@@ -29,9 +30,8 @@ class ComponentBuilder:
     def build(self, kind: str, ref: ComponentRef, seed: int = 0, only_to_describe: bool = False) -> Any:
         """Component ``ref`` of ``kind`` (``only_to_describe``: :class:`BuildContext`'s flag); raises
         the registry's error naming the plugin when its options or its factory fail."""
-        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=self.run_dir, label=ref.key,
-                               only_to_describe=only_to_describe)
-        return self.plugins.registry.build(kind, ref.use, ref.options, context)
+        return self.plugins.registry.build_ref(kind, ref, seed=seed, run_dir=self.run_dir,
+                                               only_to_describe=only_to_describe)
 
     def backend(self, seed: int = 0, only_to_describe: bool = False) -> LLMBackend:
         """The scenario's LLM backend (the caller closes it)."""

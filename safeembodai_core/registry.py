@@ -20,6 +20,7 @@ from .errors import ComponentError, PluginError, SafeEmbodAIError
 if TYPE_CHECKING:
     from .components import BuildContext
     from .hookspecs import Register
+    from .refs import ComponentRef
 
 #: component kind -> registry hook name
 KINDS: dict[str, str] = {
@@ -153,6 +154,18 @@ class ComponentRegistry:
             raise ComponentOptionsError(
                 kind, name, [(tuple(e["loc"]), e["msg"]) for e in error.errors()]
             ) from None
+
+    def build_ref(self, kind: str, ref: "ComponentRef", *, seed: int = 0, run_dir: str | None = None,
+                  only_to_describe: bool = False) -> Any:
+        """Component ``ref`` of ``kind``, its factory told who builds it (:class:`BuildContext`: the ref's
+        key as ``label``, ``seed``, ``run_dir``, ``only_to_describe``). How the core builds every part:
+        a scenario's (:class:`~safeembodai_core.building.ComponentBuilder`), ``Guard``'s rules, Inspect's
+        provider, the scenario checks' prompt builder."""
+        from .components import BuildContext
+
+        context = BuildContext(component=ref.use, kind=kind, seed=seed, run_dir=run_dir, label=ref.key,
+                               only_to_describe=only_to_describe)
+        return self.build(kind, ref.use, ref.options, context)
 
     def build(self, kind: str, name: str, raw_options: Any = None, context: "BuildContext | None" = None) -> Any:
         """Validate options and call the factory; a factory that raises is reported by plugin name."""

@@ -1,9 +1,9 @@
 """One front door for a run: the scenario, its plugins, the executor and the run folder, each check once.
 
-Every way in -- ``safeembodai ablate``, a library user's :class:`~.engine.Ablation`, the Inspect task,
-the Gymnasium env -- reads its scenario through :func:`checked_scenario`; every way that runs an
-ablation goes through :meth:`RunPlan.prepare`, which runs the checks below once, in this order, and
-before anything is written (a refused run leaves no folder):
+Every way in -- ``safeembodai ablate`` and ``run``, a library user's :class:`~.engine.Ablation`, the
+Inspect task, the Gymnasium env -- reads its scenario through :func:`checked_scenario`; every way that
+runs an ablation, and ``safeembodai run``'s one trial, goes through :meth:`RunPlan.prepare`, which runs
+the checks below once, in this order, and before anything is written (a refused run leaves no folder):
 
 1. options the executor would ignore (``--workers 2 --executor serial``, ``--address`` without Ray);
 2. the scenario and its plugins: every component exists and its options validate, the metric

@@ -35,7 +35,8 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     """Run one trial of SCENARIO and show what happened at every step."""
     from rich.console import Console
 
-    from ..runner import ScenarioRunner, preflight, trial_spec
+    from ..ablation.plan import RunPlan
+    from ..runner import ScenarioRunner, trial_spec
     from ..text_safety import terminal_markup
     from .trial_view import save_trial, step_table
 
@@ -43,7 +44,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     env_label = _pick("env", environment, [e.key for e in scenario.environments])
     arm = _pick("arm", arm, list(scenario.arms))
     condition = _pick("condition", condition, list(scenario.conditions))
-    preflight(scenario, plugins)  # a backend that cannot work fails here, before the folder is made
+    RunPlan.prepare(scenario, plugins, scenario_checked=True)  # the plan's checks, before the folder is made
     folder = Path(out_dir or Path("runs") / f"{scenario.name}-run-{time.strftime('%Y%m%d-%H%M%S')}")
     if bag is not None:
         from ..trial_files import record_artefacts

@@ -309,7 +309,7 @@ def _check_prefix_variants(scenario: Scenario, registry: ComponentRegistry, loca
         return []
     ref = scenario.prompt_builder
     try:
-        builder = registry.build("prompt_builder", ref.use, ref.options)
+        builder = registry.build_ref("prompt_builder", ref)
     except SafeEmbodAIError as error:
         return [f"{locate(('prompt_builder',))}: prompt_builder: {error}"]
     known = builder.security_prefix_variants() if hasattr(builder, "security_prefix_variants") else None

@@ -31,7 +31,7 @@ from inspect_ai.model import (
     ChatMessage, ContentReasoning, ContentText, GenerateConfig, ModelAPI, ModelOutput, ModelUsage, StopDetails,
 )
 
-from ...components import BackendReply, BuildContext
+from ...components import BackendReply
 from ...errors import SafeEmbodAIError
 from ...models import TokenUsage
 from ...models.reply import (
@@ -86,14 +86,15 @@ class SafeEmbodAIModelAPI(ModelAPI):
                  config: GenerateConfig = GenerateConfig(), **model_args: Any) -> None:
         super().__init__(model_name=model_name, base_url=base_url, api_key=api_key, config=config)
         from ...plugins import load_plugins
+        from ...refs import ComponentRef
 
         backend, _, model = model_name.partition("/")
         options = dict(model_args)
         if model:  # safeembodai/litellm/openai/gpt-4o: Inspect's -M cannot pass "model" (its own argument)
             options["model"] = model
-        context = BuildContext(component=backend, kind="llm_backend", seed=0, run_dir=None, label="inspect")
         try:
-            self.backend = load_plugins().registry.build("llm_backend", backend, options, context)
+            self.backend = load_plugins().registry.build_ref(
+                "llm_backend", ComponentRef(use=backend, options=options, label="inspect"))
         except SafeEmbodAIError as error:
             raise ValueError(f"safeembodai/{model_name}: {error}") from None
 
