@@ -51,7 +51,9 @@ def _one_line(text: str) -> str:
     return " ".join(text.split())
 
 
-def _feedback(index: int, attempt: Attempt) -> list[str]:
+def feedback(index: int, attempt: Attempt) -> list[str]:
+    """The failure lines refused ``attempt`` (index ``index`` in its step) adds to the retry prompt
+    (Algorithm 1's feedback): ``attempt K (refused plan: ...): reason``, one per reason."""
     return [_one_line(f"attempt {index + 1}{_refused(attempt)}: {reason}") for reason in attempt.failures()]
 
 
@@ -61,8 +63,8 @@ def _refused(attempt: Attempt) -> str:
     return " (refused plan: " + ", ".join(s.describe() for s in attempt.response.control) + ")"
 
 
-def _feedback_refusals(index: int, attempt: Attempt) -> list[Refusal]:
-    """:meth:`Attempt.refusals`, each with where in its failure line (:func:`_feedback`) the advice's words end."""
+def feedback_refusals(index: int, attempt: Attempt) -> list[Refusal]:
+    """:meth:`Attempt.refusals`, each with where in its failure line (:func:`feedback`) the advice's words end."""
     refusals = attempt.refusals()
     if attempt.parse_error is not None:
         return refusals
@@ -141,6 +143,6 @@ def decide(
         log.info("step.refused", step=request.step, attempt=index, reasons=attempt.failures())
         if ended is not None and ended():
             break  # nothing can be executed any more: another call would be paid for nothing
-        failures.extend(_feedback(index, attempt))
-        refusals.extend(_feedback_refusals(index, attempt))
+        failures.extend(feedback(index, attempt))
+        refusals.extend(feedback_refusals(index, attempt))
     return attempts, None

@@ -4,8 +4,9 @@ It does what the guarded loop does around the backend, from the observation alon
 perception plugin renders the camera image and the LiDAR picture, the prompt builder writes the
 paper's prompt (with the security prefix when ``security_prefix`` is set) and the backend's whole
 reply -- its text, finish reason, reasoning, number of choices and what the backend's strict reading
-of the envelope found -- is the action. Refusal reasons that came back in ``info`` go into the next
-prompt, as Algorithm 1 feeds them back. The env then reads the reply exactly as the loop does
+of the envelope found -- is the action. A refusal's feedback that came back in ``info`` (the failure
+lines, and the same as data with each rule's advice) goes into the next prompt with the step's earlier
+ones, as Algorithm 1 feeds them back in the trial loop. The env then reads the reply exactly as the loop does
 (:func:`~safeembodai_core.models.read_reply`): an answer cut off at the token limit, filtered, or
 with a second plan in its reasoning is refused there as here, however complete its text; wrap the env
 in :class:`SafeEmbodAIGuard` for the validators. The reference state R_{i-1} is not sent (an
@@ -20,7 +21,7 @@ import numpy as np
 
 from ... import seeds
 from ...api import _components
-from ...models import DEFAULT_LIMITS, ControlLimits, LidarScan, Observation, PromptRequest
+from ...models import DEFAULT_LIMITS, ControlLimits, LidarScan, Observation, PromptRequest, Refusal
 from ...models.reply import BackendReply, as_reply
 from ...models.prompt import DEFAULT_TASK
 from ...plugins import Plugins, load_plugins
@@ -43,6 +44,10 @@ class LLMAgent:
         self.builder = _components(plugins, "prompt_builder", [prompt_builder], seed)[0][1]
         self.max_range_mm, self.security_prefix, self.task, self.limits = max_range_mm, security_prefix, task, limits
         self.seed, self.calls = seed, 0
+        #: the step the feedback below is for, and Algorithm 1's feedback so far at it (lines and data)
+        self._step: int | None = None
+        self._failures: list[str] = []
+        self._refusals: list[Refusal] = []
 
     def act(self, obs: dict[str, Any], info: dict[str, Any]) -> BackendReply:
         """The backend's reply, whole: hand it to ``env.step`` as it is (not its ``text``: the
@@ -50,10 +55,15 @@ class LLMAgent:
         ranges = np.asarray(obs["lidar"], dtype=float)
         ranges = np.where(ranges >= self.max_range_mm, np.inf, ranges)  # the Box's "no return" back to inf
         observation = Observation(camera=obs.get("camera"), lidar=LidarScan(ranges, self.max_range_mm))
+        if info["step"] != self._step:  # a new step: nothing refused yet
+            self._step, self._failures, self._refusals = info["step"], [], []
+        if info.get("refused") and info.get("attempt", 0) > 0:  # a retry: the refusal's feedback, as the loop's
+            self._failures += info.get("feedback") or info.get("reasons", [])
+            self._refusals += [Refusal.model_validate(r) for r in info.get("refusals", ())]
         request = PromptRequest(
             instruction=obs["instruction"], modalities=self.perception.perceive(observation), step=info["step"],
-            security_prefix=self.security_prefix, failures=tuple(info.get("reasons", ())), limits=self.limits,
-            task=self.task)
+            security_prefix=self.security_prefix, failures=tuple(self._failures), refusals=tuple(self._refusals),
+            limits=self.limits, task=self.task)
         self.calls += 1
         return as_reply(self.backend.complete(self.builder.build(request), seeds.rng(self.seed, "agent", self.calls)))
 

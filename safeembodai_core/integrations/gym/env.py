@@ -24,12 +24,12 @@ from pydantic import TypeAdapter, ValidationError
 
 from ...attacks import attack_stream, run_attackers
 from ...loop.enforce import nothing_to_cut
+from ...loop.guarded_step import feedback, feedback_refusals
 from ...loop.fresh_scan import attacked_reading, sense_now
 from ...components import AttackSurface
 from ...models import (
     Attempt, ControlSignal, Enforced, ExecutedSignal, GroundTruth, LidarScan, LLMResponse, Observation, Outcome, Pose,
-    ResponseParseError,
-    Verdict,
+    Refusal, ResponseParseError, Verdict,
 )
 from ...models.reply import as_reply, read_reply
 from ...models.response import describe_schema_error
@@ -174,7 +174,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
         signals, response, reason = self.read(action)
         if signals is None:
             assert reason is not None  # read() gives a reason with no signals
-            return self.refuse(self._refusal(reason))
+            return self.refuse(self._refusal(reason), attempt=self.refused_reading(reason))
         flagged = None if response is None else response.flags_attack
         return self._advance(self._run(signals), flagged=flagged)
 
@@ -188,7 +188,12 @@ class SafeEmbodAIEnv(gymnasium.Env):
                 break
         return executed
 
-    def refuse(self, reasons: list[str], cut: Enforced | None = None):
+    def refused_reading(self, reason: str) -> Attempt | None:
+        """This step's attempt as the trial loop records a text answer it could not read (None for a
+        command list: no LLM answer to record)."""
+        return Attempt(index=self._attempt, parse_error=reason) if self.action_format == "text" else None
+
+    def refuse(self, reasons: list[str], cut: Enforced | None = None, attempt: Attempt | None = None):
         """The step's plan is refused and not executed: Algorithm 1's retry, one attempt.
 
         ``reasons`` go to ``info["reasons"]`` as given: write them as the trial loop does
@@ -202,12 +207,20 @@ class SafeEmbodAIEnv(gymnasium.Env):
         plan, judged again (:func:`~safeembodai_core.loop.enforce.enforce_cut`; the guard builds it) --
         when it passed, else holds; ``info["enforced"]`` is that record (the env alone has no rules:
         without a guard, ``enforce`` holds).
+
+        ``attempt``: the refused answer as the loop records it (its reply read, its verdicts): then
+        ``info["feedback"]`` and ``info["refusals"]`` are what the loop's retry prompt would add for it --
+        the failure lines and the same as data, with each rule's advice (``Refusal``, JSON); without
+        it, the reasons and no data.
         """
         if self._observation is None or self._outcome is not None:
             raise RuntimeError("call reset() before step(), and again once an episode has ended")
+        said = ((feedback(attempt.index, attempt), feedback_refusals(attempt.index, attempt)) if attempt is not None
+                else (list(reasons), []))
         self._attempt += 1
         if self._attempt <= self.arm.failure_threshold:
-            return self._obs(), 0.0, False, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks)
+            return self._obs(), 0.0, False, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks,
+                                                              said=said)
         if self.arm.on_exhausted == "hold":
             return self._advance([], refused=reasons)
         if self.arm.on_exhausted == "enforce":
@@ -303,13 +316,14 @@ class SafeEmbodAIEnv(gymnasium.Env):
 
     def _info(self, *, cost: float = 0.0, refused: list[str] | None = None, attacks: list[dict[str, Any]],
               executed: Sequence[ExecutedSignal] = (), collision: tuple[str | None, object] = (None, None),
-              flagged: bool | None = None) -> dict[str, Any]:
+              flagged: bool | None = None, said: tuple[list[str], list[Refusal]] = ([], [])) -> dict[str, Any]:
         assert self._observation is not None  # reset() read it
         truth = self._observation.truth
         return {
             "trial_seed": self.trial_seed, "step": self._step, "attempt": self._attempt,
             "outcome": None if self._outcome is None else self._outcome.value,
             "cost": cost, "refused": bool(refused), "reasons": list(refused or []), "enforced": None,
+            "feedback": list(said[0]), "refusals": [r.model_dump(mode="json") for r in said[1]],
             "executed": [e.model_dump(mode="json") for e in executed],
             "collision": collision[0], "hit": collision[1],
             "attacked": bool(attacks), "attacks": attacks, "flagged_attack": flagged,

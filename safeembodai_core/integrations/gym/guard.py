@@ -26,7 +26,7 @@ import gymnasium
 from ...api import Guard
 from ...loop.enforce import enforce_cut, nothing_to_cut
 from ...loop.fresh_scan import require_sense
-from ...models import Enforced
+from ...models import Attempt, Enforced
 from .env import SafeEmbodAIEnv
 
 
@@ -55,11 +55,11 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
         base = cast(SafeEmbodAIEnv, self.env.unwrapped)  # checked in __init__
         # on_exhausted: enforce -- this attempt is the step's last: a refusal runs the rules' cut or holds
         last = base.arm.on_exhausted == "enforce" and base._attempt >= base.arm.failure_threshold
-        signals, _, reason = base.read(action)
+        signals, response, reason = base.read(action)
         if signals is None:  # not even the actuation contract: the env refuses it itself
             if last:  # never enforced itself; the step's last parsed, refused answer is cut instead
                 assert reason is not None  # read() gives a reason with no signals
-                return base.refuse(base._refusal(reason), cut=self._cut(base))
+                return base.refuse(base._refusal(reason), cut=self._cut(base), attempt=base.refused_reading(reason))
             return self.env.step(action)
         # the clock too: the guard keeps each step's scan, so rules about motion get the trial's earlier
         # scans as context.history, as in the trial loop
@@ -77,7 +77,9 @@ class SafeEmbodAIGuard(gymnasium.Wrapper):
             report = self.guard.check(signals, **judged)
         if not report.valid:
             self._refused = (base._step, base._attempt, signals, report.verdicts, judged)
-            return base.refuse(report.reasons, cut=self._cut(base) if last else None)
+            answer = (None if response is None  # as the loop records the answer it refused: the retry's feedback
+                      else Attempt(index=base._attempt, response=response, verdicts=report.verdicts))
+            return base.refuse(report.reasons, cut=self._cut(base) if last else None, attempt=answer)
         return self.env.step(action)
 
     def _cut(self, base: SafeEmbodAIEnv) -> Enforced:

@@ -323,7 +323,7 @@ def test_amend_reads_the_feedback_algorithm_1_writes(built_plugins):
     """The whole path: a refused attempt, the feedback the guarded step writes of it (lines and
     refusals), the prompt the builder makes, and the amending pilot keeps the signal that passed,
     shortens the refused one (a backward straight stays backward) and resends values as they were."""
-    from safeembodai_core.loop.guarded_step import _feedback
+    from safeembodai_core.loop.guarded_step import feedback
     from safeembodai_core.models import Attempt, Verdict
 
     text = json.dumps({"perception": [], "planning": "back off", "control": [
@@ -335,7 +335,7 @@ def test_amend_reads_the_feedback_algorithm_1_writes(built_plugins):
         Verdict(rule="moving_obstacles", valid=False, signal_index=2, advice=Advice(safe_mm=150),
                 reason="straight backward 300 mm: a moving obstacle ...; going backward, at most 150 mm is safe")])
     _, observation = flatland_observation(built_plugins, seed=8, turn_to_can=0.0)
-    prompt = make_prompt(built_plugins, observation, failures=list(zip(_feedback(0, attempt), attempt.refusals())))
+    prompt = make_prompt(built_plugins, observation, failures=list(zip(feedback(0, attempt), attempt.refusals())))
     mock = _mock(built_plugins, feedback_compliance_p=1.0, retry="amend")
     assert _signals(mock.complete(prompt, np.random.default_rng(0)).text) == [
         "straight backward 125 mm", "turn right 33.5 deg", "straight backward 130 mm"]
@@ -405,7 +405,7 @@ def test_a_failure_line_cut_before_its_advice_hands_the_refusal_on_without_it(bu
 
 
 def test_the_loops_refusals_say_where_each_advice_ends_in_its_line():
-    from safeembodai_core.loop.guarded_step import _feedback, _feedback_refusals
+    from safeembodai_core.loop.guarded_step import feedback, feedback_refusals
     from safeembodai_core.models import Attempt, Verdict
 
     text = json.dumps({"perception": [], "planning": "p", "control": [
@@ -414,6 +414,6 @@ def test_the_loops_refusals_say_where_each_advice_ends_in_its_line():
     said = reason.index(". More")
     attempt = Attempt(index=0, raw_text=text, response=parse_response(text), verdicts=[
         Verdict(rule="r", valid=False, signal_index=0, reason=reason, advice=Advice(safe_mm=120, words_end=said))])
-    [line] = _feedback(0, attempt)
-    [refusal] = _feedback_refusals(0, attempt)
+    [line] = feedback(0, attempt)
+    [refusal] = feedback_refusals(0, attempt)
     assert line[:refusal.advice_end].endswith("at most 120 mm is safe")
