@@ -121,6 +121,12 @@ class Environment(ABC):
         """
         return None
 
+    def another_call(self) -> None:
+        """Optional: the LLM is asked again for the same observation (a refused answer's retry,
+        Algorithm 1). An environment that charges the time each call takes owes another think time,
+        spent as the first one is (before the next command, or in :meth:`sense`); the default charges
+        nothing: the step's one think time covers every retry."""
+
     def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
         """Optional: a top-down picture of the trial (room, obstacles, path, outcome)."""
         return None

@@ -59,10 +59,11 @@ class EnvironmentDescription:
     """What a report says of an environment beside the step budget (:meth:`EnvironmentOptions.describe`):
     ``time_limit_s``, the simulated time after which a trial ends ``timeout`` whatever its budget;
     ``think_time_s``, the simulated seconds the world runs while the LLM decides, once per step (None:
-    the environment has no such clock)."""
+    the environment has no such clock), or once per call -- every retry too -- when ``think_per_call``."""
 
     time_limit_s: float | None = None
     think_time_s: float | None = None
+    think_per_call: bool = False
 
 
 class EnvironmentOptions(BaseModel):

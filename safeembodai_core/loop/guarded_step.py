@@ -92,6 +92,7 @@ def decide(
     fresh: Callable[[], ValidationContext] | None = None,
     ended: Callable[[], bool] | None = None,
     judged: dict[int, ValidationContext] | None = None,
+    retrying: Callable[[], None] = lambda: None,
 ) -> tuple[list[Attempt], LLMResponse | None]:
     """Run Algorithm 1 for one step; return every attempt and the accepted answer (or None).
 
@@ -103,11 +104,15 @@ def decide(
     ``spent`` grown by the usage of the step's attempts answered before it (nothing paid is lost).
     ``judged``, when given, receives the context each judged attempt was judged on, by attempt index
     (what ``on_exhausted: enforce`` judges the cut on, :mod:`~safeembodai_core.loop.enforce`).
+    ``retrying`` is called before each retry's call (the environment's
+    :meth:`~safeembodai_core.components.Environment.another_call`: a world that charges each call's time).
     """
     attempts: list[Attempt] = []
     failures: list[str] = []
     refusals: list[Refusal] = []  # the same, as data (Attempt.refusals), one per line
     for index in range(failure_threshold + 1):
+        if index:
+            retrying()
         prompt = builder.build(replace(request, failures=tuple(failures), refusals=tuple(refusals)))
         rng = seeds.rng(seed, "backend", request.step, index)
         # a backend that decodes under the limits or varies retries learns the attempt (None: nothing prepared)

@@ -369,6 +369,7 @@ def _decide(spec: TrialSpec, step: int, observation: Observation, parts: TrialPa
         validators=validators,
         context=context, failure_threshold=defences.failure_threshold, seed=spec.seed, fresh=fresh,
         ended=(lambda: parts.environment.outcome() is not None) if fresh else None, judged=judged,
+        retrying=getattr(parts.environment, "another_call", lambda: None),  # a duck-typed world charges nothing
     )
     planned = list(response.control) if response is not None else []
     enforced = None

@@ -48,7 +48,8 @@ def budget_words(scenario: Scenario, info: RunInfo) -> str:
     for label, clock in info.clocks.items():
         if clock.time_limit_s is None:
             continue
-        think = (f", {clock.think_time_s:g} s of it passing while the LLM decides each step"
+        each = "each call (every retry too)" if clock.think_per_call else "each step"
+        think = (f", {clock.think_time_s:g} s of it passing while the LLM decides {each}"
                  if clock.think_time_s else "")
         clocks.append(f"{_cell(label, 80)} {clock.time_limit_s:g} s{think}")
     if clocks:

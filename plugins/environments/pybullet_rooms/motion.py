@@ -15,7 +15,8 @@ wrecked: further commands are not executed.
 
 Simulated time advances by distance / ``robot_speed_mm_s`` and angle / ``robot_turn_rate_deg_s``,
 plus ``think_time_s`` once per observation: before the first command after it, or before the
-next observation if no command came (the LLM thought, then answered nothing executable). The
+next observation if no command came (the LLM thought, then answered nothing executable); with
+``think_time_per_call``, once more for each retry's call (``another_call``). The
 world (the Labbots) keeps moving while the LLM decides. A command stops early when the time
 limit is spent.
 
@@ -77,7 +78,9 @@ class KinematicMotion:
         collided: bool
         collision_xy: np.ndarray | None
         collision: CollisionRecord
-        _thought: bool
+        _thinks: int
+
+        def _take_think_s(self) -> float: ...
 
         def _require_reset(self) -> None: ...
 
@@ -90,9 +93,8 @@ class KinematicMotion:
             return ExecutionResult(stopped=True, detail=f"not executed: the robot had collided "
                                                         f"({self.collision.get('collision_detail', '')})")
         with silenced():
-            if not self._thought:
-                self._thought = True
-                hit = self._wait(self.options.think_time_s)
+            if self._thinks:
+                hit = self._wait(self._take_think_s())
                 if hit is not None:
                     return self._result(signal, 0.0, hit, "while the robot stood still (think time)", standing=True)
             done, hit = self._move(signal, amount, per_unit_s, increment)

@@ -40,6 +40,9 @@ class RoomOptions(EnvironmentOptions):
     max_sim_time_s: float = Field(100.0, gt=0.0, le=100_000.0, description="simulated-time limit (the paper's 100 s)")
     think_time_s: float = Field(0.0, ge=0.0, le=600.0,
                                 description="simulated seconds the world runs while the LLM decides, once per step")
+    think_time_per_call: bool = Field(
+        False, description="charge think_time_s for every LLM call, each retry of a refused answer too "
+                           "(default: once per step, whatever the retries)")
     step_mm: float = Field(10.0, ge=1.0, le=50.0, description="motion increment between collision checks")
     step_deg: float = Field(3.0, ge=0.5, le=15.0, description="turn increment between collision checks")
     lidar_beams: int = Field(360, ge=36, le=3600, description="beams per scan, beam k at k*360/N degrees")
@@ -49,7 +52,8 @@ class RoomOptions(EnvironmentOptions):
     camera_fov_deg: float = Field(60.0, gt=10.0, lt=170.0, description="horizontal field of view")
 
     def describe(self) -> EnvironmentDescription:
-        return EnvironmentDescription(time_limit_s=self.max_sim_time_s, think_time_s=self.think_time_s)
+        return EnvironmentDescription(time_limit_s=self.max_sim_time_s, think_time_s=self.think_time_s,
+                                      think_per_call=self.think_time_per_call)
 
     @property
     def passage(self) -> float:

@@ -60,7 +60,7 @@ class PybulletRoom(KinematicMotion, Environment):
         self.collision_xy: np.ndarray | None = None
         self.collision: CollisionRecord = {}  # who moved into whom, what was hit, the detail
         self._unreported: CollisionRecord = {}  # a collision outside any command, for the next observation
-        self._thought = True
+        self._thinks = 0  # think times owed: the last observation's, one more per retry when charged per call
         self._seed: int | None = None
         self._world: str | None = None  # the trial's drawn Labbot dynamics (JSON, with a family), for ground truth
         self._world_kind: str | None = None  # the trial's kind (the report's bucket), with a family
@@ -88,7 +88,7 @@ class PybulletRoom(KinematicMotion, Environment):
         self._world_kind = draw.kind if draw is not None else None
         self.sim_time_s, self.collided, self.collision_xy = 0.0, False, None
         self.collision, self._unreported = {}, {}
-        self._thought = True  # nothing pending from the previous trial
+        self._thinks = 0  # nothing pending from the previous trial
         with silenced():
             self.scene.place_statics(self.can_xy, self.balls_xy)
             self._sync()
@@ -131,7 +131,7 @@ class PybulletRoom(KinematicMotion, Environment):
             self._finish_thinking()  # the last observation's thinking led to no command: it still took time
             ranges = self.sensors.lidar(self.xy, self.heading)
             image = self.sensors.camera(self.xy, self.heading)
-        self._thought = False
+        self._thinks = 1
         return Observation(
             camera=image, lidar=LidarScan(ranges_mm=ranges, max_range_mm=o.lidar_max_range_mm),
             pose=self.pose(), truth=self._reported_truth(), sim_time_s=self.sim_time_s,
@@ -148,12 +148,23 @@ class PybulletRoom(KinematicMotion, Environment):
         return Observation(lidar=LidarScan(ranges_mm=ranges, max_range_mm=self.options.lidar_max_range_mm),
                            pose=self.pose(), truth=self._reported_truth(), sim_time_s=self.sim_time_s)
 
+    def another_call(self) -> None:
+        """A retry's call: with ``think_time_per_call`` it owes another think time (spent before the
+        next command, or by :meth:`sense`); without it the step's one think time covers it."""
+        self._require_reset()
+        if self.options.think_time_per_call:
+            self._thinks += 1
+
+    def _take_think_s(self) -> float:
+        """The think time owed, in seconds; nothing is owed after it (the caller spends it)."""
+        owed, self._thinks = self._thinks, 0
+        return self.options.think_time_s * owed
+
     def _finish_thinking(self) -> None:
-        """Spend the think time of the last observation if nothing has yet; a Labbot that strikes
-        the standing robot meanwhile is kept for the next reading's truth."""
-        if not self._thought:
-            self._thought = True
-            hit = self._wait(self.options.think_time_s)
+        """Spend the think time owed (the last observation's, and each charged retry's) if any; a
+        Labbot that strikes the standing robot meanwhile is kept for the next reading's truth."""
+        if self._thinks:
+            hit = self._wait(self._take_think_s())
             if hit is not None:
                 self._unreported = self._collision_record(hit, "while the robot stood still (think time)")
 

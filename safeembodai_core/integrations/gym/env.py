@@ -200,7 +200,8 @@ class SafeEmbodAIEnv(gymnasium.Env):
         (:meth:`Attempt.failures`: a reading's refusal, or :meth:`Verdict.line` per refused
         signal, ``rule (signal K): reason``), as the env and the guard do.
 
-        The agent may try again at the same step (same observation) until the arm's
+        The agent may try again at the same step (same observation; the world told of another call,
+        :meth:`~safeembodai_core.components.Environment.another_call`) until the arm's
         ``failure_threshold`` retries are spent; then ``on_exhausted: abort`` ends the episode as
         ``safe_abort`` and ``hold`` lets the step pass without moving. Each refusal costs 1.
         ``on_exhausted: enforce`` runs ``cut`` -- the rules' cut of the step's last parsed, refused
@@ -219,6 +220,8 @@ class SafeEmbodAIEnv(gymnasium.Env):
                 else (list(reasons), []))
         self._attempt += 1
         if self._attempt <= self.arm.failure_threshold:
+            # the agent is asked again, as the loop asks the LLM: a world that charges each call's time owes one more
+            getattr(self.world, "another_call", lambda: None)()
             return self._obs(), 0.0, False, False, self._info(cost=1.0, refused=reasons, attacks=self._attacks,
                                                               said=said)
         if self.arm.on_exhausted == "hold":

@@ -56,6 +56,25 @@ def test_exhausted_failure_threshold_aborts_safely_without_moving():
     assert world.executed == [] and not steps[0].accepted
 
 
+def test_the_world_is_told_of_every_retrys_call_and_of_no_other():
+    """Each retry is another call the world may charge time for (Environment.another_call): one per
+    retry, none for a step answered at once."""
+    calls: list[int] = []
+
+    class Counting(CorridorWorld):
+        def another_call(self) -> None:
+            calls.append(len(backend.prompts))  # told before the retry's call is made
+
+    world = Counting(wall_mm=600)
+    backend = Recorder(answer(straight(399)))
+    run(world, backend, defences=SAFE.model_copy(update={"failure_threshold": 2}))
+    assert calls == [1, 2]  # three calls, two of them retries
+    calls.clear()
+    world, backend = Counting(wall_mm=600), Recorder(answer(straight(100)))
+    run(world, backend, max_steps=2)
+    assert calls == [] and len(backend.prompts) == 2
+
+
 def test_hold_skips_the_step_and_carries_on():
     world = CorridorWorld(wall_mm=600)
     backend = Recorder(answer(straight(399)))

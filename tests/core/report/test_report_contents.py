@@ -221,6 +221,16 @@ def test_the_budget_line_names_each_rooms_clock_and_the_timeouts_say_which_ended
     assert "| OF | baseline | no_attack | 1 | 1 | 1 |" in text  # the second trial kept no kinds: said, not guessed
 
 
+def test_the_budget_line_says_when_every_retry_is_charged_a_think_time(tmp_path):
+    plugins = load_plugins(environ={})
+    scenario = parse_scenario("name: t\nmax_steps: 25\nstate: memory\nenvironments: [{use: MO, options: "
+                              "{max_sim_time_s: 90, think_time_s: 5, think_time_per_call: true}}]\n",
+                              "t.yaml", registry=plugins.registry)
+    text = write_report(tmp_path, scenario, [trial("baseline", "no_attack", 0, "timeout", 15)],
+                        plugins=plugins).read_text()
+    assert "MO 90 s, 5 s of it passing while the LLM decides each call (every retry too) |" in text
+
+
 def test_struck_collisions_show_standing_and_moving_apart_in_report_and_metrics(tmp_path):
     scenario = parse_scenario("name: t\nmax_steps: 20\nenvironments: [OF]\nstate: memory\n", "t.yaml")
     split = [trial("baseline", "no_attack", 0, "interrupted", 4, collisions=3, collisions_struck=3,

@@ -153,6 +153,31 @@ def test_think_time_runs_the_clock_once_per_observation(make_env, moves):
     assert env.sim_time_s == pytest.approx(7.5)
 
 
+def test_think_time_per_call_charges_each_retry_as_a_think(make_env, moves):
+    env = make_env("OF", think_time_s=2.0, think_time_per_call=True)
+    env.reset(0)
+    env.another_call()  # a refused answer's retry: a second call for the same observation
+    env.execute(moves.rotate(30))
+    assert env.sim_time_s == pytest.approx(4.5)
+    env.observe()
+    env.sense()  # the first answer arrives: its think time has passed
+    assert env.sim_time_s == pytest.approx(6.5)
+    env.another_call()
+    env.sense()  # and the retry's
+    assert env.sim_time_s == pytest.approx(8.5)
+    env.execute(moves.rotate(30))  # nothing owed any more
+    assert env.sim_time_s == pytest.approx(9.0)
+
+
+def test_think_time_once_per_step_lets_retries_pass_free(make_env, moves):
+    env = make_env("OF", think_time_s=2.0)
+    env.reset(0)
+    env.another_call()
+    env.another_call()
+    env.execute(moves.rotate(30))
+    assert env.sim_time_s == pytest.approx(2.5)
+
+
 @pytest.mark.parametrize("signal, message", [
     (Straight.model_construct(command="straight", direction="forward", distance=float("nan")), "distance=nan"),
     (Straight.model_construct(command="straight", direction="forward", distance=float("inf")), "distance=inf"),

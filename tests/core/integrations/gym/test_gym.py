@@ -274,18 +274,21 @@ def test_the_guard_gives_rules_the_episodes_earlier_scans_as_the_loop_does():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("index", [1, 2, 3])  # judged on the step's scan instead, each of these differs
-def test_a_fresh_scan_arm_gets_the_loops_verdicts_under_the_guard(repo, index):
+@pytest.mark.parametrize("index, per_call", [(1, False), (2, False), (3, False), (2, True)])
+def test_a_fresh_scan_arm_gets_the_loops_verdicts_under_the_guard(repo, index, per_call):
     """movers.yaml's ``moving`` arm (``fresh_scan``) in DO: the loop's trial, its answers replayed into the
     guarded env: every attempt gets the loop's verdict, word for word, judged on the world as the answer
-    arrived, and the episode ends as the trial did."""
+    arrived, and the episode ends as the trial did (judged on the step's scan instead, each of these
+    trials differs). ``per_call``: the room charges every retry's call a think time, the env's world
+    too (each step starts at the loop's clock)."""
     from safeembodai_core.gym import SafeEmbodAIEnv
     from safeembodai_core.plugins import load_plugins
     from safeembodai_core.runner import ScenarioRunner, trial_spec
 
     plugins = load_plugins(environ={})
-    scenario = load_scenario(repo / "scenarios" / "movers.yaml", ["trials=4", "state=memory", "max_steps=8"],
-                             plugins.registry)
+    charged = ["environments.0.options.think_time_per_call=true"] if per_call else []
+    scenario = load_scenario(repo / "scenarios" / "movers.yaml",
+                             ["trials=4", "state=memory", "max_steps=8", *charged], plugins.registry)
     runner = ScenarioRunner(scenario, plugins)
     try:
         spec = trial_spec(scenario, "DO", "moving", "no_attack", index)
@@ -298,7 +301,10 @@ def test_a_fresh_scan_arm_gets_the_loops_verdicts_under_the_guard(repo, index):
                                           plugins=plugins))
     try:
         env.reset(options={"index": index})
+        if per_call:  # retries happened, so the charged clock is what is checked
+            assert any(len(record.attempts) > 1 for record in steps)
         for record in steps:
+            assert env.unwrapped._observation.sim_time_s == pytest.approx(record.sim_time_s), record.step
             for attempt in record.attempts:
                 _, _, terminated, truncated, info = env.step(attempt.raw_text)
                 assert info["refused"] == (not attempt.accepted), (record.step, attempt.index)
