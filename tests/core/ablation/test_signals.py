@@ -195,10 +195,10 @@ FORKING_WORKER = textwrap.dedent("""
     from safeembodai_core.ablation.run_folder import hold_worker_lock
     hold_worker_lock(sys.argv[1])
     child = os.fork()
-    if child == 0:
+    if child == 0:  # the child says so itself: its at-fork handlers have run by then
+        print(os.getpid(), flush=True)
         time.sleep(600)
         os._exit(0)
-    print(child, flush=True)
     time.sleep(600)
 """)
 

@@ -42,7 +42,7 @@ class Staged(StagedWorld):
         room.swarm._statics = [(5600.0, 400.0, 33.0)]
         room.scene.place_statics(room.can_xy, room.balls_xy)
         room._sync()
-        room._thought = True  # the reading below is the step's observation, as after reset
+        room._thinks = 0  # nothing owed: the reading below is the step's observation, as after reset
         return room.observe()
 
 
