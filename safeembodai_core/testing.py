@@ -20,7 +20,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from .components import BackendReply, Environment, LLMBackend, RobotSpec
+from .components import BackendReply, Environment, LLMBackend, RobotSpec, WorldSnapshot
 from .models import (
     ControlSignal,
     ExecutionResult,
@@ -220,6 +220,9 @@ class StagedWorld(Environment):
     def sense(self) -> Observation | None:
         return self.room.sense()
 
+    def another_call(self) -> None:
+        self.room.another_call()
+
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         return self.room.execute(signal)
 
@@ -231,6 +234,9 @@ class StagedWorld(Environment):
 
     def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
         return self.room.trajectory_png(poses, outcome)
+
+    def snapshot(self) -> WorldSnapshot | None:
+        return self.room.snapshot()
 
     def close(self) -> None:
         self.room.close()
