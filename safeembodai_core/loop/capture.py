@@ -115,6 +115,9 @@ class _CapturingEnvironment(Environment):
             self._capture.observed(reading, _snapshot(self._inner))
         return reading
 
+    def another_call(self) -> None:
+        self._inner.another_call()
+
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         before = _snapshot(self._inner)
         result = self._inner.execute(signal)
