@@ -20,6 +20,9 @@ class EntryPoint:
     name: str
     what: str
     reader: str
+    #: the optional extra whose package the reader's module imports (``pip install -e ".[EXTRA]"``); None: the
+    #: README's install holds it
+    extra: str | None = None
 
 
 ENTRY_POINTS: tuple[EntryPoint, ...] = (
@@ -45,11 +48,11 @@ ENTRY_POINTS: tuple[EntryPoint, ...] = (
                "safeembodai_core.ablation.relay:RelayedWrites.receive"),
     EntryPoint("inspect model output", "what Inspect's model hands the solver (only on a provider that shows the "
                "whole reply: safeembodai/<backend> or mockllm)",
-               "safeembodai_core.integrations.inspect.bridge:backend_reply"),
+               "safeembodai_core.integrations.inspect.bridge:backend_reply", extra="inspect"),
     EntryPoint("inspect usage", "the token counts of Inspect's model output",
-               "safeembodai_core.integrations.inspect.bridge:output_usage"),
+               "safeembodai_core.integrations.inspect.bridge:output_usage", extra="inspect"),
     EntryPoint("inspect provider", "the model Inspect was told to use: a provider that parses the body itself is "
-               "refused", "safeembodai_core.integrations.inspect.providers:check_provider"),
+               "refused", "safeembodai_core.integrations.inspect.providers:check_provider", extra="inspect"),
 )
 
 #: Modules that call a raw reader, and why they may. Everything else goes through an entry point's reader.

@@ -164,6 +164,24 @@ def step_panel(record: StepRecord) -> Panel:
     return Panel(Group(*parts), title=title, title_align="left")
 
 
+def pilot_banner(run: str | Path) -> str | None:
+    """What ``show`` says of who answered: a simulated pilot's banner, or that it cannot be told (a bare
+    ``.sqlite`` file, or a folder whose ``scenario.json`` cannot be read back); None for a real LLM."""
+    from safeembodai_core.ablation.plan import recorded_scenario
+    from safeembodai_core.errors import SafeEmbodAIError
+    from safeembodai_core.report.run_info import describe_backend
+
+    if not Path(run).is_dir():
+        return "who answered is not recorded in a bare results file: it may have been a simulated pilot, not an LLM"
+    try:
+        scenario, plugins = recorded_scenario(run)
+        simulated = describe_backend(scenario, plugins).simulated
+    except SafeEmbodAIError as error:
+        return (f"who answered cannot be told ({shown(str(error))[:200]}): it may have been a simulated pilot, "
+                "not an LLM")
+    return shown(simulated.upper()) if simulated else None
+
+
 def show_run(run: str, trial: str | None, *, environment: str | None = None, arm: str | None = None,
              condition: str | None = None, console: Console | None = None) -> None:
     """Print the trials of ``run``, or the steps of one trial of it."""
@@ -181,6 +199,9 @@ def show_run(run: str, trial: str | None, *, environment: str | None = None, arm
     finally:
         store.close()
     console.print(Text.assemble((shown(trial_id), "bold"), f" (seed {seed})"))
+    pilot = pilot_banner(run)
+    if pilot:
+        console.print(Text(pilot, style="bold red"))
     for record in steps:
         console.print(step_panel(record))
     if result is None:

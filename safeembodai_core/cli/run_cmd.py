@@ -36,6 +36,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     from rich.console import Console
 
     from ..ablation.plan import RunPlan
+    from ..report.run_info import describe_backend
     from ..runner import ScenarioRunner, trial_spec
     from ..text_safety import terminal_markup
     from .trial_view import save_trial, step_table
@@ -53,6 +54,9 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)
     spec = trial_spec(scenario, env_label, arm, condition, index)
     console = Console(stderr=False, emoji=False)  # LLM text: ":warning:" stays literal
+    simulated = describe_backend(scenario, plugins).simulated  # every surface says a simulated pilot is one
+    if simulated:
+        console.print(f"[bold red]{terminal_markup(simulated.upper())}[/bold red]")
     try:
         with console.status(f"running {terminal_markup(spec.trial_id)} (seed {spec.seed})"):
             result = runner.run(spec)
@@ -66,6 +70,8 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     console.print(f"[bold]{terminal_markup(spec.trial_id)}[/bold]: {result.outcome.value} after "
                   f"{plural(result.steps, 'step')}" + (f" ({terminal_markup(ending)})" if ending else "")
                   + f"; distance {result.distance_mm:.0f} mm, tokens {result.tokens}")
+    if simulated:
+        console.print(f"[bold red]{terminal_markup(simulated)}[/bold red]")
     console.print(f"saved to {terminal_markup(str(folder))}")
     if bag is not None:
         from ..runner import bag_file

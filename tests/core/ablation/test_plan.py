@@ -126,7 +126,9 @@ def test_a_scenario_naming_a_missing_plugin_is_refused_by_every_way_in(tmp_path)
                     "arms: {a: {}}\nconditions: {c: {}}\n")
     with pytest.raises(ScenarioError, match="nowhere"):
         checked_scenario(path)
-    gym = pytest.importorskip("safeembodai_core.integrations.gym.scenarios", reason="the gym extra")
+    pytest.importorskip("gymnasium", reason="the gym extra: pip install -e '.[gym]'")
+    from safeembodai_core.integrations.gym import scenarios as gym
+
     with pytest.raises(ScenarioError, match="nowhere"):
         gym.resolve(str(path), "flatland")
 

@@ -216,3 +216,16 @@ def test_trace_plugins_shows_hook_calls_at_the_default_log_level():
     quiet = subprocess.run([sys.executable, "-m", "safeembodai_core", "plugins", "--json"], capture_output=True,
                            text=True, timeout=120, env=env)
     assert "hook.call" not in quiet.stderr
+
+
+def test_run_says_a_simulated_pilot_is_one_and_an_llm_run_says_nothing(cli_runner, repo, tmp_path):
+    mock = cli_runner.invoke(cli, ["run", str(repo / "scenarios/quickstart.yaml"), "--backend", "mock",
+                                   "--set", "max_steps=2", "--out", str(tmp_path / "mock")], terminal_width=200)
+    assert mock.exit_code == 0, mock.output
+    assert mock.output.startswith("SIMULATED PILOT (MOCK): NOT A MEASUREMENT OF AN LLM")
+    ending = mock.output.index("flatland/baseline/no_attack/0:")  # the trial's last line, after its steps
+    assert "simulated pilot (mock): not a measurement of an LLM" in mock.output[ending:]
+    scripted = cli_runner.invoke(cli, ["run", str(repo / "scenarios/quickstart.yaml"), "--set", "max_steps=2",
+                                       "--out", str(tmp_path / "scripted")], terminal_width=200)
+    assert scripted.exit_code == 0, scripted.output
+    assert "simulated pilot" not in scripted.output.lower()

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import sqlite3
 from pathlib import Path
 
 import pytest
@@ -36,8 +37,6 @@ def enforced_run(tmp_path_factory):
 
 
 def test_the_run_records_enforced_steps_and_reports(enforced_run):
-    import sqlite3
-
     _, run = enforced_run
     rows = sqlite3.connect(run / "results.sqlite").execute("SELECT record FROM steps").fetchall()
     records = [json.loads(row[0]) for row in rows]
@@ -47,11 +46,7 @@ def test_the_run_records_enforced_steps_and_reports(enforced_run):
     assert (run / "report.md").is_file()
 
 
-def test_show_view_and_the_transcript_say_the_rules_cut_ran(enforced_run, tmp_path):
-    from safeembodai_core.integrations.inspect.solver import step_markdown
-    from safeembodai_core.models import StepRecord
-    import sqlite3
-
+def test_show_and_view_say_the_rules_cut_ran(enforced_run, tmp_path):
     runner, run = enforced_run
     trial = sqlite3.connect(run / "results.sqlite").execute("SELECT trial_id FROM trials").fetchone()[0]
     shown = runner.invoke(cli, ["show", str(run), "--trial", trial])
@@ -62,6 +57,14 @@ def test_show_view_and_the_transcript_say_the_rules_cut_ran(enforced_run, tmp_pa
     assert site.exit_code == 0, site.output
     pages = [p.read_text() for p in (tmp_path / "site").rglob("*.html")]
     assert any('class="enforced"' in page and "cut of attempt 1 ran" in page for page in pages)
+
+
+def test_the_inspect_transcript_says_the_rules_cut_ran(enforced_run):
+    pytest.importorskip("inspect_ai", reason="the inspect extra: pip install -e '.[inspect]'")
+    from safeembodai_core.integrations.inspect.solver import step_markdown
+    from safeembodai_core.models import StepRecord
+
+    _, run = enforced_run
     records = [StepRecord.model_validate_json(row[0]) for row in
                sqlite3.connect(run / "results.sqlite").execute("SELECT record FROM steps").fetchall()]
     assert any("on_exhausted enforce: the LLM" in step_markdown(r) for r in records if r.enforced is not None)

@@ -183,3 +183,20 @@ def test_show_reads_a_run_whose_writer_is_still_open(cli_runner, tmp_path):
         assert "OF/a/c/0" in result.output and "timeout" in result.output
     finally:
         store.close()
+
+
+@pytest.mark.parametrize("backend, banner", [("mock", "SIMULATED PILOT (MOCK): NOT A MEASUREMENT OF AN LLM"),
+                                             ("scripted", None)])
+def test_show_says_whether_a_simulated_pilot_answered(cli_runner, repo, tmp_path, backend, banner):
+    runs = tmp_path / "runs"
+    chosen = ["--backend", backend] if backend == "mock" else []  # quickstart's own pilot is scripted
+    done = cli_runner.invoke(cli, ["ablate", str(repo / "scenarios/quickstart.yaml"), *chosen, "--set", "trials=1",
+                                   "--set", "max_steps=2",
+                                   "--no-report", "--out", str(runs)])
+    assert done.exit_code == 0, done.output
+    [run] = runs.iterdir()
+    shown = invoke(cli_runner, run, "--trial", "0", "--arm", "baseline", "--condition", "no_attack")
+    assert shown.exit_code == 0, shown.output
+    assert (banner in shown.output) if banner else ("simulated pilot" not in shown.output.lower())
+    bare = invoke(cli_runner, run / "results.sqlite", "--trial", "0", "--arm", "baseline", "--condition", "no_attack")
+    assert "may have been a simulated pilot" in " ".join(bare.output.split())
