@@ -127,6 +127,15 @@ class Environment(ABC):
         spent as the first one is (before the next command, or in :meth:`sense`); the default charges
         nothing: the step's one think time covers every retry."""
 
+    def drive(self, linear_mm_s: float, angular_deg_s: float, seconds: float) -> ExecutionResult | None:
+        """Optional: hold a velocity for ``seconds`` of simulated time -- forward speed (mm/s, negative
+        backwards) and turn rate (degrees/s, counter-clockwise), a differential drive's arc -- while the
+        world moves with it; zero for both: the robot stands while the world moves. The result says how
+        far and how much it turned (signed), and a contact as :meth:`execute` reports one; no think time
+        is spent (the caller's clock is the time). None (the default): the environment cannot be driven
+        by velocity, and ``safeembodai serve-robot`` refuses it."""
+        return None
+
     def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
         """Optional: a top-down picture of the trial (room, obstacles, path, outcome)."""
         return None

@@ -223,6 +223,9 @@ class StagedWorld(Environment):
     def another_call(self) -> None:
         self.room.another_call()
 
+    def drive(self, linear_mm_s: float, angular_deg_s: float, seconds: float) -> ExecutionResult | None:
+        return self.room.drive(linear_mm_s, angular_deg_s, seconds)
+
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         return self.room.execute(signal)
 

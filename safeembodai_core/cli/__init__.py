@@ -89,12 +89,14 @@ def _register_builtin_commands() -> None:
     from .ablate_cmd import ablate
     from .export_cmd import export
     from .guard_bag_cmd import guard_bag
+    from .guard_node_cmd import guard_node
     from .plugins_cmd import plugins
     from .report_cmd import report
     from .run_cmd import run
+    from .serve_robot_cmd import serve_robot
     from .view_cmd import view
 
-    for command in (plugins, run, ablate, report, export, guard_bag, view):
+    for command in (plugins, run, ablate, report, export, guard_bag, view, serve_robot, guard_node):
         cli.add_command(command)
 
 

@@ -118,6 +118,9 @@ class _CapturingEnvironment(Environment):
     def another_call(self) -> None:
         self._inner.another_call()
 
+    def drive(self, linear_mm_s: float, angular_deg_s: float, seconds: float) -> ExecutionResult | None:
+        return self._inner.drive(linear_mm_s, angular_deg_s, seconds)
+
     def execute(self, signal: ControlSignal) -> ExecutionResult:
         before = _snapshot(self._inner)
         result = self._inner.execute(signal)

@@ -2,7 +2,7 @@
 
 :class:`PybulletRoom` draws the layout from the seed, places the bodies of its
 :class:`~.scene.Scene`, reads the :class:`~.sensors.Sensors` and decides the outcome; the robot's
-motion comes from :class:`~.motion.KinematicMotion`. Outcomes, checked after every step:
+motion comes from :class:`~.motion.KinematicMotion`, a held velocity's from :class:`~.velocity.HeldVelocity`. Outcomes, checked after every step:
 ``interrupted`` once the robot has collided with a wall, a ball or a Labbot (by its own motion:
 ``self``, or a Labbot ran into it: ``struck``); ``completed`` when
 the can is within ``reach_mm`` (centre to centre) and in the camera's view; ``timeout`` when the
@@ -33,9 +33,10 @@ from .picture import draw_trajectory
 from .quiet import silenced
 from .scene import Scene
 from .sensors import LabbotRangeSensors, Sensors
+from .velocity import HeldVelocity
 
 
-class PybulletRoom(KinematicMotion, Environment):
+class PybulletRoom(KinematicMotion, HeldVelocity, Environment):
     """One of the paper's rooms (``OF``, ``SO``, ``DO`` or ``MO``) in its own physics client."""
 
     def __init__(self, kind: str, options: RoomOptions) -> None:

@@ -1,0 +1,168 @@
+"""A served room's session as a run folder that ``show``, ``report`` and ``view`` read.
+
+The session is one trial, ``<environment>/live/rosbridge/0``, of a scenario derived from the one
+served: that environment alone, one arm ``live`` (no defence of ours: the room is the robot), one
+condition ``rosbridge`` and the backend ``outside`` (the commands came from a client we did not
+ask). Its ``scenario.json`` records that scenario, so every reader of run folders finds its cell.
+
+Every command received is a step, written ahead before the room drives it (``status
+executing``, the command as ``planned``) and again when the next command replaces it or it times
+out: what the room did with it (``executed``: the distance and angle driven, a collision with what
+was hit), the pose before and after, the room's clock. A command that could not be read is a step
+too, never driven (``accepted`` false, the reason as its instruction's last words). A collision while
+the robot stood is kept in that step's ``truth``, as the trial loop keeps one. The result is written
+once, when an outcome is reached (collision, target, time limit) or the session ends (Ctrl-C,
+SIGTERM): a session ended before any outcome is recorded ``timeout``, its detail saying it was ended,
+at which time of the room's limit.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from ..ablation.run_folder import RunFolder
+from ..building import ComponentBuilder
+from ..models import (
+    ExecutedSignal,
+    ExecutionResult,
+    GroundTruth,
+    Outcome,
+    Pose,
+    StepRecord,
+    Straight,
+    TrialResult,
+    TrialSpec,
+    Turn,
+)
+from ..plugins import Plugins
+from ..refs import ComponentRef
+from ..scenario import Condition, Scenario
+from ..loop.defences import Defences
+from ..trial_files import trajectory_file
+
+ARM, CONDITION = "live", "rosbridge"
+
+
+def session_scenario(scenario: Scenario, label: str) -> Scenario:
+    """The scenario a session records (module docstring)."""
+    return scenario.model_copy(update={
+        "name": f"{scenario.name}-served", "trials": 1, "environments": [scenario.environment(label)],
+        "backend": ComponentRef(use="outside"), "arms": {ARM: Defences()}, "conditions": {CONDITION: Condition()}})
+
+
+def held_signal(distance_mm: float, angle_deg: float) -> Straight | Turn | None:
+    """The motion a held command made, as the contract's signal that names it best: a straight when
+    it went somewhere (its direction the distance's sign), a turn when it turned on the spot."""
+    if abs(distance_mm) >= 0.5:
+        direction = "forward" if distance_mm > 0 else "backward"
+        return Straight(command="straight", direction=direction, distance=abs(distance_mm))
+    if abs(angle_deg) >= 0.05:
+        return Turn(command="turn", direction="left" if angle_deg > 0 else "right", angle=abs(angle_deg))
+    return None
+
+
+class SessionRecord:
+    """Writes a session's run folder as it goes (module docstring); used from one thread."""
+
+    def __init__(self, scenario: Scenario, plugins: Plugins, folder: str | Path, seed: int) -> None:
+        self.scenario = scenario
+        self.folder = RunFolder(folder)
+        label = scenario.environments[0].key
+        self.spec = TrialSpec(trial_id=f"{label}/{ARM}/{CONDITION}/0", scenario=scenario.name, environment=label,
+                              arm=ARM, condition=CONDITION, index=0, seed=seed)
+        self.folder.start(scenario)
+        self.store = ComponentBuilder(scenario, plugins, run_dir=self.folder.path).state_store()
+        self.store.begin_trial(self.spec)
+        self.steps = 0
+        self.distance_mm = 0.0
+        self.collisions: dict[str, int] = {"self": 0, "struck": 0, "standing": 0}
+        self.self_hits: dict[str, int] = {}
+        self.poses: list[Pose] = []
+        self.result: TrialResult | None = None
+        self._open: StepRecord | None = None
+        self._moved = ExecutionResult()
+
+    @property
+    def path(self) -> Path:
+        return self.folder.path
+
+    def command(self, instruction: str, planned: list[Any], pose: Pose, time_s: float, truth: GroundTruth,
+                accepted: bool = True) -> None:
+        """A command arrived: close the open step and open this one, written ahead."""
+        self.close_step(pose, truth, time_s)
+        self.steps += 1
+        record = StepRecord(trial_id=self.spec.trial_id, step=self.steps, instruction=instruction, planned=planned,
+                            status="executing" if accepted and planned else "done", accepted=accepted,
+                            pose_before=pose, truth=truth, sim_time_s=time_s)
+        self.store.record_step(record)
+        self._open, self._moved = record, ExecutionResult()
+
+    def driven(self, result: ExecutionResult) -> None:
+        """What one tick of the room did under the open step's command (added up into the step)."""
+        moved = self._moved
+        collided = moved.collided or result.collided
+        self._moved = ExecutionResult(
+            distance_mm=moved.distance_mm + result.distance_mm, angle_deg=moved.angle_deg + result.angle_deg,
+            stopped=moved.stopped or result.stopped, collided=collided,
+            collision=moved.collision or result.collision, hit=moved.hit or result.hit,
+            before_motion=moved.before_motion or result.before_motion,
+            detail="; ".join(part for part in (moved.detail, result.detail) if part and part not in moved.detail))
+        self.distance_mm += abs(result.distance_mm)
+        if result.collided:
+            kind = result.collision or "self"
+            self.collisions[kind] = self.collisions.get(kind, 0) + 1
+            if kind == "struck" and result.before_motion:
+                self.collisions["standing"] += 1
+            if kind == "self":
+                self.self_hits[result.hit or "unknown"] = self.self_hits.get(result.hit or "unknown", 0) + 1
+
+    def close_step(self, pose: Pose, truth: GroundTruth, time_s: float) -> None:
+        """Write the open step with what it did up to ``time_s`` (a no-op when none is open)."""
+        record, moved = self._open, self._moved
+        if record is None:
+            return
+        self._open = None
+        if not moved.detail and record.accepted:  # the signal names a straight or a turn: the words say the arc
+            moved = moved.model_copy(update={"detail": f"{time_s - record.sim_time_s:.2f} s: {moved.distance_mm:.0f} "
+                                                       f"mm, {moved.angle_deg:.1f} deg"})
+        executed = []
+        signal = held_signal(moved.distance_mm, moved.angle_deg)
+        if signal is None and moved.collided and not moved.before_motion and record.planned:
+            signal = record.planned[0]  # it hit something before it had gone a millimetre
+        if signal is not None:
+            executed.append(ExecutedSignal(signal=signal, result=moved))
+        if moved.collided and moved.before_motion:  # struck while standing: the truth keeps it, as the loop does
+            truth = truth.model_copy(update={"collision": moved.collision, "hit": moved.hit,
+                                             "collision_detail": moved.detail})
+        self.store.record_step(record.model_copy(update={"executed": executed, "status": "done",
+                                                         "pose_after": pose, "truth": truth}))
+
+    def finish(self, outcome: Outcome, detail: str, pose: Pose, truth: GroundTruth, time_s: float,
+               picture: bytes | None, wall_time_s: float = 0.0) -> None:
+        """Close the open step and write the result and the path's picture (once)."""
+        if self.result is not None:
+            return
+        self.close_step(pose, truth, time_s)
+        self.result = TrialResult(
+            spec=self.spec, outcome=outcome, steps=self.steps, distance_mm=self.distance_mm,
+            collisions=self.collisions["self"] + self.collisions["struck"], collisions_self=self.collisions["self"],
+            collisions_struck=self.collisions["struck"], collisions_struck_standing=self.collisions["standing"],
+            self_collisions_hit=dict(self.self_hits), detail=detail, world=truth.world_kind or "",
+            trajectory=[*self.poses, pose], wall_time_s=wall_time_s)
+        self.store.end_trial(self.result)
+        self.folder.note_finished([self.spec.trial_id])
+        if picture:
+            target = trajectory_file(self.folder.path, self.spec.trial_id)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(picture)
+
+    def close(self) -> None:
+        self.store.close()
+
+
+def ended_detail(reason: str, time_s: float, limit_s: float | None) -> str:
+    """The detail of a session ended before an outcome."""
+    of = f" of the room's {limit_s:g} s limit" if limit_s is not None and math.isfinite(limit_s) else ""
+    return f"the session was ended ({reason}) at {time_s:.1f} s{of}, before any outcome"
