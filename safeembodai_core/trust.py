@@ -44,6 +44,10 @@ ENTRY_POINTS: tuple[EntryPoint, ...] = (
                "safeembodai_core.scenario.limits:read_scenario_text"),
     EntryPoint("bag plan", "a JSON plan message of a recorded bag (guard-bag)",
                "safeembodai_core.models.strict_json:read_json_document"),
+    EntryPoint("robot file", "a robot YAML given to guard-node --robot or guard-mcp --policy (body, scanners, limits)",
+               "safeembodai_core.ros.robot_file:read_robot_file"),
+    EntryPoint("rosbridge frame", "a WebSocket text frame a rosbridge client sends the server, or a server sends the "
+               "client (serve-robot, guard-node)", "safeembodai_core.rosbridge.frames:read_frame"),
     EntryPoint("ray worker event", "what a Ray worker on another machine sends for its trial",
                "safeembodai_core.ablation.relay:RelayedWrites.receive"),
     EntryPoint("inspect model output", "what Inspect's model hands the solver (only on a provider that shows the "
@@ -63,6 +67,7 @@ RAW_READERS: dict[str, str] = {
     "safeembodai_core.ablation.run_folder": "decodes the bounded reader's text; its own lock files and /proc/locks",
     "safeembodai_plugins.state.sqlite_db": "the store's own SQLite file, read row by row through _row",
     "safeembodai_core.cli.guard_bag_cmd": "a bag's messages, through rosbags' reader, then read_json_document",
+    "safeembodai_core.rosbridge.frames": "the rosbridge frame reader itself (size, depth, duplicate keys, numbers)",
     "safeembodai_core.ros.bag_guard": "rosbags' reader of a bag (the library parses the container)",
     "safeembodai_core.trial_files": "a bag this process has just written in a scratch folder of its own",
     "safeembodai_core.rerun_export": "a recording this process has just written in a scratch folder of its own",

@@ -124,3 +124,31 @@ def run_store():
 def cell():
     """Run one trial of a scenario cell and keep the prompts the scripted backend received."""
     return run_cell
+
+
+@pytest.fixture
+def serve_robot(repo, tmp_path):
+    """A room of a scenario served on a free port, in a thread, for clients no one here wrote (roslibpy,
+    ros-mcp). ``serve_robot("scenarios/of.yaml", speed=2.0)``: a started session (its ``port``); stopped
+    after the test."""
+    running = []
+
+    import threading
+
+    from safeembodai_core.ablation.plan import checked_scenario
+    from safeembodai_core.serve_robot.session import prepare_session
+
+    def start(scenario: str = "scenarios/mo.yaml", **options):
+        loaded, plugins = checked_scenario(repo / scenario)
+        session = prepare_session(loaded, plugins, out=tmp_path / "runs", port=0, **options)
+        ready = threading.Event()
+        thread = threading.Thread(target=session.serve, kwargs={"on_ready": lambda _: ready.set()}, daemon=True)
+        thread.start()
+        assert ready.wait(20), "serve-robot did not start"
+        running.append((session, thread))
+        return session
+
+    yield start
+    for session, thread in running:
+        session.stop("test over")
+        thread.join(20)

@@ -23,9 +23,11 @@ import click
               help="Seconds a command is judged held for.")
 @click.option("--scan-timeout", "scan_timeout_s", type=click.FloatRange(0.01, 30.0), default=0.5,
               show_default=True, help="A scan older than this stops the robot (Nav2's source_timeout).")
+@click.option("--margin-mm", "margin_mm", type=click.FloatRange(0.0, 2000.0), default=50.0, show_default=True,
+              help="Distance kept between the body and any return (swept_body's margin_mm).")
 @click.option("--rate", "rate_hz", type=click.FloatRange(1.0, 200.0), default=20.0, show_default=True,
               help="Cycles a second (the smoother's frequency; held commands re-judged, stale scans caught).")
-def guard_node(url, command_in, command_out, scan, odom, robot_path, mode, horizon_s, scan_timeout_s,
+def guard_node(url, command_in, command_out, scan, odom, robot_path, mode, horizon_s, scan_timeout_s, margin_mm,
                rate_hz) -> None:
     """Guard a rosbridge robot: each command on --in is forwarded, slowed or stopped onto --out, judged
     on the robot's own latest scan; each decision goes to /safeembodai/guard."""
@@ -34,11 +36,13 @@ def guard_node(url, command_in, command_out, scan, odom, robot_path, mode, horiz
     from .. import Guard
     from ..guard_node.node import GuardNode
     from ..guard_node.wire import GuardWire
-    from ..ros.robot_file import RobotFile, read_robot_file
+    from ..ros.robot_file import RobotFile, ScanSource, read_robot_file
     from ..text_safety import terminal_markup
 
-    robot = read_robot_file(robot_path) if robot_path else RobotFile(radius_mm=170.0)
-    guard = Guard(robot=robot.robot_spec())
+    robot = read_robot_file(robot_path) if robot_path else RobotFile(radius_mm=170.0,
+                                                                     scans={scan or "/scan": ScanSource()})
+    guard = Guard(["command_limits", {"use": "swept_body", "options": {"margin_mm": margin_mm}}],
+                  robot=robot.robot_spec())
     node = GuardNode(guard, robot, scan_topic=scan, mode=mode, horizon_s=horizon_s, scan_timeout_s=scan_timeout_s,
                      period_s=1.0 / rate_hz)
     wire = GuardWire(node, url, command_in=command_in, command_out=command_out, scan=scan, odom=odom or None,

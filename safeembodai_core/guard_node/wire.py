@@ -48,7 +48,7 @@ class GuardWire:
         """Connect, subscribe and advertise; raises the client's error when rosbridge cannot be reached."""
         from ..rosbridge.client import RosbridgeClient
 
-        client = RosbridgeClient(self.url, on_close=self._lost)
+        client = RosbridgeClient(self.url, on_close=self._lost).connect()
         self.client = client
         client.advertise(self.command_out, messages.TWIST)
         client.advertise(DECISIONS_TOPIC, messages.STRING)

@@ -14,13 +14,23 @@ empty). A bin holds the nearest return of its beams, ``inf`` when its beams saw 
 and ``nan`` when no beam of the sensor pointed into it -- **outside the field of view a direction
 is unknown, never free** -- or when its beams gave no reading. ``max_range_mm`` is the sensor's
 range less the mounting offset: the least distance from the centre out to which a free beam saw.
+
+:meth:`LaserScan.from_ros` reads a decoded message (attributes) or a plain dict as rosbridge v2 sends
+it (JSON). JSON has no ``inf`` or ``nan``: rosbridge writes ``+inf``, ``-inf`` and ``nan`` alike as
+``null``, so a ``null`` range is read as ``null_range`` says -- ``"unknown"`` (no reading, as
+``nan``: the default, fail-closed) or ``"no_return"`` (free out to ``range_max``, as ``+inf``), never
+as too close (``-inf``), which ``null`` cannot tell apart (docs/robots.md). Every field is read
+strictly: a missing one, a bool, text, an object where a number belongs or an integer too large for a
+float is a ``ValueError`` naming the field.
 """
 
 from __future__ import annotations
 
 import math
+import reprlib
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Sequence, cast
+from typing import Any, Literal, Sequence, cast
 
 import numpy as np
 
@@ -34,17 +44,100 @@ MIN_INCREMENT = 1e-6
 MAX_RANGE_M = 100_000.0
 
 
-def finite_number(owner: str, name: str, value: Any, unit: str = "") -> float:
-    """``value`` as a finite float, or a ``ValueError`` naming ``owner.name`` (``name`` alone when
-    ``owner`` is empty) and, when given, the ``unit`` it is read in."""
-    label, of = f"{owner}.{name}" if owner else name, f" of {unit}" if unit else ""
+#: How a ``null`` range (rosbridge's ``inf``, ``-inf`` or ``nan``) is read: no reading, or no return.
+NullRange = Literal["unknown", "no_return"]
+NULL_RANGES: tuple[NullRange, ...] = ("unknown", "no_return")
+#: The fields of a ``sensor_msgs/LaserScan`` a message must have, and all it may have.
+NEEDED_FIELDS = ("angle_min", "angle_increment", "range_min", "range_max", "ranges")
+SCAN_FIELDS = (*NEEDED_FIELDS, "angle_max", "time_increment", "scan_time", "intensities", "header")
+_TEXT = (str, bytes, bytearray)
+
+
+def shown(value: Any) -> str:
+    """``value`` for an error message, short: a long text, a deep or long container, a huge integer cut."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return f"an integer of {value.bit_length()} bits"
     try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{label} must be a number{of}, got {value!r}") from None
+        return reprlib.repr(value)
+    except ValueError:  # an integer past Python's digit limit, inside a container
+        return f"a {type(value).__name__}"
+
+
+def real_number(owner: str, name: str, value: Any, unit: str = "", *, text: bool = True) -> float:
+    """``value`` as a float, ``inf`` and ``nan`` included, or a ``ValueError`` naming ``owner.name``
+    (``name`` alone when ``owner`` is empty): a bool, a container or an integer too large for a float
+    is no number, nor is text (``"10"``) unless ``text`` (a caller's own value: yes; the wire's: no)."""
+    label, of = f"{owner}.{name}" if owner else name, f" of {unit}" if unit else ""
+    if isinstance(value, (bool, np.bool_)) or (not text and isinstance(value, _TEXT)):
+        raise ValueError(f"{label} must be a number{of}, got {shown(value)}")
+    try:
+        return float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{label} must be a number{of}, got {shown(value)}") from None
+
+
+def finite_number(owner: str, name: str, value: Any, unit: str = "", *, text: bool = True) -> float:
+    """``value`` as a finite float, or a ``ValueError`` naming ``owner.name`` (``name`` alone when
+    ``owner`` is empty) and, when given, the ``unit`` it is read in (:func:`real_number`)."""
+    number = real_number(owner, name, value, unit, text=text)
     if not math.isfinite(number):
-        raise ValueError(f"{label} must be {'a finite number' + of if unit else 'finite'}, got {value!r}")
+        label, of = f"{owner}.{name}" if owner else name, f" of {unit}" if unit else ""
+        raise ValueError(f"{label} must be {'a finite number' + of if unit else 'finite'}, got {shown(value)}")
     return number
+
+
+def read_ranges(values: Any) -> np.ndarray:
+    """``LaserScan.ranges`` as a new float array: each a number (``inf`` and ``nan`` are ROS's own), or
+    a ``ValueError`` naming the first that is not."""
+    if isinstance(values, np.ndarray):
+        if values.dtype.kind not in "fiu":
+            raise ValueError(f"LaserScan.ranges must be numbers (metres), got an array of {values.dtype}")
+        return values.astype(float)
+    if isinstance(values, (*_TEXT, Mapping)) or not isinstance(values, Iterable):
+        raise ValueError(f"LaserScan.ranges must be a sequence of numbers (metres), got {shown(values)}")
+    items = list(values)
+    if all(type(value) is float or type(value) is int for value in items):  # plain numbers, read at numpy's speed
+        try:
+            return np.array(items, dtype=float)
+        except OverflowError:  # an integer too large for a float: named below
+            pass
+    for index, value in enumerate(items):
+        if value is None:
+            raise ValueError(f"LaserScan.ranges[{index}] is null (rosbridge's inf, -inf or nan): read the message "
+                             "with LaserScan.from_ros(message, null_range=...)")
+    return np.array([real_number("LaserScan", f"ranges[{index}]", value, "metres", text=False)
+                     for index, value in enumerate(items)], dtype=float)
+
+
+def _has(message: Any, name: str) -> bool:
+    return name in message if isinstance(message, Mapping) else hasattr(message, name)
+
+
+def _field(message: Any, name: str) -> Any:
+    return message.get(name) if isinstance(message, Mapping) else getattr(message, name, None)
+
+
+def _check_fields(message: Any) -> None:
+    """Refuse a message that is not a ``sensor_msgs/LaserScan``: a field it lacks; of a dict, a key
+    it has not, or a field of the wrong kind (the scan then checks the values of those it reads)."""
+    missing = [name for name in NEEDED_FIELDS if not _has(message, name)]
+    if missing:
+        raise ValueError(f"not a sensor_msgs/LaserScan: no {', '.join(missing)} on {type(message).__name__}")
+    if not isinstance(message, Mapping):
+        return
+    unknown = sorted(str(name) for name in message if name not in SCAN_FIELDS)
+    if unknown:
+        raise ValueError(f"not a sensor_msgs/LaserScan: unknown field {', '.join(map(shown, unknown))}")
+    for name in ("angle_min", "angle_increment", "range_min", "range_max", "angle_max"):
+        if name in message:  # text is no number on the wire
+            real_number("LaserScan", name, message[name], text=False)
+    for name in ("time_increment", "scan_time"):
+        if message.get(name) is not None:  # null is nan on the wire; neither is read
+            real_number("LaserScan", name, message[name], "seconds", text=False)
+    if "header" in message and not isinstance(message["header"], Mapping):
+        raise ValueError(f"LaserScan.header must be an object, got {shown(message['header'])}")
+    if "intensities" in message and not isinstance(message["intensities"], list):
+        raise ValueError(f"LaserScan.intensities must be a list, got {shown(message['intensities'])}")
 
 
 @dataclass(frozen=True)
@@ -92,10 +185,7 @@ class LaserScan:
         if not 0.0 <= self.range_min < self.range_max:
             raise ValueError(f"LaserScan needs 0 <= range_min < range_max, got range_min {self.range_min!r}, "
                              f"range_max {self.range_max!r}")
-        try:
-            ranges = np.array(self.ranges, dtype=float, copy=True)
-        except (TypeError, ValueError):
-            raise ValueError("LaserScan.ranges must be a sequence of numbers (metres)") from None
+        ranges = read_ranges(self.ranges)
         if ranges.ndim != 1 or ranges.size == 0:
             raise ValueError(f"LaserScan.ranges must hold at least one beam, got shape {ranges.shape}")
         ranges.flags.writeable = False
@@ -104,17 +194,22 @@ class LaserScan:
             raise ValueError(f"LaserScan.mount must be a SensorMount, got {type(self.mount).__name__}")
 
     @classmethod
-    def from_ros(cls, message: Any, mount: SensorMount | None = None) -> LaserScan:
-        """A decoded ``sensor_msgs/msg/LaserScan`` (``rosbags``, ``mcap_ros2``, ``rclpy``: anything
-        with its fields as attributes) with the sensor's ``mount`` on the robot (default: at the
-        centre, facing forward; ROS keeps it in TF, which a message does not carry)."""
-        missing = [name for name in ("angle_min", "angle_increment", "range_min", "range_max", "ranges")
-                   if not hasattr(message, name)]
-        if missing:
-            raise ValueError(f"not a sensor_msgs/LaserScan: no {', '.join(missing)} on {type(message).__name__}")
-        return cls(angle_min=message.angle_min, angle_increment=message.angle_increment, ranges=message.ranges,
-                   range_min=message.range_min, range_max=message.range_max,
-                   angle_max=getattr(message, "angle_max", None), mount=mount or SensorMount())
+    def from_ros(cls, message: Any, mount: SensorMount | None = None, *,
+                 null_range: NullRange = "unknown") -> LaserScan:
+        """A ``sensor_msgs/msg/LaserScan``: decoded (``rosbags``, ``mcap_ros2``, ``rclpy``: anything
+        with its fields as attributes) or as rosbridge sends it (a dict of its JSON), with the sensor's
+        ``mount`` on the robot (default: at the centre, facing forward; ROS keeps it in TF, which a
+        message does not carry). A ``null`` range is read as ``null_range`` says (module docstring)."""
+        if null_range not in NULL_RANGES:
+            raise ValueError(f"null_range must be one of {', '.join(NULL_RANGES)}, got {shown(null_range)}")
+        _check_fields(message)
+        ranges = _field(message, "ranges")
+        if isinstance(ranges, list):
+            read_as = math.nan if null_range == "unknown" else math.inf
+            ranges = [read_as if value is None else value for value in ranges]
+        return cls(angle_min=_field(message, "angle_min"), angle_increment=_field(message, "angle_increment"),
+                   ranges=ranges, range_min=_field(message, "range_min"), range_max=_field(message, "range_max"),
+                   angle_max=_field(message, "angle_max"), mount=mount or SensorMount())
 
     def beams(self) -> int:
         """How many beams round the robot the converted scan has."""

@@ -13,11 +13,12 @@ error, never a guess.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
 from ..models import Straight, Turn
-from .laser_scan import finite_number
+from .laser_scan import finite_number, shown
 
 #: The longest straight and the largest turn of one piece of an arc.
 STEP_MM = 50.0
@@ -44,6 +45,35 @@ def _finite(name: str, value: Any) -> float:
     return finite_number("Twist", name, value)
 
 
+def _only(message: Mapping[Any, Any], fields: tuple[str, ...], what: str) -> None:
+    """Refuse a dict that lacks one of ``fields`` or has another key."""
+    missing = [name for name in fields if name not in message]
+    unknown = sorted(str(name) for name in message if name not in fields)
+    if missing or unknown:
+        problems = ([f"no {', '.join(missing)}"] if missing else []) + (
+            [f"unknown field {', '.join(map(shown, unknown))}"] if unknown else [])
+        raise ValueError(f"not a {what}: {'; '.join(problems)}")
+
+
+def _json_parts(message: Mapping[Any, Any]) -> dict[str, Any]:
+    """The six numbers of a ``Twist`` (or ``TwistStamped``) dict, named as ROS names them, unread."""
+    if "twist" in message:
+        _only(message, ("header", "twist"), "geometry_msgs/TwistStamped")
+        if not isinstance(message["header"], Mapping):
+            raise ValueError(f"TwistStamped.header must be an object, got {shown(message['header'])}")
+        message = message["twist"]
+        if not isinstance(message, Mapping):
+            raise ValueError(f"TwistStamped.twist must be a geometry_msgs/Twist object, got {shown(message)}")
+    _only(message, ("linear", "angular"), "geometry_msgs/Twist")
+    parts = {}
+    for vector in ("linear", "angular"):
+        if not isinstance(message[vector], Mapping):
+            raise ValueError(f"Twist.{vector} must be an object of x, y, z, got {shown(message[vector])}")
+        _only(message[vector], ("x", "y", "z"), f"geometry_msgs/Vector3 (Twist.{vector})")
+        parts.update({f"{vector}.{axis}": message[vector][axis] for axis in ("x", "y", "z")})
+    return parts
+
+
 @dataclass(frozen=True)
 class Twist:
     """A planar velocity command: forward speed (m/s, negative backwards), turn rate (rad/s,
@@ -65,18 +95,23 @@ class Twist:
 
     @classmethod
     def from_ros(cls, message: Any, holonomic: bool = False) -> Twist:
-        """A decoded ``geometry_msgs/msg/Twist`` (or a ``TwistStamped``'s ``twist``). A command with
-        vertical or roll/pitch parts, or sideways without ``holonomic``, is not the base's: refused,
-        not dropped."""
-        message = getattr(message, "twist", message)
-        try:
-            linear, angular = message.linear, message.angular
-            parts = {"linear.x": linear.x, "linear.y": linear.y, "linear.z": linear.z,
-                     "angular.x": angular.x, "angular.y": angular.y, "angular.z": angular.z}
-        except AttributeError:
-            raise ValueError(f"not a geometry_msgs/Twist: {type(message).__name__} has no linear/angular "
-                             "x, y, z") from None
-        parts = {name: _finite(name, value) for name, value in parts.items()}  # named as ROS names them
+        """A ``geometry_msgs/msg/Twist`` or ``TwistStamped``, decoded or as rosbridge sends it (module
+        docstring). A command with vertical or roll/pitch parts, or sideways without ``holonomic``, is
+        not the base's: refused, not dropped."""
+        wire = isinstance(message, Mapping)
+        if wire:
+            parts = _json_parts(message)
+        else:
+            message = getattr(message, "twist", message)
+            try:
+                linear, angular = message.linear, message.angular
+                parts = {"linear.x": linear.x, "linear.y": linear.y, "linear.z": linear.z,
+                         "angular.x": angular.x, "angular.y": angular.y, "angular.z": angular.z}
+            except AttributeError:
+                raise ValueError(f"not a geometry_msgs/Twist: {type(message).__name__} has no linear/angular "
+                                 "x, y, z") from None
+        # named as ROS names them; text is no number on the wire
+        parts = {name: finite_number("Twist", name, value, text=not wire) for name, value in parts.items()}
         for name in ("linear.y", "linear.z", "angular.x", "angular.y"):
             if parts[name] != 0.0 and not (holonomic and name == "linear.y"):
                 sideways = " (a holonomic base: RobotSpec(holonomic=True))" if name == "linear.y" else ""

@@ -110,6 +110,14 @@ def case_scenario_file(text: str, folder: Path) -> None:
     refuses_cleanly(lambda: parse_scenario(read_scenario_text(path)))
 
 
+def case_robot_file(text: str, folder: Path) -> None:
+    from safeembodai_core.ros.robot_file import read_robot_file
+
+    path = folder / "robot.yaml"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    refuses_cleanly(lambda: read_robot_file(path))
+
+
 def case_run_folder_file(text: str, folder: Path) -> None:
     from safeembodai_core.ablation.run_folder import RunFolder
 
@@ -206,11 +214,21 @@ def case_inspect_provider(text: str) -> None:
         assert text.split("/")[0] in ("safeembodai", "mockllm")
 
 
+def case_rosbridge_frame(text: str) -> None:
+    from safeembodai_core.rosbridge.frames import FrameError, read_frame
+
+    try:
+        read_frame(text)
+    except FrameError as refused:  # quoted when it cites the frame: no raw control character
+        assert "\x1b" not in str(refused) and "\u202e" not in str(refused)
+
+
 TEXT_CASES = {"llm reply": case_llm_reply, "llm envelope": case_llm_envelope, "server usage": case_server_usage,
               "cached reply": case_cached_reply, "bag plan": case_bag_plan,
               "inspect model output": case_inspect_model_output, "inspect usage": case_inspect_usage,
-              "inspect provider": case_inspect_provider}
-FILE_CASES = {"scenario file": case_scenario_file, "run folder file": case_run_folder_file,
+              "inspect provider": case_inspect_provider, "rosbridge frame": case_rosbridge_frame}
+FILE_CASES = {"scenario file": case_scenario_file, "robot file": case_robot_file,
+              "run folder file": case_run_folder_file,
               "run folder picture": case_run_folder_picture, "results store": case_results_store,
               "ray worker event": case_ray_worker_event}
 

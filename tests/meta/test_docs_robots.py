@@ -21,14 +21,32 @@ def blocks(text: str, language: str) -> list[str]:
 
 def test_the_python_examples_run(page, capsys):
     examples = blocks(page, "python")
-    assert len(examples) == 3
+    assert len(examples) == 4
     for example in examples:
         exec(compile(example, "docs/robots.md", "exec"), {"__name__": "docs_example"})
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "False 1.57"  # the footprint's front (250 mm) meets the return 720 mm ahead at 0.3 m/s
     assert out[1].startswith("0.235 approach: ") and "speed x0.783" in out[1]
     assert out[2:5] == ["forward", "limit 0.53", "stop"]  # the node: clear, slowed, the scan too old
-    assert out[5].startswith("1 of 1 refused: ")
+    assert out[5:7] == ["unknown False 0.03", "no_return True 1.00"]  # rosbridge's nulls, read both ways
+    assert out[7].startswith("1 of 1 refused: ")
+
+
+def test_the_robot_file_shown_is_the_shipped_example_and_reads(page, repo):
+    from safeembodai_core.ros import read_robot_file
+
+    shown = blocks(page, "yaml")
+    example = repo / "docs" / "examples" / "robot.yaml"
+    assert shown == [example.read_text(encoding="utf-8")]
+    robot = read_robot_file(example)
+    start = page.index("### The robot file")
+    section = page[start:page.index("\n### ", start)]
+    documented = re.findall(r"^\| `([\w.<>]+)` \|", section, re.M)
+    assert set(type(robot).model_fields) == {name.split(".")[0] for name in documented}
+    for name in type(robot.velocity_smoother).model_fields:
+        assert f"velocity_smoother.{name}" in documented
+    for name in type(robot.source()).model_fields:
+        assert f"scans.<topic>.{name}" in documented
 
 
 @pytest.mark.slow

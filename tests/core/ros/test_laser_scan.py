@@ -1,6 +1,7 @@
 """``sensor_msgs/LaserScan`` into the guard (issue 23, part 1): ROS semantics for inf, -inf, NaN
 and the range limits; any field of view and increment; the sensor's mounting; directions outside
-the field of view unknown, never free; clear errors for scans that cannot be read.
+the field of view unknown, never free; clear errors for scans that cannot be read. Scans as rosbridge
+sends them (JSON, where ``inf``, ``-inf`` and ``nan`` are all ``null``), read as ``null_range`` says.
 
 The property: a scan from a scanner at the robot's centre, whose beams line up with the native
 grid, gives the native scan itself, so every verdict through the adapter equals the verdict on
@@ -10,7 +11,9 @@ robot's centre in its bearing's bin, so no obstacle the sensor saw is lost.
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Iterable
 from types import SimpleNamespace
 
 import numpy as np
@@ -20,7 +23,7 @@ from hypothesis import strategies as st
 
 from safeembodai_core import Guard
 from safeembodai_core.models import LidarScan
-from safeembodai_core.ros import LaserScan, SensorMount
+from safeembodai_core.ros import LaserScan, SensorMount, Twist
 
 DEG = math.pi / 180.0
 
@@ -146,7 +149,8 @@ def test_from_ros_reads_a_decoded_message_and_names_what_is_missing():
     ({"angle_increment": 7.0}, "angle_increment must be between"),
     ({"range_min": 5.0, "range_max": 1.0}, "range_min < range_max"),
     ({"range_max": 1e307}, "range_max must be at most"),
-    ({"ranges": ["a", "b"]}, "sequence of numbers"),
+    ({"ranges": ["a", "b"]}, r"ranges\[0\] must be a number of metres, got 'a'"),
+    ({"ranges": "3.0"}, "sequence of numbers"),
     ({"angle_min": "left"}, "angle_min must be a number"),
 ])
 def test_a_scan_that_cannot_be_read_is_a_clear_error(fields, message):
@@ -155,3 +159,124 @@ def test_a_scan_that_cannot_be_read_is_a_clear_error(fields, message):
         LaserScan(**{**base, **fields})
     with pytest.raises(ValueError, match="SensorMount.x_mm must be finite"):
         SensorMount(x_mm=math.inf)
+
+
+# -- as rosbridge sends it ----------------------------------------------------------------------
+
+#: a rosbridge v2 publish of a 360-beam ``sensor_msgs/msg/LaserScan`` (beam 180 straight ahead), as
+#: rosbridge_server writes it; the ranges go in at %s
+SCAN_FRAME = """{"op": "publish", "topic": "/scan", "msg": {
+  "header": {"stamp": {"sec": 1718000000, "nanosec": 500000000}, "frame_id": "base_scan"},
+  "angle_min": -3.141592653589793, "angle_max": 3.1241393089294434, "angle_increment": 0.017453292519943295,
+  "time_increment": 0.0, "scan_time": 0.1, "range_min": 0.12, "range_max": 3.5,
+  "ranges": [%s], "intensities": []}}"""
+
+
+def rosbridge_scan(ranges: list[str]) -> dict:
+    """The ``msg`` of :data:`SCAN_FRAME` with ``ranges`` (JSON text: ``"1.0"``, ``"null"``), parsed."""
+    assert len(ranges) == 360
+    return json.loads(SCAN_FRAME % ", ".join(ranges))["msg"]
+
+
+def room(wall_m: str = "null", nulls: Iterable[int] = ()) -> dict:
+    """A scan of walls ``wall_m`` away all round (``null``: an open room), ``null`` at the beams ``nulls``."""
+    nulls = set(nulls)
+    return rosbridge_scan(["null" if beam in nulls else wall_m for beam in range(360)])
+
+
+def test_from_ros_reads_a_scan_as_rosbridge_sends_it():
+    message = json.loads("""{"header": {"stamp": {"sec": 12, "nanosec": 0}, "frame_id": "laser"},
+        "angle_min": -1.5707963705062866, "angle_max": 1.5707963705062866, "angle_increment": 1.5707963705062866,
+        "time_increment": 0.0, "scan_time": null, "range_min": 0.1, "range_max": 8,
+        "ranges": [2, null, 0.75], "intensities": [47.0, 0.0, 51.0]}""")
+    unknown = LaserScan.from_ros(message, SensorMount(x_mm=100.0))
+    assert list(unknown.ranges[[0, 2]]) == [2.0, 0.75] and math.isnan(unknown.ranges[1])
+    assert unknown.range_max == 8.0 and unknown.angle_max == pytest.approx(math.pi / 2) and unknown.mount.x_mm == 100.0
+    assert math.isnan(LaserScan.from_ros(message).ranges[1])  # unknown is the default
+    assert LaserScan.from_ros(message, null_range="no_return").ranges[1] == math.inf
+    assert message["ranges"][1] is None  # the message is left as it came
+
+
+def test_an_open_room_of_nulls_is_free_with_no_return_and_unknown_by_default():
+    """rosbridge writes the open directions' ``+inf`` as ``null``: read as no reading, nothing may move."""
+    open_room = room()
+    refused = Guard().check_twist(Twist(0.3, 0.0), 1.0, lidar_mm=LaserScan.from_ros(open_room))
+    assert not refused.valid and refused.safe_duration_s < 0.05 and "unseen" in refused.contact
+    for command in (Twist(0.3, 0.0), Twist(-0.2, 0.5), Twist(0.0, 1.0)):
+        free = Guard().check_twist(command, 1.0, lidar_mm=LaserScan.from_ros(open_room, null_range="no_return"))
+        assert free.valid, free.reasons
+
+
+def test_a_closed_room_is_judged_by_its_walls_under_both_readings():
+    """Walls at 1 m all round, three beams behind ``null`` (a dark patch of wall, or a failed beam)."""
+    closed = room("1.0", nulls={359, 0, 1})  # beam 0 is straight behind
+    for null_range in ("unknown", "no_return"):
+        scan = LaserScan.from_ros(closed, null_range=null_range)
+        assert Guard().check_twist(Twist(0.3, 0.0), 1.0, lidar_mm=scan).valid
+        into_the_wall = Guard().check_twist(Twist(0.3, 0.0), 3.0, lidar_mm=scan)
+        assert not into_the_wall.valid  # the 170 mm disc meets the wall 1 m ahead after 0.83 m
+        assert into_the_wall.collision_time_s == pytest.approx((1000.0 - 170.0) / 300.0)
+    back = Twist(-0.3, 0.0)
+    assert not Guard().check_twist(back, 1.0, lidar_mm=LaserScan.from_ros(closed)).valid  # into what it cannot see
+    assert Guard().check_twist(back, 1.0, lidar_mm=LaserScan.from_ros(closed, null_range="no_return")).valid
+
+
+def test_no_return_reads_a_blinded_sector_as_free_space():
+    """Why ``unknown`` is the default: a sector whose beams failed (``nan`` from the driver, ``null`` on the
+    wire) reads as free with ``no_return``, and the guard lets the robot drive through the wall there."""
+    blinded = room("1.0", nulls=range(150, 211))  # 30 degrees either side of the heading
+    through = Guard().check_twist(Twist(0.3, 0.0), 5.0, lidar_mm=LaserScan.from_ros(blinded, null_range="no_return"))
+    assert through.valid  # 1.5 m ahead, through the wall at 1 m it could not see
+    assert not Guard().check_twist(Twist(0.3, 0.0), 5.0, lidar_mm=LaserScan.from_ros(blinded)).valid
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"angle_increment": None}, "not a sensor_msgs/LaserScan: no angle_increment"),
+    ({"angle_min": True}, "LaserScan.angle_min must be a number, got True"),
+    ({"range_max": "3.5"}, "LaserScan.range_max must be a number, got '3.5'"),
+    ({"range_min": 10**400}, "LaserScan.range_min must be a number, got an integer of 1329 bits"),
+    ({"angle_min": {"x": 1.0}}, "LaserScan.angle_min must be a number"),
+    ({"ranges": "1.0, 2.0"}, "LaserScan.ranges must be a sequence of numbers"),
+    ({"ranges": {"0": 1.0}}, "LaserScan.ranges must be a sequence of numbers"),
+    ({"ranges": [1.0] * 359 + [10**400]}, r"LaserScan.ranges\[359\] must be a number of metres, got an integer"),
+    ({"ranges": [1.0] * 359 + [False]}, r"LaserScan.ranges\[359\] must be a number of metres, got False"),
+    ({"ranges": [[1.0]] * 360}, r"LaserScan.ranges\[0\] must be a number of metres"),
+    ({"scan_time": "0.1"}, "LaserScan.scan_time must be a number of seconds"),
+    ({"header": "base_scan"}, "LaserScan.header must be an object"),
+    ({"intensities": 0}, "LaserScan.intensities must be a list"),
+    ({"angle_maximum": 3.1}, "not a sensor_msgs/LaserScan: unknown field 'angle_maximum'"),
+])
+def test_a_rosbridge_scan_that_is_not_a_laser_scan_is_a_clear_error(change, message):
+    scan = room("1.0")
+    for name, value in change.items():
+        if value is None:
+            del scan[name]
+        else:
+            scan[name] = value
+    with pytest.raises(ValueError, match=message):
+        LaserScan.from_ros(scan)
+
+
+def test_a_null_range_is_read_only_as_asked():
+    with pytest.raises(ValueError, match="null_range must be one of unknown, no_return, got 'free'"):
+        LaserScan.from_ros(room("1.0"), null_range="free")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"ranges\[3\] is null .* null_range"):
+        LaserScan(angle_min=0.0, angle_increment=DEG, ranges=[1.0, 1.0, 1.0, None], range_min=0.1, range_max=5.0)
+
+
+json_values = st.recursive(st.none() | st.booleans() | st.floats() | st.integers(min_value=-10**400, max_value=10**400)
+                           | st.text(max_size=8),
+                           lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=4), inner,
+                                                                                        max_size=4), max_leaves=12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(["angle_min", "angle_max", "angle_increment", "range_min", "range_max", "ranges", "header",
+                        "scan_time", "intensities"]), json_values)
+def test_any_json_in_any_field_is_read_or_refused_with_a_value_error(name, value):
+    scan = room("1.0")
+    scan[name] = value
+    try:
+        LaserScan.from_ros(scan).to_lidar_scan()
+    except ValueError as error:
+        assert name in str(error)

@@ -1,7 +1,9 @@
-"""``geometry_msgs/Twist`` held for a while, judged as the arc it sweeps (issue 23, part 2)."""
+"""``geometry_msgs/Twist`` held for a while, judged as the arc it sweeps (issue 23, part 2); read
+decoded or as rosbridge sends it (JSON), strictly."""
 
 from __future__ import annotations
 
+import json
 import math
 from types import SimpleNamespace
 
@@ -91,3 +93,49 @@ def test_from_ros_reads_a_decoded_message_and_refuses_what_it_cannot_judge():
         arc_signals(Twist(0.1, 0.0), math.nan)
     with pytest.raises(ValueError, match="angular_z must be finite"):
         Guard(rules=["lidar_clearance"]).check_twist((0.1, math.inf), 1.0, lidar_mm=wall_ahead(600.0))
+
+
+def test_from_ros_reads_twist_and_twist_stamped_as_rosbridge_sends_them():
+    frame = json.loads('{"op": "publish", "topic": "/cmd_vel", "msg": {"linear": {"x": 0.25, "y": 0, "z": 0}, '
+                       '"angular": {"x": 0, "y": 0, "z": -0.4}}}')
+    twist = Twist.from_ros(frame["msg"])
+    assert (twist.linear_x, twist.angular_z, twist.linear_y) == (0.25, -0.4, 0.0)
+    stamped = json.loads('{"header": {"stamp": {"sec": 1718000000, "nanosec": 0}, "frame_id": "base_link"}, '
+                         '"twist": {"linear": {"x": -0.1, "y": 0.2, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, '
+                         '"z": 1}}}')
+    assert Twist.from_ros(stamped, holonomic=True) == Twist(-0.1, 1.0, 0.2)
+    with pytest.raises(ValueError, match="linear.y = 0.2: only a planar command"):
+        Twist.from_ros(stamped)
+
+
+LINEAR = '"linear": {"x": 0.2, "y": 0.0, "z": 0.0}'
+
+
+@pytest.mark.parametrize("text, message", [
+    ('{"linear": {"x": 0.2, "y": 0.0}, "angular": {"x": 0, "y": 0, "z": 0}}',
+     r"not a geometry_msgs/Vector3 \(Twist.linear\): no z"),
+    (f'{{{LINEAR}}}', "not a geometry_msgs/Twist: no angular"),
+    (f'{{{LINEAR}, "angular": {{"x": 0, "y": 0, "z": true}}}}', "Twist.angular.z must be a number, got True"),
+    (f'{{{LINEAR}, "angular": {{"x": 0, "y": 0, "z": "0.5"}}}}', "Twist.angular.z must be a number, got '0.5'"),
+    (f'{{{LINEAR}, "angular": {{"x": 0, "y": 0, "z": null}}}}', "Twist.angular.z must be a number, got None"),
+    (f'{{{LINEAR}, "angular": {{"x": 0, "y": 0, "z": 1{"0" * 400}}}}}',
+     "Twist.angular.z must be a number, got an integer of 1329 bits"),
+    (f'{{{LINEAR}, "angular": {{"x": 0, "y": 0, "z": [0.5]}}}}', "Twist.angular.z must be a number"),
+    (f'{{{LINEAR}, "angular": 0.5}}', "Twist.angular must be an object of x, y, z, got 0.5"),
+    (f'{{{LINEAR}, "angular": {{"x": 0, "y": 0, "z": 0, "w": 1}}}}', "unknown field 'w'"),
+    (f'{{{LINEAR}, "angular": {{"x": 0, "y": 0, "z": 0}}, "speed": 9}}', "not a geometry_msgs/Twist: unknown field"),
+    ('{"twist": {"linear": {"x": 0.2, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0}}}',
+     "not a geometry_msgs/TwistStamped: no header"),
+    ('{"header": 7, "twist": {}}', "TwistStamped.header must be an object"),
+    ('{"header": {}, "twist": [0.2, 0.0]}', "TwistStamped.twist must be a geometry_msgs/Twist object"),
+])
+def test_a_rosbridge_twist_that_cannot_be_judged_is_a_clear_error(text, message):
+    with pytest.raises(ValueError, match=message):
+        Twist.from_ros(json.loads(text))
+
+
+def test_a_twist_refuses_bools_and_numbers_too_large_for_a_float():
+    with pytest.raises(ValueError, match="Twist.linear_x must be a number, got True"):
+        Twist(True, 0.0)
+    with pytest.raises(ValueError, match="Twist.angular_z must be a number, got an integer of 1329 bits"):
+        Twist(0.1, 10**400)

@@ -29,7 +29,7 @@ def test_registering_and_running_the_mock_with_estimated_tokens_never_imports_li
                               np.random.default_rng(0))
         print(",".join(names), "litellm" in sys.modules, "openai" in sys.modules, reply.usage.prompt_tokens > 0)
     """)
-    assert out == "gpt-4o,litellm,local,mock,scripted False False True"
+    assert out == "gpt-4o,litellm,local,mock,outside,scripted False False True"
 
 
 @pytest.mark.slow

@@ -1,0 +1,201 @@
+"""The robot file: what a guard on the wire must know of the robot it guards, in one YAML file.
+
+``safeembodai guard-node --robot ROBOT.yaml`` and ``guard-mcp --policy`` read it. It says the body
+(``radius_mm`` or a polygon ``footprint_mm``, as :class:`~safeembodai_core.robot.RobotSpec` takes
+them), whether the base drives sideways (``holonomic``), each scan source by its topic with the
+scanner's mount and how its ``null`` ranges are read (:data:`~.laser_scan.NullRange`), the limits of
+a velocity smoother under Nav2's names and units, and how long a command is held without a newer one
+(``cmd_vel_timeout_s``). ``docs/robots.md`` lists the keys with their defaults and sources.
+
+The file is outside bytes (``safeembodai_core/trust.py``): read by the bounded reader of files from
+elsewhere (a regular file, at most :data:`MAX_BYTES`, UTF-8; a symlink given is followed once, here,
+and the file it names read without following another), composed within a scenario's YAML limits,
+with duplicate keys refused, and validated strictly: an unknown key, a missing body, a bool or text
+where a number belongs, a non-finite number is a :class:`RobotFileError` naming the file, the line
+and the key.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StringConstraints, ValidationError, \
+    field_validator, model_validator
+
+from ..errors import SafeEmbodAIError
+from ..geometry import read_polygon
+from ..robot import RobotSpec
+from ..run_files import read_run_text
+from ..scenario.limits import BoundedLoader, yaml_error
+from ..scenario.loader import _check_duplicate_keys, _did_you_mean, _line_of
+from .laser_scan import NullRange, SensorMount, shown
+
+#: The largest robot file read: a footprint of thousands of vertices fits many times over.
+MAX_BYTES = 256 * 1024
+#: A fully qualified ROS topic name (``/scan``, ``/front/scan``), as ``--scan`` names it.
+TOPIC = r"^(/[A-Za-z_][A-Za-z0-9_]*)+$"
+
+Number = Annotated[StrictFloat, Field(allow_inf_nan=False)]
+#: Nav2 velocity_smoother's [x, y, theta]: m/s, m/s and rad/s (velocities), per second (accelerations).
+Axes = tuple[Number, Number, Number]
+
+
+class RobotFileError(SafeEmbodAIError, ValueError):
+    """A robot file that cannot be read or is not valid; the message names the file, line and key."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Mount(_Strict):
+    """The scanner's origin in the robot frame (mm, x forward, y left) and its yaw (degrees,
+    counter-clockwise from the heading): the static TF ``base_link`` -> the scan's ``frame_id``."""
+
+    x_mm: Number = 0.0
+    y_mm: Number = 0.0
+    yaw_deg: Number = 0.0
+
+
+class ScanSource(_Strict):
+    """One ``sensor_msgs/LaserScan`` topic: its scanner's mount, and how its ``null`` ranges are read."""
+
+    null_range: NullRange = "unknown"
+    mount: Mount = Mount()
+
+
+class VelocitySmoother(_Strict):
+    """Nav2 velocity_smoother's kinematic limits, under its names, its units and its defaults
+    (``nav2_velocity_smoother/src/velocity_smoother.cpp``): each [x, y, theta]; decelerations are
+    negative, as Nav2 writes them."""
+
+    max_velocity: Axes = (0.5, 0.0, 2.5)
+    min_velocity: Axes = (-0.5, 0.0, -2.5)
+    max_accel: Axes = (2.5, 0.0, 3.2)
+    max_decel: Axes = (-2.5, 0.0, -3.2)
+
+    @field_validator("max_velocity", "max_accel")
+    @classmethod
+    def _not_negative(cls, axes: tuple[float, float, float]) -> tuple[float, float, float]:
+        if any(value < 0 for value in axes):
+            raise ValueError(f"must be >= 0 on every axis (Nav2's convention), got {list(axes)}")
+        return axes
+
+    @field_validator("min_velocity", "max_decel")
+    @classmethod
+    def _not_positive(cls, axes: tuple[float, float, float]) -> tuple[float, float, float]:
+        if any(value > 0 for value in axes):
+            raise ValueError(f"must be <= 0 on every axis (Nav2's convention), got {list(axes)}")
+        return axes
+
+
+class RobotFile(_Strict):
+    """A robot file, validated (module docstring). Exactly one of ``radius_mm`` and ``footprint_mm``."""
+
+    radius_mm: Annotated[Number, Field(gt=0, le=100_000)] | None = None
+    footprint_mm: list[tuple[Number, Number]] | None = None
+    holonomic: StrictBool = False
+    scans: dict[Annotated[str, StringConstraints(pattern=TOPIC)], ScanSource] = Field(
+        default_factory=lambda: {"/scan": ScanSource()}, min_length=1)
+    velocity_smoother: VelocitySmoother = VelocitySmoother()
+    cmd_vel_timeout_s: Annotated[Number, Field(gt=0)] = 0.5
+
+    @field_validator("footprint_mm")
+    @classmethod
+    def _simple_polygon(cls, footprint: list[tuple[float, float]] | None) -> list[tuple[float, float]] | None:
+        if footprint is not None:
+            read_polygon(footprint)
+        return footprint
+
+    @model_validator(mode="after")
+    def _one_body(self) -> RobotFile:
+        if (self.radius_mm is None) == (self.footprint_mm is None):
+            raise ValueError("give the body as radius_mm or as footprint_mm (a polygon), exactly one of them")
+        return self
+
+    def robot_spec(self) -> RobotSpec:
+        """The body as the guard takes it: a disc of ``radius_mm``, or the footprint, whose radius is
+        its farthest vertex from the centre and its width and length its extent along y and x."""
+        if self.footprint_mm is None:
+            assert self.radius_mm is not None  # _one_body
+            return RobotSpec(radius_mm=self.radius_mm, width_mm=2 * self.radius_mm, length_mm=2 * self.radius_mm,
+                             holonomic=self.holonomic)
+        xs, ys = [x for x, _ in self.footprint_mm], [y for _, y in self.footprint_mm]
+        reach = max((x * x + y * y) ** 0.5 for x, y in self.footprint_mm)
+        return RobotSpec(radius_mm=reach, width_mm=max(ys) - min(ys), length_mm=max(xs) - min(xs),
+                         footprint_mm=tuple(self.footprint_mm), holonomic=self.holonomic)
+
+    @property
+    def scan_topic(self) -> str:
+        """The scan source listed first: the one a guard reads unless told another."""
+        return next(iter(self.scans))
+
+    def source(self, topic: str | None = None) -> ScanSource:
+        """The scan source of ``topic`` (default :attr:`scan_topic`); a topic the file does not list is
+        an error, never a guess at its scanner's place."""
+        topic = self.scan_topic if topic is None else topic
+        if topic not in self.scans:
+            raise RobotFileError(f"the robot file lists no scan source {topic!r} (it lists {', '.join(self.scans)})")
+        return self.scans[topic]
+
+    def mount(self, topic: str | None = None) -> SensorMount:
+        """Where the scanner of ``topic`` (default :attr:`scan_topic`) sits on the robot."""
+        mount = self.source(topic).mount
+        return SensorMount(x_mm=mount.x_mm, y_mm=mount.y_mm, yaw_deg=mount.yaw_deg)
+
+    def null_range(self, topic: str | None = None) -> NullRange:
+        """How a ``null`` range on ``topic`` (default :attr:`scan_topic`) is read, for
+        ``LaserScan.from_ros(message, null_range=...)``."""
+        return self.source(topic).null_range
+
+
+def parse_robot_file(text: str, source: str = "<robot file>") -> RobotFile:
+    """Validate robot file ``text``; every problem at once, each naming ``source``, the line and the key."""
+    loader = None
+    try:
+        loader = BoundedLoader(text, source)
+        root = loader.get_single_node()
+        _check_duplicate_keys(root, source)
+        data = loader.construct_document(root) if root is not None else {}
+    except yaml.YAMLError as error:
+        raise RobotFileError(str(yaml_error(error, source, text))) from None
+    except SafeEmbodAIError as error:  # a limit or a duplicate key
+        raise RobotFileError(str(error)) from None
+    finally:
+        if loader is not None:
+            loader.dispose()
+    if not isinstance(data, dict):
+        raise RobotFileError(f"{source}: a robot file must be a YAML mapping, got {type(data).__name__}")
+    try:
+        return RobotFile.model_validate(data)
+    except ValidationError as error:
+        problems = [_problem(item, root, source) for item in error.errors()]
+        raise RobotFileError(f"invalid robot file {source}:\n  " + "\n  ".join(problems)) from None
+
+
+def _problem(item: Any, root: yaml.Node | None, source: str) -> str:
+    """``file:line: key: what is wrong, got what``, for one of pydantic's errors."""
+    loc: tuple[Any, ...] = tuple(item["loc"])
+    message = item["msg"]
+    if loc and loc[-1] == "[key]":  # a scan source's topic
+        loc, message = loc[:-1], "a scan source's topic must be a full ROS name, such as /scan"
+    if item["type"] == "extra_forbidden":
+        message += _did_you_mean(RobotFile, loc)
+    elif item["type"] != "missing" and not isinstance(item["input"], (dict, list)):
+        message += f", got {shown(item['input'])}"
+    line = _line_of(root, loc)
+    where = f"{source}:{line}" if line else source
+    return f"{where}: {'.'.join(map(str, loc)) or '(top level)'}: {message}"
+
+
+def read_robot_file(path: str | Path) -> RobotFile:
+    """Read and validate the robot file at ``path`` (module docstring)."""
+    try:
+        text = read_run_text(Path(path).resolve(strict=True), MAX_BYTES)
+    except FileNotFoundError:
+        raise RobotFileError(f"{path}: no such robot file") from None
+    except (OSError, RuntimeError, SafeEmbodAIError) as error:  # RuntimeError: a symlink loop (Python 3.11)
+        raise RobotFileError(f"{path}: cannot read the robot file: {error}") from None
+    return parse_robot_file(text, str(path))
