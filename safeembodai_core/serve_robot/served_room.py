@@ -39,6 +39,9 @@ log = structlog.get_logger(__name__)
 
 #: The longest the loop sleeps (seconds): a stop request is seen this soon.
 MAX_SLEEP_S = 0.05
+#: The fastest command passed to the room as it is (m/s, rad/s); a faster one is scaled to these first.
+MAX_LINEAR_M_S = 100.0
+MAX_ANGULAR_RAD_S = 100.0
 #: Commands queued before the loop takes them; beyond this the oldest are dropped (and recorded so).
 MAX_QUEUED = 256
 
@@ -80,7 +83,7 @@ class ServedRoom:
                  read_twist: Callable[[Any], Twist] = Twist.from_ros) -> None:
         if not (math.isfinite(speed) and 0.01 <= speed <= 100.0):
             raise ValueError(f"speed must be between 0.01 and 100, got {speed!r}")
-        self.environment, self.record, self.publish = environment, record, publish
+        self.environment, self.record, self._wire = environment, record, publish
         self.speed, self.rates, self.time_limit_s = speed, rates or Rates(), time_limit_s
         self.read_twist = read_twist
         self.seed = seed
@@ -127,13 +130,16 @@ class ServedRoom:
     def run(self) -> None:
         """Serve until :meth:`stop`; the record is written whatever ends it."""
         self._start_wall = time.monotonic()
-        self.poses_due = 0.0
         try:
             while not self._stop.is_set():
                 self._advance_to(self._room_time(time.monotonic()))
                 self._publish_due()
                 self._wake.wait(self._sleep_s())
                 self._wake.clear()
+        except Exception as error:  # a failure of the room or the record: on record as such, then raised
+            log.error("serve_robot.failed", error=repr(error)[:300])
+            self._finish(Outcome.ERROR, f"the served room failed: {error}"[:500], "session_failed", error_kind="crash")
+            raise
         finally:
             if self.outcome is None:
                 reason = self._stop_reason or "stopped"
@@ -174,7 +180,11 @@ class ServedRoom:
     def _drive(self, twist: Twist, seconds: float) -> None:
         if self.outcome is not None:
             twist = Twist(0.0, 0.0)  # the trial is over: the robot drives no more
-        result = self.environment.drive(twist.linear_x * 1000.0, math.degrees(twist.angular_z), seconds)
+        # no base drives faster than this: an absurd command is scaled down first (its curvature kept), so the
+        # room's units stay finite; the room then caps it at its own limits and says so
+        factor = max(abs(twist.linear_x) / MAX_LINEAR_M_S, abs(twist.angular_z) / MAX_ANGULAR_RAD_S, 1.0)
+        result = self.environment.drive(twist.linear_x / factor * 1000.0, math.degrees(twist.angular_z / factor),
+                                        seconds)
         if result is None:  # the plan refused such a room before the session started
             raise RuntimeError("the environment cannot be driven by velocity")
         self.sim_s += seconds
@@ -184,6 +194,7 @@ class ServedRoom:
                 self._decide(result)
 
     def _take(self, received: Received) -> None:
+        self.record.received(received, self.sim_s)
         pose, truth = self._pose(), self._truth()
         if received.twist is None:
             self.held, self.held_until_s = Twist(0.0, 0.0), self.sim_s
@@ -192,8 +203,8 @@ class ServedRoom:
             return
         twist = received.twist
         timeout = self.rates.cmd_vel_timeout_s
-        words = (f"{received.topic} ({received.type}) from {received.client}: linear.x {twist.linear_x:.3f} m/s, "
-                 f"angular.z {twist.angular_z:.3f} rad/s, held up to {timeout:g} s")
+        words = (f"{received.topic} ({received.type}) from {received.client}: linear.x {twist.linear_x:.4g} m/s, "
+                 f"angular.z {twist.angular_z:.4g} rad/s, held up to {timeout:g} s")
         if self.outcome is not None:
             words += f"; not driven: the trial had ended ({self.outcome.value})"
         try:
@@ -202,6 +213,11 @@ class ServedRoom:
             planned = []
         self.record.command(words, planned, pose, self.sim_s, truth)
         self.held, self.held_until_s = twist, self.sim_s + timeout
+
+    def publish(self, topic: str, message: dict) -> None:
+        """Out on the wire, and into the session's record (its bag) at the room's time."""
+        self._wire(topic, message)
+        self.record.published(topic, message, self.sim_s)
 
     # -- readings ---------------------------------------------------------------------------------
 
@@ -253,7 +269,7 @@ class ServedRoom:
                                                            hit=result.hit, detail=result.detail))
         self._finish(Outcome.INTERRUPTED, result.detail, None)
 
-    def _finish(self, outcome: Outcome, detail: str, event: str | None) -> None:
+    def _finish(self, outcome: Outcome, detail: str, event: str | None, error_kind: str | None = None) -> None:
         """Decide the outcome once: record it, and say it on the events topic (``event``: its kind;
         None when the caller said it already)."""
         if self.outcome is not None:
@@ -263,7 +279,7 @@ class ServedRoom:
         pose, truth = self._pose(), self._truth()
         picture = self.environment.trajectory_png(self.record.poses + [pose], outcome)
         wall = time.monotonic() - self._start_wall if self._start_wall is not None else 0.0
-        self.record.finish(outcome, detail, pose, truth, self.sim_s, picture, wall)
+        self.record.finish(outcome, detail, pose, truth, self.sim_s, picture, wall, error_kind=error_kind)
         if event is not None:
             self.publish("/safeembodai/events", messages.event(event, self.sim_s, outcome=outcome.value, detail=detail))
         log.info("serve_robot.outcome", outcome=outcome.value, detail=detail, time_s=round(self.sim_s, 3))

@@ -11,7 +11,7 @@ accepts velocity commands and runs :class:`~.served_room.ServedRoom` until stopp
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -26,6 +26,7 @@ from ..refs import ComponentRef
 from ..scenario import Scenario
 from . import messages
 from .served_room import Rates, ServedRoom
+from .session_bag import STORAGES as BAG_STORAGES
 from .session_record import SessionRecord, session_scenario
 
 log = structlog.get_logger(__name__)
@@ -52,6 +53,7 @@ class Session:
     folder: Path
     speed: float = 1.0
     rates: Rates = field(default_factory=Rates)
+    bag: str | None = "mcap"
     room: ServedRoom | None = None
     server: Any = None
 
@@ -69,7 +71,8 @@ class Session:
         try:
             server.start()
             self.server, self.port = server, server.port
-            record = SessionRecord(self.scenario, self.plugins, self.folder, self.seed)
+            record = SessionRecord(self.scenario, self.plugins, self.folder, self.seed, bag=self.bag,
+                                   about=self._about())
             self.room = ServedRoom(self.environment, record, server.publish, seed=self.seed, speed=self.speed,
                                    rates=self.rates, time_limit_s=_time_limit(self.environment))
             log.info("serve_robot.listening", host=self.host, port=self.port, folder=str(self.folder))
@@ -83,6 +86,12 @@ class Session:
             self.environment.close()
         assert record is not None
         return record
+
+    def _about(self) -> dict[str, Any]:
+        """What the bag says of the session at its start, besides the trial: the robot, the rates."""
+        robot = self.environment.robot
+        return {"robot": {"radius_mm": robot.radius_mm, "width_mm": robot.width_mm, "length_mm": robot.length_mm},
+                "served": {"speed": self.speed, **asdict(self.rates)}}
 
     def _command(self, type_: str, message: Any, client: str) -> None:
         if self.room is None:
@@ -113,9 +122,11 @@ def served_ref(ref: ComponentRef, plugins: Plugins) -> ComponentRef:
 
 def prepare_session(scenario: Scenario, plugins: Plugins, *, label: str | None = None, host: str = "127.0.0.1",
                     port: int = 9090, out: str | Path = "runs", speed: float = 1.0,
-                    rates: Rates | None = None) -> Session:
+                    rates: Rates | None = None, bag: str | None = "mcap") -> Session:
     """Check and build a session (module docstring); raises :class:`SafeEmbodAIError` naming what
     is wrong, before any folder or socket."""
+    if bag not in (None, *BAG_STORAGES):
+        raise SafeEmbodAIError(f"--bag {bag!r}: use one of {', '.join(BAG_STORAGES)}, or none")
     labels = [ref.key for ref in scenario.environments]
     label = label or labels[0]
     if label not in labels:
@@ -131,4 +142,4 @@ def prepare_session(scenario: Scenario, plugins: Plugins, *, label: str | None =
     environment.reset(scenario.seed)
     folder = RunFolder.create(out, record_scenario).path  # made by the record, once the server listens
     return Session(record_scenario, plugins, environment, label, scenario.seed, host, port, folder, speed,
-                   rates or Rates())
+                   rates or Rates(), bag)

@@ -14,13 +14,17 @@ the robot stood is kept in that step's ``truth``, as the trial loop keeps one. T
 once, when an outcome is reached (collision, target, time limit) or the session ends (Ctrl-C,
 SIGTERM): a session ended before any outcome is recorded ``timeout``, its detail saying it was ended,
 at which time of the room's limit.
+
+With ``bag`` (a storage, ``mcap`` or ``sqlite3``) the session is also a ROS 2 bag, ``bags/<trial>``
+(:mod:`.session_bag`: what the room served and was told, on its clock), the run folder marked as
+recording bags as ``ablate --bags`` marks one; :meth:`SessionRecord.close` puts it in place.
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..ablation.run_folder import RunFolder
 from ..building import ComponentBuilder
@@ -40,7 +44,11 @@ from ..plugins import Plugins
 from ..refs import ComponentRef
 from ..scenario import Condition, Scenario
 from ..loop.defences import Defences
-from ..trial_files import trajectory_file
+from ..trial_files import bag_file, record_artefacts, trajectory_file
+from .session_bag import SessionBag
+
+if TYPE_CHECKING:
+    from .served_room import Received
 
 ARM, CONDITION = "live", "rosbridge"
 
@@ -66,15 +74,26 @@ def held_signal(distance_mm: float, angle_deg: float) -> Straight | Turn | None:
 class SessionRecord:
     """Writes a session's run folder as it goes (module docstring); used from one thread."""
 
-    def __init__(self, scenario: Scenario, plugins: Plugins, folder: str | Path, seed: int) -> None:
+    def __init__(self, scenario: Scenario, plugins: Plugins, folder: str | Path, seed: int, *,
+                 bag: str | None = None, about: dict[str, Any] | None = None) -> None:
         self.scenario = scenario
         self.folder = RunFolder(folder)
         label = scenario.environments[0].key
         self.spec = TrialSpec(trial_id=f"{label}/{ARM}/{CONDITION}/0", scenario=scenario.name, environment=label,
                               arm=ARM, condition=CONDITION, index=0, seed=seed)
         self.folder.start(scenario)
-        self.store = ComponentBuilder(scenario, plugins, run_dir=self.folder.path).state_store()
-        self.store.begin_trial(self.spec)
+        self.bag: SessionBag | None = None
+        if bag is not None:  # before the store: a bag that cannot be opened leaves nothing open
+            record_artefacts(self.folder.path, bags=bag)
+            self.bag = SessionBag(bag_file(self.folder.path, self.spec.trial_id), bag)
+            self.bag.started({"trial": self.spec.model_dump(mode="json"), "scenario": scenario.name, **(about or {})})
+        try:
+            self.store = ComponentBuilder(scenario, plugins, run_dir=self.folder.path).state_store()
+            self.store.begin_trial(self.spec)
+        except BaseException:
+            if self.bag is not None:
+                self.bag.close()
+            raise
         self.steps = 0
         self.distance_mm = 0.0
         self.collisions: dict[str, int] = {"self": 0, "struck": 0, "standing": 0}
@@ -99,6 +118,16 @@ class SessionRecord:
         self.store.record_step(record)
         self._open, self._moved = record, ExecutionResult()
 
+    def published(self, topic: str, message: dict[str, Any], time_s: float) -> None:
+        """The room published ``message`` on ``topic`` at ``time_s``: kept in the bag, if any."""
+        if self.bag is not None:
+            self.bag.published(topic, message, time_s)
+
+    def received(self, received: Received, time_s: float) -> None:
+        """The room took a command at ``time_s``: kept in the bag, if any (the step is :meth:`command`'s)."""
+        if self.bag is not None:
+            self.bag.received(received, time_s)
+
     def driven(self, result: ExecutionResult) -> None:
         """What one tick of the room did under the open step's command (added up into the step)."""
         moved = self._moved
@@ -108,7 +137,8 @@ class SessionRecord:
             stopped=moved.stopped or result.stopped, collided=collided,
             collision=moved.collision or result.collision, hit=moved.hit or result.hit,
             before_motion=moved.before_motion or result.before_motion,
-            detail="; ".join(part for part in (moved.detail, result.detail) if part and part not in moved.detail))
+            detail=moved.detail if not result.detail or result.detail in moved.detail
+            else "; ".join(part for part in (moved.detail, result.detail) if part))
         self.distance_mm += abs(result.distance_mm)
         if result.collided:
             kind = result.collision or "self"
@@ -124,9 +154,9 @@ class SessionRecord:
         if record is None:
             return
         self._open = None
-        if not moved.detail and record.accepted:  # the signal names a straight or a turn: the words say the arc
-            moved = moved.model_copy(update={"detail": f"{time_s - record.sim_time_s:.2f} s: {moved.distance_mm:.0f} "
-                                                       f"mm, {moved.angle_deg:.1f} deg"})
+        if record.accepted:  # the signal names a straight or a turn: the words say the arc it drove
+            held = f"{time_s - record.sim_time_s:.2f} s: {moved.distance_mm:.0f} mm, {moved.angle_deg:.1f} deg"
+            moved = moved.model_copy(update={"detail": f"{held}; {moved.detail}" if moved.detail else held})
         executed = []
         signal = held_signal(moved.distance_mm, moved.angle_deg)
         if signal is None and moved.collided and not moved.before_motion and record.planned:
@@ -140,7 +170,7 @@ class SessionRecord:
                                                          "pose_after": pose, "truth": truth}))
 
     def finish(self, outcome: Outcome, detail: str, pose: Pose, truth: GroundTruth, time_s: float,
-               picture: bytes | None, wall_time_s: float = 0.0) -> None:
+               picture: bytes | None, wall_time_s: float = 0.0, error_kind: str | None = None) -> None:
         """Close the open step and write the result and the path's picture (once)."""
         if self.result is not None:
             return
@@ -150,16 +180,23 @@ class SessionRecord:
             collisions=self.collisions["self"] + self.collisions["struck"], collisions_self=self.collisions["self"],
             collisions_struck=self.collisions["struck"], collisions_struck_standing=self.collisions["standing"],
             self_collisions_hit=dict(self.self_hits), detail=detail, world=truth.world_kind or "",
-            trajectory=[*self.poses, pose], wall_time_s=wall_time_s)
+            trajectory=[*self.poses, pose], wall_time_s=wall_time_s, error_kind=error_kind)
         self.store.end_trial(self.result)
         self.folder.note_finished([self.spec.trial_id])
+        if self.bag is not None:
+            self.bag.ended(self.result, time_s)
         if picture:
             target = trajectory_file(self.folder.path, self.spec.trial_id)
             target.parent.mkdir(parents=True, exist_ok=True)
             target.write_bytes(picture)
 
     def close(self) -> None:
-        self.store.close()
+        """Put the bag in place (if any) and close the store; once is enough, twice does no harm."""
+        try:
+            if self.bag is not None:
+                self.bag.close()
+        finally:
+            self.store.close()
 
 
 def ended_detail(reason: str, time_s: float, limit_s: float | None) -> str:

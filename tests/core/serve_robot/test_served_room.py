@@ -94,7 +94,7 @@ def test_every_command_is_a_step_of_the_record_and_show_and_report_read_it(serve
     steps = [json.loads(row[0]) for row in rows]
     assert len(steps) == result.steps == 6
     assert all(step["status"] == "done" for step in steps)
-    assert "client 7: linear.x 0.200 m/s, angular.z 0.300 rad/s" in steps[0]["instruction"]
+    assert "client 7: linear.x 0.2 m/s, angular.z 0.3 rad/s" in steps[0]["instruction"]
     assert steps[-1]["accepted"] is False and "not read" in steps[-1]["instruction"]
     assert sum(abs(s["executed"][0]["result"]["distance_mm"]) for s in steps[:-1] if s["executed"]) == pytest.approx(
         result.distance_mm)
