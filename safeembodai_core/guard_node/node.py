@@ -135,7 +135,9 @@ class GuardNode:
                 self.target = self.target_at = None
                 return self._send(Sent(STOP, "stop", [f"command refused unread: {str(error)[:300]}"]), time_s)
             self.target, self.target_at = requested, time_s
-            return self._cycle(time_s)
+            sent = self._cycle(time_s)
+            assert sent is not None  # a target is held: a cycle always answers it
+            return sent
 
     def cycle(self, time_s: float) -> Sent | None:
         """The timer's cycle: the held target again (smoothed, judged on the latest scan), a stop once

@@ -22,7 +22,7 @@ from typing import Annotated, Any
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StringConstraints, ValidationError, \
-    field_validator, model_validator
+    ValidationInfo, field_validator, model_validator
 
 from ..errors import SafeEmbodAIError
 from ..geometry import read_polygon
@@ -40,6 +40,10 @@ TOPIC = r"^(/[A-Za-z_][A-Za-z0-9_]*)+$"
 Number = Annotated[StrictFloat, Field(allow_inf_nan=False)]
 #: Nav2 velocity_smoother's [x, y, theta]: m/s, m/s and rad/s (velocities), per second (accelerations).
 Axes = tuple[Number, Number, Number]
+#: The largest speed (m/s or rad/s) and acceleration (per second) a robot file may give: beyond any mobile
+#: base, and what bounds the cost of judging the fastest command a guard may let through.
+MAX_SPEED = 50.0
+MAX_ACCELERATION = 1000.0
 
 
 class RobotFileError(SafeEmbodAIError, ValueError):
@@ -66,6 +70,13 @@ class ScanSource(_Strict):
     mount: Mount = Mount()
 
 
+def _bounded(axes: tuple[float, float, float], name: str | None) -> tuple[float, float, float]:
+    most = MAX_SPEED if name in ("max_velocity", "min_velocity") else MAX_ACCELERATION
+    if any(abs(value) > most for value in axes):
+        raise ValueError(f"must be within +-{most:g} on every axis, got {list(axes)}")
+    return axes
+
+
 class VelocitySmoother(_Strict):
     """Nav2 velocity_smoother's kinematic limits, under its names, its units and its defaults
     (``nav2_velocity_smoother/src/velocity_smoother.cpp``): each [x, y, theta]; decelerations are
@@ -78,17 +89,17 @@ class VelocitySmoother(_Strict):
 
     @field_validator("max_velocity", "max_accel")
     @classmethod
-    def _not_negative(cls, axes: tuple[float, float, float]) -> tuple[float, float, float]:
+    def _not_negative(cls, axes: tuple[float, float, float], info: ValidationInfo) -> tuple[float, float, float]:
         if any(value < 0 for value in axes):
             raise ValueError(f"must be >= 0 on every axis (Nav2's convention), got {list(axes)}")
-        return axes
+        return _bounded(axes, info.field_name)
 
     @field_validator("min_velocity", "max_decel")
     @classmethod
-    def _not_positive(cls, axes: tuple[float, float, float]) -> tuple[float, float, float]:
+    def _not_positive(cls, axes: tuple[float, float, float], info: ValidationInfo) -> tuple[float, float, float]:
         if any(value > 0 for value in axes):
             raise ValueError(f"must be <= 0 on every axis (Nav2's convention), got {list(axes)}")
-        return axes
+        return _bounded(axes, info.field_name)
 
 
 class RobotFile(_Strict):

@@ -31,6 +31,7 @@ import structlog
 
 from ..components import Environment
 from ..models import ExecutionResult, GroundTruth, Outcome
+from ..models.records import ErrorKind
 from ..ros.twist import Twist, arc_signals
 from . import messages
 from .session_record import SessionRecord, ended_detail
@@ -269,7 +270,7 @@ class ServedRoom:
                                                            hit=result.hit, detail=result.detail))
         self._finish(Outcome.INTERRUPTED, result.detail, None)
 
-    def _finish(self, outcome: Outcome, detail: str, event: str | None, error_kind: str | None = None) -> None:
+    def _finish(self, outcome: Outcome, detail: str, event: str | None, error_kind: ErrorKind | None = None) -> None:
         """Decide the outcome once: record it, and say it on the events topic (``event``: its kind;
         None when the caller said it already)."""
         if self.outcome is not None:

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..ablation.run_folder import RunFolder
 from ..building import ComponentBuilder
+from ..models.records import ErrorKind
 from ..models import (
     ExecutedSignal,
     ExecutionResult,
@@ -64,8 +65,8 @@ def held_signal(distance_mm: float, angle_deg: float) -> Straight | Turn | None:
     """The motion a held command made, as the contract's signal that names it best: a straight when
     it went somewhere (its direction the distance's sign), a turn when it turned on the spot."""
     if abs(distance_mm) >= 0.5:
-        direction = "forward" if distance_mm > 0 else "backward"
-        return Straight(command="straight", direction=direction, distance=abs(distance_mm))
+        return Straight(command="straight", direction="forward" if distance_mm > 0 else "backward",
+                        distance=abs(distance_mm))
     if abs(angle_deg) >= 0.05:
         return Turn(command="turn", direction="left" if angle_deg > 0 else "right", angle=abs(angle_deg))
     return None
@@ -170,7 +171,7 @@ class SessionRecord:
                                                          "pose_after": pose, "truth": truth}))
 
     def finish(self, outcome: Outcome, detail: str, pose: Pose, truth: GroundTruth, time_s: float,
-               picture: bytes | None, wall_time_s: float = 0.0, error_kind: str | None = None) -> None:
+               picture: bytes | None, wall_time_s: float = 0.0, error_kind: ErrorKind | None = None) -> None:
         """Close the open step and write the result and the path's picture (once)."""
         if self.result is not None:
             return

@@ -13,7 +13,7 @@ import pytest
 from safeembodai_core import Guard
 from safeembodai_core.robot import RobotSpec
 from safeembodai_core.ros import LaserScan, SensorMount, Twist, read_robot_file
-from safeembodai_core.ros.robot_file import RobotFileError
+from safeembodai_core.ros.robot_file import RobotFileError, parse_robot_file
 
 EXAMPLE = Path(__file__).resolve().parents[3] / "docs" / "examples" / "robot.yaml"
 
@@ -110,3 +110,11 @@ def test_a_robot_file_that_is_no_regular_file_is_refused_unread(tmp_path):
         read_robot_file(written(tmp_path, "radius_mm: 170\n" + "#" * 300_000))
     (tmp_path / "linked.yaml").symlink_to(EXAMPLE)  # as colcon --symlink-install leaves a config: followed
     assert read_robot_file(tmp_path / "linked.yaml").mount() == SensorMount(x_mm=120.0)
+
+
+@pytest.mark.parametrize("key, axes", [("max_velocity", [51.0, 0.0, 1.0]), ("min_velocity", [-0.5, 0.0, -1e9]),
+                                       ("max_accel", [1e4, 0.0, 1.0]), ("max_decel", [-1.0, 0.0, -1e300])])
+def test_smoother_limits_beyond_any_base_are_refused(key, axes):
+    """They bound what a guard lets through, and so the cost of judging it (issue 52, item 8)."""
+    with pytest.raises(RobotFileError, match=f"velocity_smoother.{key}"):
+        parse_robot_file(f"radius_mm: 170\nvelocity_smoother: {{{key}: {axes}}}\n", "robot.yaml")
