@@ -2,7 +2,8 @@
 
 :class:`PybulletRoom` draws the layout from the seed, places the bodies of its
 :class:`~.scene.Scene`, reads the :class:`~.sensors.Sensors` and decides the outcome; the robot's
-motion comes from :class:`~.motion.KinematicMotion`, a held velocity's from :class:`~.velocity.HeldVelocity`. Outcomes, checked after every step:
+motion comes from :class:`~.motion.KinematicMotion`, a held velocity's from
+:class:`~.velocity.HeldVelocity`. Outcomes, checked after every step:
 ``interrupted`` once the robot has collided with a wall, a ball or a Labbot (by its own motion:
 ``self``, or a Labbot ran into it: ``struck``); ``completed`` when
 the can is within ``reach_mm`` (centre to centre) and in the camera's view; ``timeout`` when the
