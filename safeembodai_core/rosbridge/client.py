@@ -89,6 +89,7 @@ class RosbridgeClient:
             worker.run(self._open(), self.timeout + 1.0)
         except Exception as error:
             worker.stop(self.timeout)
+            self._worker = None  # connect() may be tried again
             reason = "timed out" if isinstance(error, TimeoutError) else str(error) or type(error).__name__
             raise RosbridgeError(f"cannot reach rosbridge at {self.url}: {reason}") from None
         log.info("rosbridge_client.connected", url=self.url)
@@ -167,7 +168,7 @@ class RosbridgeClient:
         """Queue ``msg`` on ``topic`` and return (the server answers only a refusal, as a status)."""
         self._send({"op": "publish", "topic": resolve_name(topic), "msg": msg})
 
-    def subscribe(self, topic: str, type: str, callback: Callback, *, throttle_rate: int = 0,
+    def subscribe(self, topic: str, type: str, callback: Callback, throttle_rate: int = 0,
                   queue_length: int = 1) -> str:
         """Call ``callback(msg)`` with each message of ``topic``; returns the subscription's id."""
         normalize_type(type)

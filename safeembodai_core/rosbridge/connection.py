@@ -34,6 +34,7 @@ class Connection:
         self.advertised: dict[str, str] = {}
         self.level = "error"
         self.closing = False
+        self._closer: asyncio.Task[None] | None = None
 
     def refresh_outlet(self, topic: str) -> None:
         """Give ``topic``'s outlet the merged settings of this client's subscriptions to it (or drop it)."""
@@ -72,17 +73,20 @@ class Connection:
             return
         self.closing = True
         log.info("rosbridge.closing", client=self.id, code=int(code), reason=reason)
-        asyncio.get_running_loop().create_task(self.shut(code, reason))
+        self._closer = asyncio.get_running_loop().create_task(self.shut(code, reason))
 
     async def shut(self, code: int, reason: str) -> None:
-        """Send the close frame, or drop the TCP connection if the client does not take it."""
+        """Send the close frame; drop the TCP connection if the client does not take it in time (a
+        graceful close would wait for ever to flush what the client never reads)."""
         self.closing = True
+        clean = False
         try:
             await asyncio.wait_for(self.ws.close(code=code, message=reason.encode()[:120]), CLOSE_WAIT_S)
+            clean = True
         except (asyncio.TimeoutError, ConnectionError, RuntimeError):
             pass
-        finally:
-            if self.transport is not None and not self.transport.is_closing():
+        finally:  # a cancelled close too (aiohttp cancels a drain the connection will never finish)
+            if not clean and self.transport is not None:
                 with contextlib.suppress(Exception):
                     self.transport.abort()
 

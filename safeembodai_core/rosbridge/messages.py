@@ -27,7 +27,6 @@ _INTEGERS = {"int8": (-2**7, 2**7 - 1), "uint8": (0, 2**8 - 1), "int16": (-2**15
              "uint16": (0, 2**16 - 1), "int32": (-2**31, 2**31 - 1), "uint32": (0, 2**32 - 1),
              "int64": (-2**63, 2**63 - 1), "uint64": (0, 2**64 - 1)}
 _FLOATS = {"float32": 3.4028234663852886e38, "float64": math.inf}
-ATOMIC = {"bool", "string", *_INTEGERS, *_FLOATS}
 NOW = object()  # a default that is the server's current time (a header's stamp)
 
 
@@ -146,6 +145,12 @@ def _one(field: Field, value: Any, path: str, stamp: dict[str, int], in_array: b
     if field.type in MESSAGE_TYPES:
         return conform(field.type, value, stamp, path)
     return _atomic(field.type, value, path, in_array)
+
+
+def time_of(seconds: float) -> dict[str, int]:
+    """``seconds`` since the epoch as a ``builtin_interfaces/msg/Time``."""
+    sec = int(seconds // 1)
+    return {"sec": sec, "nanosec": min(int((seconds - sec) * 1e9), 999_999_999)}
 
 
 def is_known(type_name: str) -> bool:

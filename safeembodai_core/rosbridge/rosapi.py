@@ -21,7 +21,7 @@ from typing import Any, Callable
 
 from ..quoting import quote_untrusted
 from .frames import FrameError, read_json
-from .messages import typedefs
+from .messages import time_of, typedefs
 from .names import RosNameError, normalize_type, resolve_name
 
 ROSAPI_NODE = "/rosapi"
@@ -101,9 +101,8 @@ def _service_details(graph: Graph, args: dict[str, Any]) -> dict[str, Any]:
 
 
 def _time(graph: Graph, args: dict[str, Any]) -> dict[str, Any]:
-    sec = int(graph.now // 1)
-    nanosec = min(int((graph.now - sec) * 1e9), 999_999_999)
-    return {"time": {"sec": sec, "nanosec": nanosec, "secs": sec, "nsecs": nanosec}}
+    now = time_of(graph.now)
+    return {"time": {**now, "secs": now["sec"], "nsecs": now["nanosec"]}}
 
 
 Answer = Callable[[Graph, dict[str, Any]], dict[str, Any]]

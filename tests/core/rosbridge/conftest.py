@@ -153,7 +153,9 @@ class RawClient:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             message = self.aio.run(self.ws.receive(deadline - time.monotonic()), timeout + 1)
-            if message.type in (aiohttp.WSMsgType.CLOSE, aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.CLOSING):
+            if message.type is aiohttp.WSMsgType.CLOSE:
+                return int(message.data)  # the code the server sent (close_code may say 1006 once it hangs up)
+            if message.type in (aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.CLOSING):
                 return self.ws.close_code
         raise AssertionError("the server did not close the connection")
 
