@@ -75,14 +75,17 @@ class RosbridgeServer:
     :param max_queue_length: the largest ``queue_length`` a subscription may ask for.
     :param heartbeat: seconds between WebSocket pings; a client that does not answer is closed.
     :param clock: the time of ``/rosapi/get_time`` and of missing header stamps (seconds).
+    :param allowed_origins: browser origins (``https://dashboard.example:8080``) besides the server's own
+        address that may connect (:meth:`origin_allowed`); any other page is answered HTTP 403.
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 9090, *, node: str = "/safeembodai_robot",
                  distro: str = "jazzy", max_frame_bytes: int = 10 * 2**20, send_queue: int = 256,
                  send_timeout: float = 5.0, max_clients: int = 32, max_subscriptions: int = 100,
                  max_advertisements: int = 100, max_queue_length: int = 100, heartbeat: float | None = 20.0,
-                 clock: Callable[[], float] = time.time):
+                 clock: Callable[[], float] = time.time, allowed_origins: Sequence[str] = ()):
         self.host, self._port = host, port
+        self.allowed_origins = frozenset(origin.rstrip("/").lower() for origin in allowed_origins)
         self.node = resolve_name(node, "node")
         self.max_frame_bytes, self.send_queue, self.send_timeout = max_frame_bytes, send_queue, send_timeout
         self.max_clients, self.heartbeat = max_clients, heartbeat
@@ -218,12 +221,29 @@ class RosbridgeServer:
         if self._runner is not None:
             await self._runner.cleanup()
 
+    def origin_allowed(self, origin: str) -> bool:
+        """Whether a browser page of ``origin`` may connect: a WebSocket is not bound by the same-origin
+        rule, so any page a local browser opens could otherwise drive the robot. Allowed: this server's
+        own address (``http://127.0.0.1:PORT``, ``localhost``, ``[::1]``, or the host it binds; what a
+        tool such as websocket-client sends), and the origins given (``allowed_origins``: a dashboard).
+        A client that sends no ``Origin`` (roslibpy, aiohttp, ros-mcp's) is no page and is not asked."""
+        origin = origin.strip().rstrip("/").lower()
+        if origin in self.allowed_origins:
+            return True
+        own = {self.host.lower(), "127.0.0.1", "localhost", "[::1]"}
+        return any(origin == f"{scheme}://{host}:{self._port}" for scheme in ("http", "https", "ws", "wss")
+                   for host in own)
+
     # -- one client -----------------------------------------------------------------------------------
 
     async def _serve(self, request: web.Request) -> web.StreamResponse:
         ws = web.WebSocketResponse(max_msg_size=self.max_frame_bytes, heartbeat=self.heartbeat, compress=False)
         if not ws.can_prepare(request).ok:
             return web.Response(status=400, text="a rosbridge v2 server: connect with a WebSocket\n")
+        origin = request.headers.get("Origin")
+        if origin is not None and not self.origin_allowed(origin):
+            log.warning("rosbridge.origin_refused", origin=origin[:200])
+            return web.Response(status=403, text="this rosbridge server does not serve pages of that origin\n")
         clients = self._bridge.clients
         if self._stopped or len(clients) >= self.max_clients:
             log.warning("rosbridge.client_refused", clients=len(clients), limit=self.max_clients)

@@ -393,3 +393,25 @@ def test_what_the_process_registers_is_checked():
         server.add_service("/rosapi/topics", "rosapi_msgs/srv/Topics", dict)
     with pytest.raises(ValueError, match="is not offered"):
         server.publish("/odom", {})
+
+
+def handshake_status(port: int, origin: str | None) -> bytes:
+    """The status line a WebSocket handshake from a page of ``origin`` (None: no page) is answered with."""
+    lines = ["GET / HTTP/1.1", f"Host: 127.0.0.1:{port}", "Upgrade: websocket", "Connection: Upgrade",
+             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==", "Sec-WebSocket-Version: 13"]
+    if origin is not None:
+        lines.append(f"Origin: {origin}")
+    with socket.create_connection(("127.0.0.1", port), timeout=2) as plain:
+        plain.sendall(("\r\n".join(lines) + "\r\n\r\n").encode())
+        return plain.recv(100).split(b"\r\n")[0]
+
+
+def test_a_page_of_another_origin_cannot_drive_the_robot(serve_robot):
+    """A WebSocket is not bound by the same-origin rule: without this, any page a local browser opened
+    (``https://evil.example``, another local server, a DNS-rebound name) could publish to /cmd_vel."""
+    robot = serve_robot(allowed_origins=["https://dashboard.example:8080"])
+    port = robot.server.port
+    for origin in ("https://evil.example", "http://127.0.0.1:8000", f"http://rebound.example:{port}", "null"):
+        assert handshake_status(port, origin) == b"HTTP/1.1 403 Forbidden", origin
+    for origin in (None, f"http://127.0.0.1:{port}", f"http://localhost:{port}", "https://dashboard.example:8080/"):
+        assert handshake_status(port, origin) == b"HTTP/1.1 101 Switching Protocols", origin
