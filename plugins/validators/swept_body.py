@@ -13,6 +13,10 @@ when it touches
   (the edge of its shadow), and past the sensor's range. A free beam (``inf``) is free only out to
   the range. Samples inside the body where the scan was taken are dropped: the robot stood there.
 
+A return the body already holds -- on its outline (Nav2 counts it outside) or inside -- counts only
+once the motion takes the body deeper over it (:func:`~safeembodai_core.geometry.sweep.deeper_times`):
+a robot in contact may back off it, into space the scan saw.
+
 Only points within reach of the motion are looked at: the centre's travel plus the body's reach.
 A refusal says what was touched, where, and how much of the motion is safe ("at most N mm is
 safe", "at most N deg"). Beyond the paper: V(C) judges the beams within ±r of the heading only, so
@@ -35,6 +39,7 @@ from safeembodai_core.validation import ValidationContext
 from .rules import checked_scan
 
 _UNSEEN = ("no reading", "behind a return", "beyond the sensor's range")
+_DEEPER = "goes deeper over a return of the scan"
 _JUMP_STEPS = 2.0  # a neighbour this many sample steps farther leaves a shadow edge worth sampling
 #: The farthest a judged motion's centre may travel (100 km); beyond it nothing is placed, so it is refused.
 MAX_TRAVEL_MM = 1e8
@@ -120,10 +125,10 @@ class SweptBodyRule(MotionValidator):
         x, y, _ = context.offset
         here = np.zeros(2)
         if not motion.centre_travel_mm <= MAX_TRAVEL_MM:  # NaN too: a motion this rule cannot place
-            return [None, (0.0, f"nothing it can judge: the motion covers {motion.centre_travel_mm:.3g} mm, more "
-                                f"than {MAX_TRAVEL_MM:.0f}", here)]
+            return [None, (0.0, f"touches nothing it can judge: the motion covers {motion.centre_travel_mm:.3g} mm, "
+                                f"more than {MAX_TRAVEL_MM:.0f}", here)]
         if math.hypot(x, y) + body.reach_mm >= scan.max_range_mm:
-            return [None, (0.0, f"space the scan did not see (the body reaches past the sensor's range of "
+            return [None, (0.0, f"touches space the scan did not see (the body reaches past the sensor's range of "
                                 f"{scan.max_range_mm:g} mm)", here)]
         reach = math.hypot(x, y) + motion.centre_travel_mm + body.reach_mm + o.unseen_step_mm
         returns, unseen, labels = scene(scan, reach, o.unseen_step_mm)
@@ -133,10 +138,12 @@ class SweptBodyRule(MotionValidator):
         touched = hidden = None
         if len(returns):
             planned = context.to_planned_frame(returns)
-            times = contact_times(planned, motion, body)
+            times = contact_times(planned, motion, body, escape=True)
             if np.count_nonzero(np.isfinite(times)) >= o.min_points:
                 order = np.argsort(times, kind="stable")
-                touched = (float(times[order[o.min_points - 1]]), "a return of the scan", planned[order[0]])
+                held = bool(body.inside(planned[order[:1]])[0])
+                what = _DEEPER if held else "touches a return of the scan"
+                touched = (float(times[order[o.min_points - 1]]), what, planned[order[0]])
         if len(unseen):
             planned = context.to_planned_frame(unseen)
             keep = np.flatnonzero(near_path(planned, motion, body.reach_mm))
@@ -145,7 +152,7 @@ class SweptBodyRule(MotionValidator):
                 times = contact_times(planned[keep], motion, body)
                 k = int(np.argmin(times))
                 if np.isfinite(times[k]):
-                    what = f"space the scan did not see ({_UNSEEN[labels[keep[k]]]})"
+                    what = f"touches space the scan did not see ({_UNSEEN[labels[keep[k]]]})"
                     hidden = (float(times[k]), what, planned[keep[k]])
         return [touched, hidden]
 
@@ -162,8 +169,9 @@ class SweptBodyRule(MotionValidator):
         if isinstance(signal, Straight):
             safe = math.ceil(along) - 1  # strictly short of the touch: following the advice must pass
             direction = signal.direction
+            away = "move off it first" if what == _DEEPER else "turn away first"
             advice = (f"going {direction}, at most {safe} mm is safe" if safe >= 1
-                      else f"no {direction} motion is safe here; turn away first")
+                      else f"no {direction} motion is safe here; {away}")
             offered = Advice(safe_mm=safe) if safe >= 1 else None
             moved = f"after {along:.0f} mm"
         else:
@@ -173,7 +181,7 @@ class SweptBodyRule(MotionValidator):
                       else f"no turn to the {signal.direction} is safe here; move straight away first")
             offered = Advice(safe_deg=safe) if safe >= 1 else None
             moved = f"after {turned:.0f} deg"
-        reason = f"{signal.describe()}: the body ({body}) touches {what} {_where(point)} of the robot {moved}; {advice}"
+        reason = f"{signal.describe()}: the body ({body}) {what} {_where(point)} of the robot {moved}; {advice}"
         return Verdict(rule=self.name, valid=False, reason=reason,  # the advice's words end the reason
                        advice=offered.model_copy(update={"words_end": len(reason)}) if offered else None)
 
@@ -185,7 +193,7 @@ class SweptBodyRule(MotionValidator):
         time_s, what, point = min(hits, key=lambda c: c[0])
         body = context.robot.body(self.options.margin_mm).describe()
         verdict = Verdict(rule=self.name, valid=False, reason=(
-            f"held {motion.duration_s:g} s, the body ({body}) touches {what} {_where(point)} of the robot "
+            f"held {motion.duration_s:g} s, the body ({body}) {what} {_where(point)} of the robot "
             f"after {time_s:.2f} s"))
         kind: Literal["return", "unseen"] = "return" if touched is not None and touched[0] == time_s else "unseen"
         return MotionVerdict(verdict, time_s, kind, touched[0] if touched else None, hidden[0] if hidden else None)

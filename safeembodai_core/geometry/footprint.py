@@ -11,7 +11,9 @@ that radius -- every point within the margin of the shape -- which is exactly
 :meth:`Body.boundary` gives the pieces whose crossing is the first touch of a moving point
 (:mod:`safeembodai_core.geometry.sweep`): the polygon's edges, the edges moved outwards, the vertex
 discs. A point that starts outside the grown body first touches it where it first crosses one of
-them, so no piece needs to be clipped to the outline. :func:`read_polygon` reads a footprint
+them, so no piece needs to be clipped to the outline. :meth:`Body.depth` says how deep a point lies
+(the margin plus its signed distance to the shape), and :meth:`Body.level_pieces` where the points of
+a given depth lie, for a point the body already holds. :func:`read_polygon` reads a footprint
 strictly: finite vertices, at least three, not self-intersecting, of non-zero area; a bad one is a
 ``ValueError`` naming the field.
 """
@@ -119,6 +121,35 @@ class Body:
         if self.margin_mm > 0:
             inside |= _distance_to_edges(points, self.polygon) <= self.margin_mm
         return inside
+
+    def depth(self, points: np.ndarray) -> np.ndarray:
+        """Per (N, 2) point: how deep it lies in the grown body (mm) -- the margin plus its signed
+        distance to the shape (positive inside): 0 on the grown body's outline, negative outside.
+        For a disc, the distance to the outline; a point is :meth:`inside` where this is >= 0."""
+        if self.polygon is None:
+            return self.reach_mm - np.hypot(points[:, 0], points[:, 1])
+        distance = _distance_to_edges(points, self.polygon)
+        return self.margin_mm + np.where(in_polygon(points, self.polygon), distance, -distance)
+
+    def level_pieces(self, depths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per depth (N,): pieces holding every point of the plane that lies that deep in the body
+        (:meth:`depth`), as (N, S, 2, 2) segments and (N, C, 3) circles: the disc's circle through
+        them, or the polygon's edges moved inwards by the depth less the margin (outwards when that
+        is negative) and circles of that radius about its vertices. Only points on a piece can be
+        exactly that deep; a piece may hold points that are not."""
+        shape_depth = np.asarray(depths, dtype=float) - self.margin_mm  # the signed distance to the shape
+        if self.polygon is None:
+            radius = self.radius_mm - shape_depth
+            return np.empty((len(radius), 0, 2, 2)), np.stack(
+                (np.zeros_like(radius), np.zeros_like(radius), radius), axis=1)[:, None, :]
+        start, end = self.polygon, np.roll(self.polygon, -1, axis=0)
+        edge = end - start
+        inward = np.column_stack((-edge[:, 1], edge[:, 0])) / np.hypot(edge[:, 0], edge[:, 1])[:, None]
+        shift = shape_depth[:, None, None] * inward[None]  # counter-clockwise polygon: (-dy, dx) points inwards
+        segments = np.stack((start[None] + shift, end[None] + shift), axis=2)
+        radius = np.broadcast_to(np.abs(shape_depth)[:, None], (len(shape_depth), len(start)))
+        circles = np.concatenate((np.broadcast_to(start, (len(shape_depth),) + start.shape), radius[..., None]), axis=2)
+        return segments, circles
 
     def boundary(self) -> tuple[np.ndarray, np.ndarray]:
         """The pieces a moving point crosses first (module docstring): segments as (S, 2, 2)

@@ -13,6 +13,12 @@ circle crosses one of the body's boundary pieces -- a segment or a circle -- fou
 (a quadratic per piece), with no time step: :func:`contact_times`. A point that starts inside the
 body touches it at 0. This is the region the body sweeps, exactly, for discs and simple polygons,
 for straights, arcs and turns in place.
+
+A point the body already holds (on its outline or inside) may instead be judged by whether the body
+takes it deeper (:func:`deeper_times`): the body may move off it -- back away, turn a disc in place
+-- but not further over it. Its depth (:meth:`~safeembodai_core.geometry.footprint.Body.depth`)
+equals the start's only on a few segments and circles, so the same closed-form crossings cut the
+motion into stretches along which it is deeper throughout or nowhere.
 """
 
 from __future__ import annotations
@@ -28,6 +34,9 @@ _TWO_PI = 2.0 * math.pi
 #: a turn that moves no point of the swept region by more than this (mm) is driven as a straight: its
 #: centre of rotation would lie so far away that the arc's arithmetic loses more than it gains
 _STRAIGHT_ENOUGH_MM = 1e-2
+#: a point held no more than this (mm) deeper than at the start is held as deep: a pose's rounding
+_DEEPER_MM = 1e-6
+_CHUNK = 64  # points judged together by deeper_times: its samples grow with the footprint's vertices
 
 
 @dataclass(frozen=True)
@@ -65,13 +74,17 @@ class Motion:
     def pose_at(self, t: float) -> tuple[float, float, float]:
         """The body's pose ``(x_mm, y_mm, heading_rad)`` after ``t`` seconds, in the start frame.
 
-        Written as v * sin(wt) / w and v * 2 sin(wt/2)^2 / w, which stay exact as w goes to 0 (the
-        centre-of-rotation form c - R(wt) c cancels catastrophically there)."""
+        Written as v * t sinc(wt) and v * w t^2 sinc(wt/2)^2 / 2 (sinc(x) = sin(x) / x), which stay
+        exact as w goes to 0, subnormal turn rates included (the centre-of-rotation form c - R(wt) c
+        cancels catastrophically there, and sin(wt) / w rounds wt to a few bits)."""
+        x, y, heading = self.poses_at(np.array(float(t)))
+        return float(x), float(y), float(heading)
+
+    def poses_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`pose_at` for an array of times: arrays ``x_mm``, ``y_mm``, ``heading_rad`` of its shape."""
+        t = np.asarray(t, dtype=float)
         w, wt = self.w_rad_s, self.w_rad_s * t
-        if w == 0.0:
-            along, across = t, 0.0
-        else:
-            along, across = math.sin(wt) / w, 2.0 * math.sin(wt / 2.0) ** 2 / w
+        along, across = t * np.sinc(wt / math.pi), 0.5 * w * t * t * np.sinc(wt / _TWO_PI) ** 2
         vx, vy = self.vx_mm_s, self.vy_mm_s
         return vx * along - vy * across, vx * across + vy * along, wt
 
@@ -80,9 +93,11 @@ class Motion:
         return Motion(self.vx_mm_s * factor, self.vy_mm_s * factor, self.w_rad_s * factor, self.duration_s)
 
 
-def contact_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
+def contact_times(points: np.ndarray, motion: Motion, body: Body, escape: bool = False) -> np.ndarray:
     """Per (N, 2) point (mm, start frame): the first time in [0, ``motion.duration_s``] the moving
-    ``body`` touches it; ``inf`` when it never does within the duration (module docstring)."""
+    ``body`` touches it; ``inf`` when it never does within the duration (module docstring). A point
+    the body holds at the start (on or inside its outline) is touched at 0; with ``escape``, only
+    once the body holds it deeper than at the start (:func:`deeper_times`): the body may move off it."""
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     times = np.full(len(points), np.inf)
     if not len(points):
@@ -91,17 +106,60 @@ def contact_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
     near = np.flatnonzero(near_path(points, motion, body.reach_mm)
                           | (np.hypot(points[:, 0], points[:, 1]) <= body.reach_mm))
     start = body.inside(points[near])
-    times[near[start]] = 0.0
+    times[near[start]] = deeper_times(points[near[start]], motion, body) if escape else 0.0
     rest = near[~start]
     if rest.size == 0 or motion.duration_s == 0.0:
         return times
     segments, circles = body.boundary()
     p = points[rest]
     if motion.straight_enough(body.reach_mm + float(np.max(np.abs(p)))):
-        found = _line_contacts(p, np.array([motion.vx_mm_s, motion.vy_mm_s]), segments, circles)
+        found = _line_crossings(p, np.array([motion.vx_mm_s, motion.vy_mm_s]), segments[None], circles[None])
     else:
-        found = _arc_contacts(p, motion, segments, circles)
-    times[rest] = np.where(found <= motion.duration_s, found, np.inf)
+        found = _arc_crossings(p, motion, segments[None], circles[None])
+    first = np.min(found, axis=1, initial=np.inf)
+    times[rest] = np.where(first <= motion.duration_s, first, np.inf)
+    return times
+
+
+def deeper_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
+    """Per (N, 2) point (mm, start frame) on or inside ``body`` at the start: the first time in
+    [0, ``motion.duration_s``] the moving body holds it deeper (:meth:`Body.depth`) than at the start;
+    ``inf`` when it never does -- the body moves off it, along it, or not at all.
+
+    The point is exactly as deep as at the start only on the pieces of :meth:`Body.level_pieces`, so
+    between two moments it crosses one its depth keeps one side of the start's: the first stretch seen
+    deeper (by more than ``_DEEPER_MM``) at its middle or its end begins the answer. The moments it
+    passes nearest a vertex, or parallel to an edge, cut the stretches too, so that a graze along a
+    piece is looked at. The body's view repeats after a whole turn, so one turn is enough."""
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    times = np.full(len(points), np.inf)
+    if not len(points) or motion.duration_s == 0.0:
+        return times
+    straight = motion.straight_enough(body.reach_mm + float(np.max(np.abs(points))))
+    velocity = np.array([motion.vx_mm_s, motion.vy_mm_s])
+    if straight and not float(velocity @ velocity) > 0.0:
+        return times  # no speed, and too little turn to move a point by _STRAIGHT_ENOUGH_MM
+    span = motion.duration_s if straight else min(motion.duration_s, _TWO_PI / abs(motion.w_rad_s))
+    for chunk in range(0, len(points), _CHUNK):
+        p = points[chunk:chunk + _CHUNK]
+        start = body.depth(p)
+        segments, circles = body.level_pieces(start)
+        if straight:
+            found = _line_crossings(p, velocity, segments, circles)
+            found = np.concatenate((found, _line_nearest(p, velocity, _marks(body))), axis=1)
+        else:
+            found = np.concatenate((_arc_crossings(p, motion, segments, circles),
+                                    _arc_nearest(p, motion, body)), axis=1)
+        within = (found > 0.0) & (found < span)  # NaN and inf are not
+        cuts = np.sort(np.where(within, found, span), axis=1)[:, :int(np.max(np.count_nonzero(within, axis=1)))]
+        cuts = np.concatenate((np.zeros((len(p), 1)), cuts, np.full((len(p), 1), span)), axis=1)
+        samples = np.empty((len(p), 2 * cuts.shape[1] - 1))
+        samples[:, 0::2], samples[:, 1::2] = cuts, (cuts[:, :-1] + cuts[:, 1:]) / 2.0
+        seen = _seen_from_body(p, motion, samples)
+        deeper = body.depth(seen.reshape(-1, 2)).reshape(samples.shape) - start[:, None] > _DEEPER_MM
+        hit = np.flatnonzero(deeper.any(axis=1))
+        first = np.argmax(deeper[hit], axis=1)  # a sample at a cut or a middle: the stretch began at the cut before it
+        times[chunk + hit] = cuts[hit, np.maximum(first - 1, 0) // 2]
     return times
 
 
@@ -134,69 +192,108 @@ def near_path(points: np.ndarray, motion: Motion, reach_mm: float) -> np.ndarray
     return ~(np.where(on_arc, to_circle, to_ends) > reach_mm + 1e-9)
 
 
-def _line_contacts(p: np.ndarray, v: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
-    """First t >= 0 at which p - v t meets a segment or a circle (inf: never)."""
-    best = np.full(len(p), np.inf)
+def _seen_from_body(p: np.ndarray, motion: Motion, t: np.ndarray) -> np.ndarray:
+    """Each point of ``p`` (N, 2), seen from the body at its times ``t`` (N, K): (N, K, 2)."""
+    x, y, heading = motion.poses_at(t)
+    c, s = np.cos(heading), np.sin(heading)
+    dx, dy = p[:, 0:1] - x, p[:, 1:2] - y
+    return np.stack((c * dx + s * dy, c * dy - s * dx), axis=2)
+
+
+def _marks(body: Body) -> np.ndarray:
+    """Where a point running along a piece of :meth:`Body.level_pieces` may leave it without crossing
+    another: passing the polygon's vertices (the disc's centre)."""
+    return np.zeros((1, 2)) if body.polygon is None else body.polygon
+
+
+def _line_nearest(p: np.ndarray, v: np.ndarray, marks: np.ndarray) -> np.ndarray:
+    """When p - v t passes nearest each mark: (N, M)."""
+    return ((p[:, None, :] - marks[None]) @ v) / float(v @ v)
+
+
+def _arc_nearest(p: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
+    """When p, turning about the centre of rotation, passes nearest each mark and runs parallel to each edge."""
+    w = motion.w_rad_s
+    centre = np.array([-motion.vy_mm_s / w, motion.vx_mm_s / w])
+    directions = [_marks(body) - centre]
+    if body.polygon is not None:
+        edge = np.roll(body.polygon, -1, axis=0) - body.polygon
+        directions += [edge[:, ::-1] * [1.0, -1.0], edge[:, ::-1] * [-1.0, 1.0]]  # both normals of each edge
+    d = np.concatenate(directions)
+    return _turned_to(p, motion, np.broadcast_to(d[None], (len(p),) + d.shape))
+
+
+def _turned_to(p: np.ndarray, motion: Motion, x: np.ndarray) -> np.ndarray:
+    """When p, turning about the centre of rotation by -w t, first reaches each direction ``x``
+    (N, K, 2) seen from that centre (inf where ``x`` is NaN)."""
+    w = motion.w_rad_s
+    rel = p - np.array([-motion.vy_mm_s / w, motion.vx_mm_s / w])
+    phi0 = np.arctan2(rel[:, 1], rel[:, 0])
+    psi = np.arctan2(x[..., 1], x[..., 0])
+    turned = np.mod((phi0[:, None] - psi) * math.copysign(1.0, w), _TWO_PI)  # the angle turned to get there
+    return np.where(np.isnan(psi), np.inf, turned / abs(w))
+
+
+def _line_crossings(p: np.ndarray, v: np.ndarray, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
+    """Every t >= 0 at which p - v t meets a segment or a circle, per point and piece (N, K; inf: never).
+    The pieces are (M, S, 2, 2) segments and (M, C, 3) circles, M being 1 (shared) or N (per point)."""
+    found = [np.full((len(p), 0), np.inf)]
     if float(v @ v) == 0.0:  # no speed (or too little to square): the point never moves
-        return best
-    if len(segments):
-        a, e = segments[None, :, 0, :], segments[None, :, 1, :] - segments[None, :, 0, :]
+        return found[0]
+    if segments.shape[1]:
+        a, e = segments[:, :, 0, :], segments[:, :, 1, :] - segments[:, :, 0, :]
         r = p[:, None, :] - a
         det = _cross(v[None, None, :], e)
         ok = np.abs(det) > 1e-12
         safe = np.where(ok, det, 1.0)
         t, s = _cross(r, e) / safe, _cross(v[None, None, :], r) / safe
         hit = ok & (t >= 0.0) & (s >= -1e-12) & (s <= 1.0 + 1e-12)
-        best = np.minimum(best, np.min(np.where(hit, t, np.inf), axis=1))
-    if len(circles):
-        r = p[:, None, :] - circles[None, :, :2]
+        found.append(np.where(hit, t, np.inf))
+    if circles.shape[1]:
+        r = p[:, None, :] - circles[:, :, :2]
         vv, vr = float(v @ v), r @ v
-        disc = vr * vr - vv * (np.sum(r * r, axis=2) - circles[None, :, 2] ** 2)
-        t = (vr - np.sqrt(np.maximum(disc, 0.0))) / vv
-        best = np.minimum(best, np.min(np.where((disc >= 0.0) & (t >= 0.0), t, np.inf), axis=1))
-    return best
+        disc = vr * vr - vv * (np.sum(r * r, axis=2) - circles[:, :, 2] ** 2)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        for sign in (-1.0, 1.0):
+            t = (vr + sign * root) / vv
+            found.append(np.where((disc >= 0.0) & (t >= 0.0), t, np.inf))
+    return np.concatenate(found, axis=1)
 
 
-def _arc_contacts(p: np.ndarray, motion: Motion, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
-    """First t >= 0 at which p, turning about the centre of rotation by -w t, meets a piece."""
+def _arc_crossings(p: np.ndarray, motion: Motion, segments: np.ndarray, circles: np.ndarray) -> np.ndarray:
+    """Every t in [0, one turn) at which p, turning about the centre of rotation by -w t, meets a piece,
+    per point and piece (N, K; inf: never); pieces as for :func:`_line_crossings`."""
     w = motion.w_rad_s
     centre = np.array([-motion.vy_mm_s / w, motion.vx_mm_s / w])
     rel = p - centre
     rho2 = np.sum(rel * rel, axis=1)
-    phi0 = np.arctan2(rel[:, 1], rel[:, 0])
-    crossings: list[np.ndarray] = []  # (N, K) points where the point's circle meets a piece
-    if len(segments):
-        a = segments[:, 0, :] - centre
-        e = segments[:, 1, :] - segments[:, 0, :]
-        qa, qb = np.sum(e * e, axis=1), 2.0 * np.sum(e * a, axis=1)
-        qc = np.sum(a * a, axis=1)[None, :] - rho2[:, None]
-        disc = qb[None, :] ** 2 - 4.0 * qa[None, :] * qc
+    crossings: list[np.ndarray] = [np.full((len(p), 0, 2), np.nan)]  # (N, K, 2) where the point's circle meets a piece
+    if segments.shape[1]:
+        a = segments[:, :, 0, :] - centre
+        e = segments[:, :, 1, :] - segments[:, :, 0, :]
+        qa, qb = np.sum(e * e, axis=2), 2.0 * np.sum(e * a, axis=2)
+        qc = np.sum(a * a, axis=2) - rho2[:, None]
+        disc = qb ** 2 - 4.0 * qa * qc
         root = np.sqrt(np.maximum(disc, 0.0))
         for sign in (-1.0, 1.0):
-            s = (-qb[None, :] + sign * root) / (2.0 * qa[None, :])
-            x = a[None, :, :] + s[..., None] * e[None, :, :]
+            s = (-qb + sign * root) / (2.0 * qa)
+            x = a + s[..., None] * e
             valid = (disc >= 0.0) & (s >= -1e-12) & (s <= 1.0 + 1e-12)
             crossings.append(np.where(valid[..., None], x, np.nan))
-    if len(circles):
-        k = circles[:, :2] - centre
-        d = np.hypot(k[:, 0], k[:, 1])
+    if circles.shape[1]:
+        k = circles[:, :, :2] - centre
+        d = np.hypot(k[..., 0], k[..., 1])
         usable = d > 1e-12
         d_safe = np.where(usable, d, 1.0)
-        along = (rho2[:, None] - circles[None, :, 2] ** 2 + d[None, :] ** 2) / (2.0 * d_safe[None, :])
+        along = (rho2[:, None] - circles[:, :, 2] ** 2 + d ** 2) / (2.0 * d_safe)
         h2 = rho2[:, None] - along ** 2
-        unit = k / d_safe[:, None]
-        perp = np.column_stack((-unit[:, 1], unit[:, 0]))
+        unit = k / d_safe[..., None]
+        perp = np.stack((-unit[..., 1], unit[..., 0]), axis=-1)
         h = np.sqrt(np.maximum(h2, 0.0))
         for sign in (-1.0, 1.0):
-            x = along[..., None] * unit[None, :, :] + sign * h[..., None] * perp[None, :, :]
-            crossings.append(np.where((usable[None, :] & (h2 >= 0.0))[..., None], x, np.nan))
-    if not crossings:
-        return np.full(len(p), np.inf)
-    x = np.concatenate(crossings, axis=1)
-    psi = np.arctan2(x[..., 1], x[..., 0])
-    turned = np.mod((phi0[:, None] - psi) * math.copysign(1.0, w), _TWO_PI)  # the angle turned to get there
-    t = np.where(np.isnan(psi), np.inf, turned / abs(w))
-    return np.min(t, axis=1)
+            x = along[..., None] * unit + sign * h[..., None] * perp
+            crossings.append(np.where((usable & (h2 >= 0.0))[..., None], x, np.nan))
+    return _turned_to(p, motion, np.concatenate(crossings, axis=1))
 
 
-__all__ = ["Motion", "contact_times", "near_path"]
+__all__ = ["Motion", "contact_times", "deeper_times", "near_path"]

@@ -104,3 +104,29 @@ def test_a_holonomic_base_is_filtered_sideways_too():
     d = node.on_command(Twist(0.0, 0.0, 0.5), 0.01)
     assert d.action == "limit" and 0 < d.twist.linear_y < 0.5 and d.twist.linear_x == 0.0
     assert d.collision_time_s == pytest.approx((450 - 170) / 500, abs=1e-6)
+
+
+@pytest.mark.parametrize("at_m", [0.3, 0.2999], ids=["on the outline", "0.1 mm inside"])
+@pytest.mark.parametrize("mode", ["limit", "refuse"])
+def test_a_robot_on_a_return_is_let_back_off_it_but_not_on(at_m, mode):
+    """A return on the 300 mm disc's outline (Nav2 counts it outside) or 0.1 mm inside it: reversing
+    and a reversing arc go out as asked, driving on is a stop; a reverse towards a return behind is
+    slowed (``limit``) or stopped (``refuse``) as any approach is."""
+    ranges = [3.0] * 360
+    ranges[0] = at_m
+    node = CommandFilter(Guard(robot=RobotSpec(radius_mm=300)), mode=mode)
+    node.on_scan(scan_msg(ranges), 0.0)
+    for time_s, twist in ((0.01, Twist(-0.5, 0.0)), (0.02, Twist(-0.3, 0.8)), (0.03, Twist(0.0, 1.0))):
+        out = node.on_command(twist, time_s)
+        assert out.action == "forward" and out.twist == twist and not out.reasons
+    for time_s, twist in ((0.04, Twist(0.5, 0.0)), (0.05, Twist(0.3, 0.8))):
+        on = node.on_command(twist, time_s)
+        assert on.action == "stop" and on.twist == Twist(0.0, 0.0) and on.collision_time_s == 0.0
+    ranges[180] = 0.6
+    node.on_scan(scan_msg(ranges), 0.1)
+    back = node.on_command(Twist(-0.5, 0.0), 0.11)
+    assert back.collision_time_s == pytest.approx(0.6)
+    if mode == "limit":
+        assert back.action == "limit" and back.twist.linear_x == pytest.approx(-0.3)
+    else:
+        assert back.action == "stop" and back.twist == Twist(0.0, 0.0)

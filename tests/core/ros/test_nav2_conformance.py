@@ -24,9 +24,11 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from safeembodai_core import Guard, RobotSpec, SlowdownZone
+from safeembodai_core.geometry import Motion
 from safeembodai_core.models import LidarScan
 from safeembodai_core.ros import LaserScan, Twist
 
+import body_depth
 import nav2_reference as nav2
 
 SQUARE_05 = [(0.5, 0.5), (0.5, -0.5), (-0.5, -0.5), (-0.5, 0.5)]  # polygons_test.cpp:48-49
@@ -277,27 +279,39 @@ def _oblique_arc() -> tuple:
             nav2.Velocity(x=-0.8203125, y=-0.1875, tw=-0.1875), LidarScan(ranges_mm=ranges, max_range_mm=30000.0))
 
 
+def _split(scan: LidarScan, shape: nav2.Shape) -> tuple[LidarScan, LidarScan]:
+    """The scan's returns clear of the shape at the start, and those on or inside its outline (each
+    scan with the other's beams free)."""
+    points = scan.points() / 1000.0
+    held = np.array([bool(shape.points_inside([p])) or _on_outline(shape, [p]) for p in points], dtype=bool)
+    returns = np.flatnonzero(np.isfinite(scan.ranges_mm))
+    clear, on = scan.ranges_mm.copy(), scan.ranges_mm.copy()
+    clear[returns[held]], on[returns[~held]] = np.inf, np.inf
+    return LidarScan(clear, scan.max_range_mm), LidarScan(on, scan.max_range_mm)
+
+
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(scenes())
 @example(_oblique_arc())
 def test_guard_agrees_with_nav2_on_generated_scenes(scene):
-    """The guard with its robot defaults refuses whenever Nav2 acts within the horizon, with the same
-    time before collision to within one of Nav2's steps (plus its Euler drift on arcs, below); where
-    it refuses and Nav2 does not act, the reason is unseen space (stricter by design) or a touch that
-    falls between two of Nav2's sampled poses (the finer reference sees it)."""
-    shape, robot, vel, scan = scene
+    """On the returns clear of the body at the start, the guard with its robot defaults refuses whenever
+    Nav2 acts within the horizon, with the same time before collision to within one of Nav2's steps
+    (plus its Euler drift on arcs, below); where it refuses and Nav2 does not act, the reason is unseen
+    space (stricter by design) or a touch that falls between two of Nav2's sampled poses (the finer
+    reference sees it). On a return on or inside the outline Nav2 stops whatever the motion (or, on the
+    outline, reads it outside); the guard, by design, refuses only a motion that takes the body deeper
+    over it: :func:`_judged_as_deeper`."""
+    shape, robot, vel, whole = scene
+    scan, on_body = _split(whole, shape)
     points = [(x / 1000.0, y / 1000.0) for x, y in scan.points()]
     shape.time_before_collision, shape.simulation_time_step = T, DT
-    t_nav2 = nav2.collision_time(shape, points, vel)
+    t_nav2 = nav2.collision_time(shape, points, vel) if points else -1.0
     # Nav2 simulates poses up to one step past the horizon; the guard is asked about the same span
     report = Guard(robot=robot).check_twist(Twist(vel.x, vel.tw, vel.y), T + DT, lidar_mm=scan)
     obstacle = report.obstacle_time_s
     # Nav2 integrates an arc with Euler steps: its path lags the true arc by up to v * w * T * dt / 2
     drift_s = abs(math.hypot(vel.x, vel.y) * vel.tw) * T * DT / 2 / max(math.hypot(vel.x, vel.y), 1e-9) + 1e-9
-    if obstacle == 0.0 and _on_outline(shape, points):
-        assert not report.valid  # a return exactly on the outline: touched from the start here; Nav2's strict
-        # circle test (or its ray test) reads it outside, or inside only once rounding moves it a hair in
-    elif t_nav2 >= 0.0:
+    if t_nav2 >= 0.0:
         assert not report.valid
         assert obstacle is not None
         # not before Nav2's step, less its Euler lag; that lag, in time, grows where the body meets the
@@ -310,3 +324,22 @@ def test_guard_agrees_with_nav2_on_generated_scenes(scene):
         assert fine >= 0.0 and abs(fine - obstacle) <= DT + drift_s, (fine, obstacle)
     if not report.valid and t_nav2 < 0.0 and obstacle is None:
         assert report.contact == "unseen" and report.unseen_time_s is not None
+    _judged_as_deeper(shape, robot, vel, on_body)
+
+
+def _judged_as_deeper(shape: nav2.Shape, robot: RobotSpec, vel: nav2.Velocity, scan: LidarScan) -> None:
+    """Returns the body holds at the start: the guard counts one when the body holds it deeper than
+    then -- never later than densely sampled poses of the exact arc see that (``body_depth``), and
+    only where one of them lies no shallower a moment after it."""
+    held = scan.points() / 1000.0
+    if not len(held):
+        return
+    motion = Motion(vel.x * 1000.0, vel.y * 1000.0, vel.tw, T + DT)
+    report = Guard(robot=robot).check_twist(Twist(vel.x, vel.tw, vel.y), T + DT, lidar_mm=scan)
+    deeper = body_depth.first_deeper(shape, held, motion, T + DT, 2001, 1e-8)
+    obstacle = report.obstacle_time_s
+    if deeper >= 0.0:
+        assert obstacle is not None and obstacle <= deeper + 1e-9
+    if obstacle is not None:
+        after = body_depth.depth(shape, body_depth.seen_from_body(motion, min(obstacle + 1e-6, T + DT), held))
+        assert np.any(after >= body_depth.depth(shape, held) - 1e-12)
