@@ -6,6 +6,11 @@ replayed from its recorded answers (:mod:`safeembodai_core.loop.replay`, no LLM 
 agree with its record step by step; the bag is then written as a trial recorded with ``ablate
 --bags`` writes it (:mod:`safeembodai_core.ros.bag_export`), the recording by
 :mod:`safeembodai_core.rerun_export`.
+
+A ``serve-robot`` session's run folder (its scenario's backend ``outside``) holds no answers: its
+commands came over the wire. Its own bag, recorded as it went, is written again in the format asked
+(:func:`~safeembodai_core.serve_robot.session_bag.export_session_bag`); a session served with ``--bag
+none`` has nothing to export, and ``--format rrd`` is refused for a session (not made yet).
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
     from ..ros.bag_export import write_bag
     from ..run_files import trial_file_name
     from ..runner import ScenarioRunner
+    from ..serve_robot.session_bag import export_session_bag
+    from ..serve_robot.session_record import is_session
     from ..text_safety import terminal_markup
     from .common import load_recorded
 
@@ -80,6 +87,14 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
         for trial_id, path in paths.items():
             if path.exists():
                 raise SafeEmbodAIError(f"{path} exists: choose a new --out (nothing is written over)")
+        if is_session(scenario):
+            if form == "rrd":
+                raise SafeEmbodAIError(f"{run_dir} is a serve-robot session: --format rrd is not made for a session "
+                                       "yet; export its bag (--format mcap, which Foxglove opens, or sqlite3)")
+            for trial_id, path in paths.items():
+                export_session_bag(run_dir, trial_id, path, FORMATS[form])
+                console.print(f"{terminal_markup(trial_id)} -> {terminal_markup(str(path))}")
+            return
         if form == "rrd":
             import_rerun()  # before any replay: a missing extra is said at once
         with Progress(console=console, transient=True) as progress:

@@ -1,7 +1,8 @@
 """A served room's session as a ROS 2 bag (rosbag2: MCAP by default, or SQLite), written as it goes.
 
 What the room served and what it was told, on the room's clock (seconds since the session began, as
-the messages' header stamps say; events of one instant 1 ns apart, in the order they happened):
+the messages' header stamps say; each event at least 1 ns after the one before, in the order they
+happened; an ``/odom``'s TF, pose and clock share its time):
 
 * ``/scan``, ``/odom``, ``/camera/image_raw/compressed``, ``/safeembodai/events`` -- every message the
   room published, at the rate it was served, whether or not a client subscribed (a ``null`` range on
@@ -29,18 +30,16 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import structlog
 
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult
+from ..ros.twist import Twist
 from ..text_safety import terminal_text
 from . import messages as wire
-
-if TYPE_CHECKING:
-    from .served_room import Received
 
 log = structlog.get_logger(__name__)
 
@@ -60,6 +59,22 @@ TOPICS = {
 STORAGES = ("mcap", "sqlite3")
 _SUFFIXES = {".mcap": "mcap", ".db3": "sqlite3"}
 INFO, WARN = 20, 30
+
+
+class Command(Protocol):
+    """A command as the room took it (:class:`~.served_room.Received`): its twist, None when it could
+    not be read (``error`` says why)."""
+
+    @property
+    def twist(self) -> Twist | None: ...
+    @property
+    def topic(self) -> str: ...
+    @property
+    def type(self) -> str: ...
+    @property
+    def client(self) -> str: ...
+    @property
+    def error(self) -> str: ...
 
 
 def from_wire(typename: str, value: Any) -> Any:
@@ -100,7 +115,8 @@ def _number(base: str, value: Any) -> Any:
 
 class SessionBag:
     """One session's bag, open from the session's start to :meth:`close` (module docstring); used
-    from the room's thread."""
+    from one thread, the one that made it (SQLite's rule: ``Session.serve`` makes, feeds and closes it
+    in its own)."""
 
     def __init__(self, target: str | Path, storage: str = "mcap") -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
@@ -161,7 +177,7 @@ class SessionBag:
         except Exception as error:  # the bag's failure never ends the robot's session
             self._give_up(error)
 
-    def received(self, received: Received, time_s: float) -> None:
+    def received(self, received: Command, time_s: float) -> None:
         """A command the room took at ``time_s``: ``/cmd_vel``, or a ``/rosout`` warning when unreadable."""
         from ..ros import messages as m
 
@@ -279,3 +295,22 @@ def copy_bag(source: Path, target: str | Path, storage: str) -> Path:
         return write_bag(target, items, storage)
     finally:
         reader.close()
+
+
+def export_session_bag(run_dir: str | Path, trial_id: str, target: str | Path, storage: str) -> Path:
+    """A session's recorded bag as ``storage`` at ``target`` (``safeembodai export`` of a session's
+    run folder). A session cannot be replayed: its commands came over the wire, so its bag is the only
+    record of what the room served; raises :class:`SafeEmbodAIError` saying why when there is none."""
+    from ..trial_files import ArtefactSettings, bag_file
+
+    source = bag_file(run_dir, trial_id)
+    if recorded_storage(source) is not None:
+        return copy_bag(source, target, storage)
+    why = (f"{run_dir} is a serve-robot session: its commands came over the wire, not from answers recorded here, "
+           "so it cannot be replayed into a bag; its own bag is its record")
+    if ArtefactSettings.recorded(run_dir).bag_storage is None:
+        raise SafeEmbodAIError(f"{why}, and it was served with --bag none: there is nothing to export "
+                               "(serve-robot records one unless told --bag none)")
+    raise SafeEmbodAIError(f"{why}, and {source} is missing: the session did not end cleanly (serve-robot was "
+                           f"killed before it closed the bag; an unfinished one may lie in a hidden .partial folder of "
+                           f"{source.parent})")

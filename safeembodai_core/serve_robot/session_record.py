@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..ablation.run_folder import RunFolder
 from ..building import ComponentBuilder
@@ -46,19 +46,24 @@ from ..refs import ComponentRef
 from ..scenario import Condition, Scenario
 from ..loop.defences import Defences
 from ..trial_files import bag_file, record_artefacts, trajectory_file
-from .session_bag import SessionBag
-
-if TYPE_CHECKING:
-    from .served_room import Received
+from .session_bag import Command, SessionBag
 
 ARM, CONDITION = "live", "rosbridge"
+#: The backend a session's scenario names: its commands came from a client, not from answers recorded here.
+BACKEND = "outside"
 
 
 def session_scenario(scenario: Scenario, label: str) -> Scenario:
     """The scenario a session records (module docstring)."""
     return scenario.model_copy(update={
         "name": f"{scenario.name}-served", "trials": 1, "environments": [scenario.environment(label)],
-        "backend": ComponentRef(use="outside"), "arms": {ARM: Defences()}, "conditions": {CONDITION: Condition()}})
+        "backend": ComponentRef(use=BACKEND), "arms": {ARM: Defences()}, "conditions": {CONDITION: Condition()}})
+
+
+def is_session(scenario: Scenario) -> bool:
+    """Whether a run folder's recorded scenario is a session's: its backend ``outside``, so it holds
+    no answers to replay, and its bag (when it recorded one) is the record of what went on."""
+    return scenario.backend.use == BACKEND
 
 
 def held_signal(distance_mm: float, angle_deg: float) -> Straight | Turn | None:
@@ -124,7 +129,7 @@ class SessionRecord:
         if self.bag is not None:
             self.bag.published(topic, message, time_s)
 
-    def received(self, received: Received, time_s: float) -> None:
+    def received(self, received: Command, time_s: float) -> None:
         """The room took a command at ``time_s``: kept in the bag, if any (the step is :meth:`command`'s)."""
         if self.bag is not None:
             self.bag.received(received, time_s)
