@@ -15,7 +15,7 @@ import click
 @click.option("--scan", default=None, help="The scan topic (default: the robot file's first scan source).")
 @click.option("--odom", default="/odom", show_default=True, help="The odometry topic ('' for none).")
 @click.option("--robot", "robot_path", type=click.Path(dir_okay=False), default=None,
-              help="The robot file (YAML: body, scanners, limits; docs/robots.md). Default: a disc of 170 mm, "
+              help="The robot file (YAML: body, scanners, limits; docs/robot_file.md). Default: a disc of 170 mm, "
                    "one scanner at the centre on /scan whose null ranges are unknown.")
 @click.option("--mode", type=click.Choice(["limit", "refuse"]), default="limit", show_default=True,
               help="limit: slow a command to what stays clear for the horizon; refuse: forward it or stop.")

@@ -19,7 +19,7 @@ range less the mounting offset: the least distance from the centre out to which 
 it (JSON). JSON has no ``inf`` or ``nan``: rosbridge writes ``+inf``, ``-inf`` and ``nan`` alike as
 ``null``, so a ``null`` range is read as ``null_range`` says -- ``"unknown"`` (no reading, as
 ``nan``: the default, fail-closed) or ``"no_return"`` (free out to ``range_max``, as ``+inf``), never
-as too close (``-inf``), which ``null`` cannot tell apart (docs/robots.md). Every field is read
+as too close (``-inf``), which ``null`` cannot tell apart (docs/robot_file.md). Every field is read
 strictly: a missing one, a bool, text, an object where a number belongs or an integer too large for a
 float is a ``ValueError`` naming the field.
 """

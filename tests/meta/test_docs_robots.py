@@ -1,4 +1,5 @@
-"""docs/robots.md runs as written: its Python examples, and its commands in a scratch folder."""
+"""docs/robots.md and docs/robot_file.md run as written: their Python examples, and robots.md's commands in a
+scratch folder."""
 
 from __future__ import annotations
 
@@ -19,28 +20,35 @@ def blocks(text: str, language: str) -> list[str]:
     return re.findall(rf"```{language}\n(.*?)```", text, re.S)
 
 
-def test_the_python_examples_run(page, capsys):
-    examples = blocks(page, "python")
-    assert len(examples) == 4
+def run_examples(text: str, where: str, count: int) -> None:
+    examples = blocks(text, "python")
+    assert len(examples) == count
     for example in examples:
-        exec(compile(example, "docs/robots.md", "exec"), {"__name__": "docs_example"})
+        exec(compile(example, where, "exec"), {"__name__": "docs_example"})
+
+
+def test_the_python_examples_run(page, repo, capsys):
+    run_examples(page, "docs/robots.md", 3)
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "False 1.57"  # the footprint's front (250 mm) meets the return 720 mm ahead at 0.3 m/s
     assert out[1].startswith("0.235 approach: ") and "speed x0.783" in out[1]
     assert out[2:5] == ["forward", "limit 0.53", "stop"]  # the node: clear, slowed, the scan too old
-    assert out[5:7] == ["unknown False 0.03", "no_return True 1.00"]  # rosbridge's nulls, read both ways
-    assert out[7].startswith("1 of 1 refused: ")
+    assert out[5].startswith("1 of 1 refused: ")
+    run_examples((repo / "docs" / "robot_file.md").read_text(encoding="utf-8"), "docs/robot_file.md", 1)
+    assert capsys.readouterr().out.splitlines() == ["unknown False 0.03", "no_return True 1.00"]  # nulls, both ways
 
 
-def test_the_robot_file_shown_is_the_shipped_example_and_reads(page, repo):
+def test_the_robot_file_shown_is_the_shipped_example_and_reads(repo):
     from safeembodai_core.ros import read_robot_file
 
+    page = (repo / "docs" / "robot_file.md").read_text(encoding="utf-8")
     shown = blocks(page, "yaml")
     example = repo / "docs" / "examples" / "robot.yaml"
     assert shown == [example.read_text(encoding="utf-8")]
     robot = read_robot_file(example)
-    start = page.index("### The robot file")
-    section = page[start:page.index("\n### ", start)]
+    start = page.index("## The robot file")
+    end = page.find("\n## ", start)
+    section = page[start:end if end != -1 else len(page)]
     documented = re.findall(r"^\| `([\w.<>]+)` \|", section, re.M)
     assert set(type(robot).model_fields) == {name.split(".")[0] for name in documented}
     for name in type(robot.velocity_smoother).model_fields:
