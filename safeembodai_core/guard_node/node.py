@@ -99,6 +99,10 @@ class GuardNode:
         self.filter = CommandFilter(guard, horizon_s=horizon_s, scan_timeout_s=scan_timeout_s,
                                     mode=mode, mount=self.mount)  # type: ignore[arg-type]
         self.smoother = Smoother(robot.velocity_smoother, period_s)
+        self.period_s = period_s
+        self.scan_timeout_s = scan_timeout_s
+        self.judgments = 0
+        self._judged_at: float | None = None
         self.command_timeout_s = float(robot.cmd_vel_timeout_s)
         self.target: Twist | None = None
         self.target_at: float | None = None
@@ -141,8 +145,16 @@ class GuardNode:
 
     def cycle(self, time_s: float) -> Sent | None:
         """The timer's cycle: the held target again (smoothed, judged on the latest scan), a stop once
-        it has run out; None when the base stands and nothing is held."""
+        it has run out or the scan has gone stale; None when the base stands and nothing is held, or
+        when a command was judged within the last period on a scan still fresh (a planner publishing
+        at the node's rate is judged once per command, not twice)."""
         with self._lock:
+            scan_time = self.filter.latest_scan_time
+            if (self.target is not None and self.target_at is not None and self._judged_at is not None
+                    and time_s - self._judged_at < self.period_s and scan_time is not None
+                    and time_s - scan_time <= self.scan_timeout_s
+                    and time_s - self.target_at <= self.command_timeout_s):
+                return None
             return self._cycle(time_s)
 
     def _cycle(self, time_s: float) -> Sent | None:
@@ -153,6 +165,8 @@ class GuardNode:
             self.target = self.target_at = None
             return self._send(Sent(STOP, "stop", [f"no command for {self.command_timeout_s:g} s: stop"]), time_s)
         requested = self.target
+        self._judged_at = time_s
+        self.judgments += 1
         try:
             smoothed = self.smoother.smooth(requested, time_s)
             decision: Decision = self.filter.on_command(smoothed, time_s)

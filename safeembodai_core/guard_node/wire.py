@@ -3,8 +3,9 @@
 A rosbridge client (:class:`~safeembodai_core.rosbridge.client.RosbridgeClient`) subscribes to the
 scan, the odometry and the planner's command topic, advertises the base's command topic and
 ``/safeembodai/guard``, and runs the node's cycle on a timer (``period_s``). Each cycle's twist goes to
-the base; its decision goes to ``/safeembodai/guard`` when it differs from the last one published (a
-held command judged the same way is not repeated there, only to the base). Messages are handled in
+the base; its decision goes to ``/safeembodai/guard`` when its kind (the action, and what its reasons are
+about) differs from the last one published, and otherwise at most every :data:`RECORD_PERIOD_S` while
+its numbers change (a held command judged the same way is not repeated there, only to the base). Messages are handled in
 the client's thread, the timer in its own; the node's lock keeps them apart.
 
 If the connection to rosbridge is lost, nothing more can be sent: the base's own command timeout
@@ -25,6 +26,8 @@ from .node import STOP, GuardNode, Sent, twist_message
 log = structlog.get_logger(__name__)
 
 DECISIONS_TOPIC = "/safeembodai/guard"
+#: The least time between two decision records of the same kind (seconds).
+RECORD_PERIOD_S = 0.5
 ODOMETRY = "nav_msgs/msg/Odometry"
 
 
@@ -41,6 +44,8 @@ class GuardWire:
         self.decisions = 0
         self.sent = 0
         self._last_record: tuple[Any, ...] | None = None
+        self._last_sent: Sent | None = None
+        self._recorded_at = -RECORD_PERIOD_S
         self._stop = threading.Event()
         self._lock = threading.Lock()
 
@@ -68,9 +73,11 @@ class GuardWire:
         with self._lock:
             self.client.publish(self.command_out, twist_message(sent.twist))
             self.sent += 1
-            key = (sent.action, tuple(sent.reasons), sent.twist)
-            if key != self._last_record:
-                self._last_record = key
+            # a new kind of decision goes out at once; the same kind with other numbers (a limit's factor)
+            # at most every RECORD_PERIOD_S
+            key = (sent.action, tuple(reason.split(":")[0] for reason in sent.reasons))
+            if key != self._last_record or (now - self._recorded_at >= RECORD_PERIOD_S and sent != self._last_sent):
+                self._last_record, self._recorded_at, self._last_sent = key, now, sent
                 self.decisions += 1
                 self.client.publish(DECISIONS_TOPIC, sent.record(now))
 

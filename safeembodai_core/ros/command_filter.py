@@ -80,6 +80,11 @@ class CommandFilter:
         time_s = finite_number("CommandFilter.on_scan", "time_s", time_s, "seconds")
         self._scan, self._scan_time, self._scan_pose = scan, time_s, self._pose
 
+    @property
+    def latest_scan_time(self) -> float | None:
+        """When the scan the filter judges on was taken (None: no scan yet)."""
+        return self._scan_time
+
     def on_pose(self, pose: Sequence[float], time_s: float) -> None:
         """The robot's pose ``(x_mm, y_mm, heading_deg)`` in one map frame at ``time_s``; the latest
         pose given before a scan is where that scan was taken."""

@@ -126,3 +126,19 @@ def test_odometry_gives_the_pose_and_a_bad_one_is_ignored():
     node.on_odom({"pose": {"pose": {"position": {"x": 0, "y": 0, "z": 0},
                                     "orientation": {"x": 0, "y": 0, "z": 0, "w": 0}}}}, 0.0)
     assert node.unread["odom"] == 2
+
+
+def test_a_planner_at_the_nodes_rate_is_judged_once_per_command_and_the_timer_still_catches_staleness():
+    node = node_for(scan_timeout_s=0.5, period_s=0.05)
+    t = 0.0
+    for _ in range(20):  # commands and timer cycles at 20 Hz each, scans at 40 Hz
+        node.on_scan(scan_message([None] * 360), t)
+        node.on_command(twist(0.3), t)
+        node.on_scan(scan_message([None] * 360), t + 0.025)
+        assert node.cycle(t + 0.03) is None  # judged 30 ms ago: nothing new to say
+        t += 0.05
+    assert node.judgments == 20
+    last_scan = t - 0.025
+    assert node.on_command(twist(0.3), last_scan + 0.49).action == "forward"  # the scan still fresh
+    stale = node.cycle(last_scan + 0.51)  # 20 ms after that judgment, but the scan has gone stale: a stop
+    assert stale is not None and stale.action == "stop" and "old" in stale.reasons[0]
