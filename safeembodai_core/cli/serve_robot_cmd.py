@@ -26,11 +26,14 @@ from .common import load, scenario_options
 @click.option("--camera-hz", type=click.FloatRange(0.1, 60.0), default=5.0, show_default=True)
 @click.option("--cmd-vel-timeout", "cmd_vel_timeout", type=click.FloatRange(0.01, 60.0), default=0.5,
               show_default=True, help="Seconds a velocity command is held without a new one (diff_drive_controller's).")
+@click.option("--allow-origin", "allowed_origins", multiple=True, metavar="URL",
+              help="A browser origin that may connect (a dashboard: https://host:port); pages of any other origin "
+                   "are refused. Repeatable.")
 @click.option("--bag", type=click.Choice(["mcap", "sqlite3", "none"]), default="mcap", show_default=True,
               help="The session's ROS 2 bag in the run folder's bags/ (what the room served and was told; "
                    "docs/robots.md); none: no bag.")
 def serve_robot(scenario_path, backend, seed, overrides, label, host, port, out, speed, scan_hz, odom_hz, camera_hz,
-                cmd_vel_timeout, bag) -> None:
+                cmd_vel_timeout, allowed_origins, bag) -> None:
     """Serve one room of SCENARIO as a rosbridge v2 robot: /scan, /odom, the camera and events out,
     /cmd_vel in; the session is recorded as a run folder (show, report, view) with its ROS 2 bag (export).
     Ctrl-C ends it."""
@@ -43,7 +46,7 @@ def serve_robot(scenario_path, backend, seed, overrides, label, host, port, out,
     scenario, plugins = load(scenario_path, backend, seed, overrides)
     session = prepare_session(scenario, plugins, label=label, host=host, port=port, out=out, speed=speed,
                               rates=Rates(scan_hz, odom_hz, camera_hz, cmd_vel_timeout),
-                              bag=None if bag == "none" else bag)
+                              bag=None if bag == "none" else bag, allowed_origins=allowed_origins)
     console = Console(emoji=False)
 
     def ready(session: Session) -> None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import structlog
 
@@ -54,6 +54,7 @@ class Session:
     speed: float = 1.0
     rates: Rates = field(default_factory=Rates)
     bag: str | None = "mcap"
+    allowed_origins: tuple[str, ...] = ()
     room: ServedRoom | None = None
     server: Any = None
 
@@ -63,7 +64,8 @@ class Session:
         is told once the server listens and the room runs."""
         from ..rosbridge.server import RosbridgeServer
 
-        server = RosbridgeServer(self.host, self.port, node="/safeembodai_robot")
+        server = RosbridgeServer(self.host, self.port, node="/safeembodai_robot",
+                                 allowed_origins=self.allowed_origins)
         for topic, type_ in OFFERED.items():
             server.offer_topic(topic, type_)
         server.accept_topic(COMMAND_TOPIC, COMMAND_TYPES, self._command)
@@ -122,7 +124,8 @@ def served_ref(ref: ComponentRef, plugins: Plugins) -> ComponentRef:
 
 def prepare_session(scenario: Scenario, plugins: Plugins, *, label: str | None = None, host: str = "127.0.0.1",
                     port: int = 9090, out: str | Path = "runs", speed: float = 1.0,
-                    rates: Rates | None = None, bag: str | None = "mcap") -> Session:
+                    rates: Rates | None = None, bag: str | None = "mcap",
+                    allowed_origins: Sequence[str] = ()) -> Session:
     """Check and build a session (module docstring); raises :class:`SafeEmbodAIError` naming what
     is wrong, before any folder or socket."""
     if bag not in (None, *BAG_STORAGES):
@@ -142,4 +145,4 @@ def prepare_session(scenario: Scenario, plugins: Plugins, *, label: str | None =
     environment.reset(scenario.seed)
     folder = RunFolder.create(out, record_scenario).path  # made by the record, once the server listens
     return Session(record_scenario, plugins, environment, label, scenario.seed, host, port, folder, speed,
-                   rates or Rates(), bag)
+                   rates or Rates(), bag, tuple(allowed_origins))
