@@ -9,32 +9,13 @@ fails like an outage: it has nothing to say.
 
 from __future__ import annotations
 
-from safeembodai_core.components import LLMBackend
-from safeembodai_core.descriptions import BackendDescription, BackendOptions
-from safeembodai_core.errors import BackendError
 from safeembodai_core.hookspecs import hookimpl
+from safeembodai_core.registry import lazy
 
-
-class OutsideOptions(BackendOptions):
-    """No options: the client is outside."""
-
-    def describe(self) -> BackendDescription:
-        return BackendDescription(model="an outside client over rosbridge (who or what it was is not recorded)",
-                                  model_source="safeembodai serve-robot: commands received, no prompt sent")
-
-
-class OutsideBackend(LLMBackend):
-    """Answers nothing: the commands of a served room come over the wire (module docstring)."""
-
-    def __init__(self, options: OutsideOptions) -> None:
-        self.options = options
-
-    def complete(self, prompt, rng):
-        raise BackendError("backend 'outside': the commands of a served room came from a client outside this "
-                           "process; it cannot answer a prompt (choose an LLM backend to run this scenario)")
+from .options import OutsideOptions
 
 
 @hookimpl
 def register_llm_backends(register):
-    register("outside", lambda options, context: OutsideBackend(options), options=OutsideOptions,
+    register("outside", lazy(f"{__name__}.backend", "OutsideBackend"), options=OutsideOptions,
              description="commands from a client outside this process (safeembodai serve-robot's record)")
