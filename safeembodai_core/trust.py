@@ -44,8 +44,12 @@ ENTRY_POINTS: tuple[EntryPoint, ...] = (
                "safeembodai_core.scenario.limits:read_scenario_text"),
     EntryPoint("bag plan", "a JSON plan message of a recorded bag (guard-bag)",
                "safeembodai_core.models.strict_json:read_json_document"),
-    EntryPoint("robot file", "a robot YAML given to guard-node --robot or guard-mcp --policy (body, scanners, limits)",
+    EntryPoint("robot file", "a robot YAML given to guard-node --robot or guard-mcp --robot (body, scanners, limits)",
                "safeembodai_core.ros.robot_file:read_robot_file"),
+    EntryPoint("guard-mcp policy", "the policy YAML given to guard-mcp --policy (tools, velocity topics, allowlists)",
+               "safeembodai_core.guard_mcp.policy:read_policy"),
+    EntryPoint("mcp tool call", "the arguments of a tools/call an agent sends guard-mcp, before anything is forwarded",
+               "safeembodai_core.guard_mcp.calls:read_call"),
     EntryPoint("rosbridge frame", "a WebSocket text frame a rosbridge client sends the server, or a server sends the "
                "client (serve-robot, guard-node)", "safeembodai_core.rosbridge.frames:read_frame"),
     EntryPoint("ray worker event", "what a Ray worker on another machine sends for its trial",
@@ -69,6 +73,8 @@ RAW_READERS: dict[str, str] = {
     "safeembodai_core.cli.guard_bag_cmd": "a bag's messages, through rosbags' reader, then read_json_document",
     "safeembodai_core.rosbridge.frames": "the rosbridge frame reader itself (size, depth, duplicate keys, numbers)",
     "safeembodai_core.ros.bag_guard": "rosbags' reader of a bag (the library parses the container)",
+    "safeembodai_core.serve_robot.session_bag": "writes the session's own bag; export reads a session's bag back "
+                                                "through rosbags' reader (the library parses the container)",
     "safeembodai_core.trial_files": "a bag this process has just written in a scratch folder of its own",
     "safeembodai_core.rerun_export": "a recording this process has just written in a scratch folder of its own",
     "safeembodai_core.report.paper": "the paper's values shipped in the package (safeembodai_core/data)",

@@ -119,3 +119,12 @@ def test_driving_into_a_wall_ends_the_trial_with_the_collision_on_record(served)
     assert result.outcome.value == "interrupted" and result.collisions_self == 1, result
     assert events[0]["event"] == "collision" and events[0]["hit"] in ("wall", "ball", "labbot")
     assert result.self_collisions_hit == {events[0]["hit"]: 1}
+
+
+def test_a_twist_stamped_command_is_held_as_its_twist(served):
+    one = served(cmd_vel_timeout_s=0.2)
+    stamped = {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": "base_link"}, "twist": twist(0.1)}
+    one.room.command(stamped, "/cmd_vel", "geometry_msgs/msg/TwistStamped", "client 2")
+    time.sleep(0.5)
+    result = one.end()
+    assert result.steps == 1 and result.distance_mm == pytest.approx(20.0, abs=2.5)  # 0.1 m/s for 0.2 s
