@@ -89,6 +89,7 @@ def _register_builtin_commands() -> None:
     from .ablate_cmd import ablate
     from .export_cmd import export
     from .guard_bag_cmd import guard_bag
+    from .guard_mcp_cmd import guard_mcp
     from .guard_node_cmd import guard_node
     from .plugins_cmd import plugins
     from .report_cmd import report
@@ -96,7 +97,7 @@ def _register_builtin_commands() -> None:
     from .serve_robot_cmd import serve_robot
     from .view_cmd import view
 
-    for command in (plugins, run, ablate, report, export, guard_bag, view, serve_robot, guard_node):
+    for command in (plugins, run, ablate, report, export, guard_bag, view, serve_robot, guard_node, guard_mcp):
         cli.add_command(command)
 
 

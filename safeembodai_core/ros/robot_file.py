@@ -5,7 +5,7 @@
 them), whether the base drives sideways (``holonomic``), each scan source by its topic with the
 scanner's mount and how its ``null`` ranges are read (:data:`~.laser_scan.NullRange`), the limits of
 a velocity smoother under Nav2's names and units, and how long a command is held without a newer one
-(``cmd_vel_timeout_s``). ``docs/robots.md`` lists the keys with their defaults and sources.
+(``cmd_vel_timeout_s``). ``docs/robot_file.md`` lists the keys with their defaults and sources.
 
 The file is outside bytes (``safeembodai_core/trust.py``): read by the bounded reader of files from
 elsewhere (a regular file, at most :data:`MAX_BYTES`, UTF-8; a symlink given is followed once, here,
@@ -18,7 +18,7 @@ and the key.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, TypeVar
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StringConstraints, ValidationError, \
@@ -164,36 +164,49 @@ class RobotFile(_Strict):
 
 def parse_robot_file(text: str, source: str = "<robot file>") -> RobotFile:
     """Validate robot file ``text``; every problem at once, each naming ``source``, the line and the key."""
+    return parse_yaml_model(text, source, RobotFile, RobotFileError, "robot file",
+                            "a scan source's topic must be a full ROS name, such as /scan")
+
+
+Model = TypeVar("Model", bound=BaseModel)
+
+
+def parse_yaml_model(text: str, source: str, model: type[Model], error: type[SafeEmbodAIError], what: str,
+                     key_message: str = "a key here must be a full ROS name") -> Model:
+    """``text`` read as YAML within a scenario's limits, duplicate keys refused, validated by ``model``:
+    every problem at once as one ``error``, each naming ``source``, the line and the key (``what`` names
+    the file's kind; ``key_message`` says what a refused mapping key must be). The robot file's reader,
+    and any other strict YAML file of the wire's commands (guard-mcp's policy)."""
     loader = None
     try:
         loader = BoundedLoader(text, source)
         root = loader.get_single_node()
         _check_duplicate_keys(root, source)
         data = loader.construct_document(root) if root is not None else {}
-    except yaml.YAMLError as error:
-        raise RobotFileError(str(yaml_error(error, source, text))) from None
-    except SafeEmbodAIError as error:  # a limit or a duplicate key
-        raise RobotFileError(str(error)) from None
+    except yaml.YAMLError as failure:
+        raise error(str(yaml_error(failure, source, text))) from None
+    except SafeEmbodAIError as failure:  # a limit or a duplicate key
+        raise error(str(failure)) from None
     finally:
         if loader is not None:
             loader.dispose()
     if not isinstance(data, dict):
-        raise RobotFileError(f"{source}: a robot file must be a YAML mapping, got {type(data).__name__}")
+        raise error(f"{source}: a {what} must be a YAML mapping, got {type(data).__name__}")
     try:
-        return RobotFile.model_validate(data)
-    except ValidationError as error:
-        problems = [_problem(item, root, source) for item in error.errors()]
-        raise RobotFileError(f"invalid robot file {source}:\n  " + "\n  ".join(problems)) from None
+        return model.model_validate(data)
+    except ValidationError as failure:
+        problems = [_problem(item, root, source, model, key_message) for item in failure.errors()]
+        raise error(f"invalid {what} {source}:\n  " + "\n  ".join(problems)) from None
 
 
-def _problem(item: Any, root: yaml.Node | None, source: str) -> str:
+def _problem(item: Any, root: yaml.Node | None, source: str, model: type[BaseModel], key_message: str) -> str:
     """``file:line: key: what is wrong, got what``, for one of pydantic's errors."""
     loc: tuple[Any, ...] = tuple(item["loc"])
     message = item["msg"]
-    if loc and loc[-1] == "[key]":  # a scan source's topic
-        loc, message = loc[:-1], "a scan source's topic must be a full ROS name, such as /scan"
+    if loc and loc[-1] == "[key]":  # a mapping's key: a topic's name
+        loc, message = loc[:-1], key_message
     if item["type"] == "extra_forbidden":
-        message += _did_you_mean(RobotFile, loc)
+        message += _did_you_mean(model, loc)
     elif item["type"] != "missing" and not isinstance(item["input"], (dict, list)):
         message += f", got {shown(item['input'])}"
     line = _line_of(root, loc)

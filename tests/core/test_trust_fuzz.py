@@ -5,6 +5,7 @@ never a hang. A new entry point gets its case here: the first test fails until i
 from __future__ import annotations
 
 import json
+import math
 import os
 import sqlite3
 import string
@@ -118,6 +119,33 @@ def case_robot_file(text: str, folder: Path) -> None:
     refuses_cleanly(lambda: read_robot_file(path))
 
 
+def case_guard_mcp_policy(text: str, folder: Path) -> None:
+    from safeembodai_core.guard_mcp.policy import read_policy
+
+    path = folder / "policy.yaml"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    refuses_cleanly(lambda: read_policy(path))
+
+
+def case_mcp_tool_call(text: str) -> None:
+    from safeembodai_core.guard_mcp.calls import Forward, Motion, read_call
+    from safeembodai_core.guard_mcp.policy import read_policy
+
+    try:
+        value = json.loads(text)
+    except (ValueError, RecursionError):
+        value = text
+    policy = read_policy()
+    for tool in ("publish_once", "publish_for_durations", "call_service", "connect_to_robot", "ping_robots", text[:20]):
+        for arguments in (value, {"topic": "/cmd_vel", "msg_type": "geometry_msgs/msg/Twist", "msg": value},
+                          {"topic": "/cmd_vel", "msg_type": "geometry_msgs/msg/Twist", "messages": [value],
+                           "durations": [value]}, {"ip": value, "port": value}, {"targets": value}):
+            read = refuses_cleanly(lambda: read_call(tool, arguments, policy, ("127.0.0.1", 9090)))
+            assert read is None or isinstance(read, (Motion, Forward))
+            if isinstance(read, Motion):  # what is judged is finite, and what is forwarded is that twist
+                assert all(math.isfinite(h.twist.linear_x) and math.isfinite(h.twist.angular_z) for h in read.holds)
+
+
 def case_run_folder_file(text: str, folder: Path) -> None:
     from safeembodai_core.ablation.run_folder import RunFolder
 
@@ -226,8 +254,10 @@ def case_rosbridge_frame(text: str) -> None:
 TEXT_CASES = {"llm reply": case_llm_reply, "llm envelope": case_llm_envelope, "server usage": case_server_usage,
               "cached reply": case_cached_reply, "bag plan": case_bag_plan,
               "inspect model output": case_inspect_model_output, "inspect usage": case_inspect_usage,
-              "inspect provider": case_inspect_provider, "rosbridge frame": case_rosbridge_frame}
+              "inspect provider": case_inspect_provider, "rosbridge frame": case_rosbridge_frame,
+              "mcp tool call": case_mcp_tool_call}
 FILE_CASES = {"scenario file": case_scenario_file, "robot file": case_robot_file,
+              "guard-mcp policy": case_guard_mcp_policy,
               "run folder file": case_run_folder_file,
               "run folder picture": case_run_folder_picture, "results store": case_results_store,
               "ray worker event": case_ray_worker_event}
