@@ -22,6 +22,7 @@ import numpy as np
 
 from .models import DEFAULT_LIMITS, ControlLimits, ControlSignal, LidarScan, Pose, Turn, Verdict
 from .robot import RobotSpec
+from .geometry.frames import wrap_deg
 
 _UNKNOWN_RAY_STEP_MM = 50.0
 _EDGE_EPS = 1e-9
@@ -117,7 +118,7 @@ class ValidationContext:
         rad = math.radians(start.heading_deg)
         c, s = math.cos(rad), math.sin(rad)
         return Pose(x_mm=start.x_mm + x * c - y * s, y_mm=start.y_mm + x * s + y * c,
-                    heading_deg=(start.heading_deg + heading + 180.0) % 360.0 - 180.0)
+                    heading_deg=wrap_deg(start.heading_deg + heading))
 
     @property
     def at_scan_position(self) -> bool:
@@ -194,7 +195,7 @@ class ValidationContext:
             kinds = np.where(np.isnan(ranges), 2, np.where(np.isposinf(ranges), 1, 0))
             ranges = np.where(np.isnan(ranges), 0.0, np.minimum(ranges, scan.max_range_mm))
             k = int(np.lexsort((-kinds, ranges))[0])  # the nearest; at a tie the unread one
-            bearing = (scan.angles_deg[beams[k]] - heading + 180.0) % 360.0 - 180.0
+            bearing = wrap_deg(scan.angles_deg[beams[k]] - heading)
             return SectorReading(float(ranges[k]), float(bearing), _KINDS[kinds[k]])
         best: SectorReading | None = None
         normals = _sector_normals(centre_deg, half_width_deg)
@@ -326,7 +327,7 @@ def _ray_hits(n: int, inc: float, starts: np.ndarray, ends: np.ndarray) -> np.nd
     result = np.full(n, np.inf)
     if len(starts):
         a0 = np.degrees(np.arctan2(starts[:, 1], starts[:, 0]))
-        span = (np.degrees(np.arctan2(ends[:, 1], ends[:, 0])) - a0 + 180.0) % 360.0 - 180.0
+        span = wrap_deg(np.degrees(np.arctan2(ends[:, 1], ends[:, 0])) - a0)
         first = np.ceil(np.minimum(a0, a0 + span) / inc - 1e-9).astype(int)
         counts = np.maximum(np.floor(np.maximum(a0, a0 + span) / inc + 1e-9).astype(int) - first + 1, 0)
         segment = np.repeat(np.arange(len(starts)), counts)

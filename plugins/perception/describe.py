@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from safeembodai_core.models import LidarScan
+from safeembodai_core.geometry.frames import wrap_deg
 
 SECTORS = ("front", "front-left", "left", "back-left", "back", "back-right", "right", "front-right")
 SECTOR_HALF_WIDTH_DEG = 22.5
@@ -76,7 +77,7 @@ def sector_clearance_from_points(points: np.ndarray) -> dict[str, float]:
     angles = np.degrees(np.arctan2(points[:, 1], points[:, 0]))
     distances = np.hypot(points[:, 0], points[:, 1])
     for index, name in enumerate(SECTORS):
-        offset = (angles - index * 45.0 + 180.0) % 360.0 - 180.0
+        offset = wrap_deg(angles - index * 45.0)
         inside = np.abs(offset) <= SECTOR_HALF_WIDTH_DEG
         if inside.any():
             result[name] = float(distances[inside].min())

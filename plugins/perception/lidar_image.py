@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from safeembodai_core.geometry.frames import wrap_deg
 
 _RING = 215
 _DARK = 90
@@ -44,7 +45,7 @@ def nearest_in_cone(points: np.ndarray, centre_deg: float, half_width_deg: float
     if points.size == 0:
         return math.inf
     angles = np.degrees(np.arctan2(points[:, 1], points[:, 0]))
-    offset = (angles - centre_deg + 180.0) % 360.0 - 180.0
+    offset = wrap_deg(angles - centre_deg)
     inside = np.abs(offset) <= half_width_deg
     if not inside.any():
         return math.inf

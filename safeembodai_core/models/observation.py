@@ -16,6 +16,7 @@ from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+from ..geometry.frames import wrap_deg
 
 
 class Pose(BaseModel):
@@ -114,7 +115,7 @@ class LidarScan:
 
     def sector(self, centre_deg: float, half_width_deg: float) -> np.ndarray:
         """Indices of the beams within ``half_width_deg`` of ``centre_deg`` (edges included)."""
-        offset = (self.angles_deg - centre_deg + 180.0) % 360.0 - 180.0
+        offset = wrap_deg(self.angles_deg - centre_deg)
         return np.flatnonzero(np.abs(offset) <= half_width_deg + 1e-9)
 
     def points(self, include_free_bound: bool = False) -> np.ndarray:

@@ -37,6 +37,7 @@ from ..geometry import relative_pose
 from .laser_scan import LaserScan, SensorMount
 from .twist import Twist
 from . import messages as m
+from ..geometry.frames import wrap_deg
 
 SCAN_TYPES = ("sensor_msgs/msg/LaserScan",)
 TWIST_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
@@ -148,7 +149,7 @@ def _still(scan_pose: tuple[float, float, float] | None, pose: tuple[float, floa
     if scan_pose is None or pose is None:
         return scan_pose is None and pose is None
     (xs, ys, hs), (xc, yc, hc) = scan_pose, pose
-    return math.hypot(xs - xc, ys - yc) < STILL_MM and abs((hs - hc + 180.0) % 360.0 - 180.0) < STILL_DEG
+    return math.hypot(xs - xc, ys - yc) < STILL_MM and abs(wrap_deg(hs - hc)) < STILL_DEG
 
 
 def seen_from(scan: LaserScan, scan_pose: tuple[float, float, float] | None,
@@ -162,7 +163,7 @@ def seen_from(scan: LaserScan, scan_pose: tuple[float, float, float] | None,
     if scan_pose is None or pose is None:
         return scan, False
     (xs, ys, hs), (xc, yc, hc) = scan_pose, pose
-    turn = (hs - hc + 180.0) % 360.0 - 180.0
+    turn = wrap_deg(hs - hc)
     c, s = math.cos(math.radians(-hc)), math.sin(math.radians(-hc))
     dx, dy = xs - xc, ys - yc
     mx, my = scan.mount.x_mm, scan.mount.y_mm

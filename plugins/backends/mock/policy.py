@@ -20,6 +20,7 @@ import numpy as np
 
 from ...perception.describe import TargetSighting
 from .reading import PromptReading
+from safeembodai_core.geometry.frames import wrap_deg
 
 ALIGN_TOLERANCE_DEG = 6.0
 SMALL_TARGET = 0.06
@@ -180,7 +181,7 @@ class MockPolicy:
         recalled = _can(ref.sighting) if ref is not None else None
         if ref is not None and recalled is not None and u[5] < o.recall_target_p:
             expected = recalled.bearing_deg - sum(s.signed_turn_deg for s in ref.executed)
-            expected = (expected + 180.0) % 360.0 - 180.0
+            expected = wrap_deg(expected)
             angle = min(max(abs(expected), 15.0), r.max_angle_deg - 1)
             return [_turn(angle, expected > 0, "turn back to where the red can was", r.max_angle_deg)], \
                 "The red can was in view last step; turn back towards it."

@@ -21,6 +21,7 @@ from safeembodai_core.models import (
 
 from .geometry import WALL, cast_rays, free_travel
 from .render import render_camera, render_trajectory
+from safeembodai_core.geometry.frames import wrap_deg
 
 CAN = 0  # the can is circle 0; obstacles follow
 _CONTACT_GAP_MM = 1.0
@@ -79,7 +80,7 @@ class FlatlandWorld(Environment):
 
     def _bearing_to(self, x: float, y: float) -> float:
         bearing = math.degrees(math.atan2(y - self.position[1], x - self.position[0])) - self.heading
-        return (bearing + 180.0) % 360.0 - 180.0
+        return wrap_deg(bearing)
 
     def _truth(self) -> GroundTruth:
         cx, cy, _ = self.circles[CAN]
@@ -138,7 +139,7 @@ class FlatlandWorld(Environment):
                                        detail=f"stopped after {travel:.0f} mm: touched {label}")
             return ExecutionResult(distance_mm=sign * travel)
         angle = signal.signed_angle_deg
-        self.heading = (self.heading + angle + 180.0) % 360.0 - 180.0
+        self.heading = wrap_deg(self.heading + angle)
         self.sim_time_s += abs(angle) / o.turn_rate_deg_s
         return ExecutionResult(angle_deg=angle)
 

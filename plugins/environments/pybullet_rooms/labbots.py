@@ -38,6 +38,7 @@ import math
 from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
+from safeembodai_core.geometry.frames import wrap_deg
 
 if TYPE_CHECKING:
     from .movers import Range
@@ -175,7 +176,7 @@ class LabbotSwarm:
                     xs[i], ys[i] = nx, ny
                 else:
                     turning[i] = seen[i] if abs(seen[i]) == 1.0 else sides[i]
-            headings[i] = (headings[i] + 180.0) % 360.0 - 180.0
+            headings[i] = wrap_deg(headings[i])
         self.xy = np.array((xs, ys)).T.copy()
         self.heading, self.turning = np.array(headings), np.array(turning)
         self.track.append(self.xy.copy())

@@ -18,6 +18,7 @@ import numpy as np
 from safeembodai_core.errors import EnvironmentError_
 
 from .options import CAN_RADIUS_MM, RoomOptions
+from safeembodai_core.geometry.frames import wrap_deg
 
 WALL_MARGIN_MM = 50.0
 HIDDEN_MARGIN_DEG = 10.0
@@ -40,7 +41,7 @@ class Layout:
 def bearing_deg(origin: np.ndarray, heading_deg: float, point: np.ndarray) -> float:
     """Bearing of ``point`` seen from ``origin`` facing ``heading_deg``: CCW, in [-180, 180)."""
     angle = math.degrees(math.atan2(point[1] - origin[1], point[0] - origin[0])) - heading_deg
-    return (angle + 180.0) % 360.0 - 180.0
+    return wrap_deg(angle)
 
 
 def draw_layout(options: RoomOptions, rng: np.random.Generator) -> Layout:

@@ -37,6 +37,7 @@ from safeembodai_core.models import ControlSignal, ExecutionResult, Straight, Tu
 from safeembodai_core.models.records import Collision
 
 from .quiet import silenced
+from safeembodai_core.geometry.frames import wrap_deg
 
 if TYPE_CHECKING:
     from .labbots import LabbotSwarm
@@ -191,7 +192,7 @@ class KinematicMotion:
             self.heading = heading
         else:
             self.xy = xy.copy()
-            self.heading = (heading + amount + 180.0) % 360.0 - 180.0
+            self.heading = wrap_deg(heading + amount)
 
     def _bisect(self, xy: np.ndarray, heading: float, straight: bool, amount: float) -> float:
         """The largest free part of ``amount`` (to ~1/16 of it), leaving the robot there."""

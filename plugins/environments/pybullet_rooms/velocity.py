@@ -24,6 +24,7 @@ from safeembodai_core.errors import EnvironmentError_
 from safeembodai_core.models import ExecutionResult
 
 from .quiet import silenced
+from safeembodai_core.geometry.frames import wrap_deg
 
 if TYPE_CHECKING:
     from .labbots import LabbotSwarm
@@ -125,7 +126,7 @@ class HeldVelocity:
         """Put the robot ``distance`` mm along the chord at the middle heading, turned by ``angle``."""
         middle = math.radians(heading + angle / 2)
         self.xy = xy + distance * np.array([math.cos(middle), math.sin(middle)])
-        self.heading = (heading + angle + 180.0) % 360.0 - 180.0
+        self.heading = wrap_deg(heading + angle)
 
     def _creep(self, xy: np.ndarray, heading: float, distance: float, angle: float) -> float:
         """The largest free share of the piece (to ~1/16 of it), leaving the robot there."""

@@ -46,6 +46,7 @@ from ..options import DEFAULT_SAFETY_DISTANCE_MM
 from ..rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 from .walls import Walls
+from safeembodai_core.geometry.frames import wrap_deg
 
 _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
 
@@ -188,7 +189,7 @@ class MovingObstaclesRule(Validator):
         chain = [(p.pose, p.sim_time_s) for p in context.history] + [(context.start_pose, context.sim_time_s)]
         bounds = []
         for (a, ta), (b, tb) in zip(chain, chain[1:]):
-            turned = abs((b.heading_deg - a.heading_deg + 180.0) % 360.0 - 180.0)
+            turned = abs(wrap_deg(b.heading_deg - a.heading_deg))
             need = math.hypot(b.x_mm - a.x_mm, b.y_mm - a.y_mm) / o.robot_speed_mm_s + turned / o.robot_turn_rate_deg_s
             if 0 < tb - ta <= o.max_scan_gap_s:
                 bounds.append(tb - ta - need)
@@ -426,7 +427,7 @@ class MovingObstaclesRule(Validator):
         else:
             speed = float(np.hypot(*blob.velocity))
             course = math.degrees(math.atan2(blob.velocity[1], blob.velocity[0])) - pose.heading_deg
-            motion = f"heading {(course + 180.0) % 360.0 - 180.0:.0f} deg at {speed:.0f} mm/s"
+            motion = f"heading {wrap_deg(course):.0f} deg at {speed:.0f} mm/s"
             turned = self.futures.turned_courses(blob)
             cruise = self.futures.cruise_mm_s(blob)
             if blob.cruise_mm_s is not None:
