@@ -149,6 +149,90 @@ class Environment(ABC):
         """Release the world's resources."""
 
 
+#: The optional methods of :class:`Environment` and what the default (the class's own) does when an
+#: environment does not implement one -- the one place that says it; :func:`as_environment` declares
+#: each for an environment that is not a subclass, and wrappers (the capture, the staged worlds) must
+#: pass every one on (their tests list :class:`Environment`'s public methods).
+OPTIONAL_ENVIRONMENT_METHODS: dict[str, str] = {
+    "pose": "None: the pose is unknown between observations (no trajectory)",
+    "sense": "None: no reading between observations (an arm with fresh_scan is refused)",
+    "another_call": "nothing: the step's one think time covers every retry",
+    "drive": "None: the room cannot be driven by velocity (serve-robot refuses it)",
+    "trajectory_png": "None: no picture of the trial",
+    "snapshot": "None: no ground truth for bags and recordings",
+    "close": "nothing to release",
+}
+
+
+class _DeclaredEnvironment(Environment):
+    """An object with ``reset``, ``observe``, ``execute`` and ``outcome`` that does not subclass
+    :class:`Environment`, with every optional method declared: the object's own where it has one,
+    else the class's default (:func:`as_environment`)."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.robot = getattr(inner, "robot", Environment.robot)
+
+    def _own(self, name: str) -> Any:
+        method = getattr(self.inner, name, None)
+        return method if callable(method) else None
+
+    def reset(self, seed: int) -> Observation:
+        return self.inner.reset(seed)
+
+    def observe(self) -> Observation:
+        return self.inner.observe()
+
+    def execute(self, signal: ControlSignal) -> ExecutionResult:
+        return self.inner.execute(signal)
+
+    def outcome(self) -> Outcome | None:
+        return self.inner.outcome()
+
+    def pose(self) -> Pose | None:
+        own = self._own("pose")
+        return own() if own else None
+
+    def sense(self) -> Observation | None:
+        own = self._own("sense")
+        return own() if own else None
+
+    def another_call(self) -> None:
+        own = self._own("another_call")
+        if own:
+            own()
+
+    def drive(self, linear_mm_s: float, angular_deg_s: float, seconds: float) -> ExecutionResult | None:
+        own = self._own("drive")
+        return own(linear_mm_s, angular_deg_s, seconds) if own else None
+
+    def trajectory_png(self, poses: list[Pose], outcome: Outcome | None) -> bytes | None:
+        own = self._own("trajectory_png")
+        return own(poses, outcome) if own else None
+
+    def snapshot(self) -> WorldSnapshot | None:
+        own = self._own("snapshot")
+        return own() if own else None
+
+    def close(self) -> None:
+        own = self._own("close")
+        if own:
+            own()
+
+
+def as_environment(environment: Any) -> Environment:
+    """``environment`` as an :class:`Environment`: itself when it is one; an object that only has the
+    four required methods (a duck-typed plugin's, a test's) wrapped so that the core calls declared
+    methods only. Raises ``TypeError`` naming what is missing."""
+    if isinstance(environment, Environment):
+        return environment
+    missing = [name for name in ("reset", "observe", "execute", "outcome")
+               if not callable(getattr(environment, name, None))]
+    if missing:
+        raise TypeError(f"an environment needs {', '.join(missing)}; got {type(environment).__name__}")
+    return _DeclaredEnvironment(environment)
+
+
 class Perception(ABC):
     """Turns raw sensor readings into the modalities a prompt carries."""
 

@@ -181,6 +181,10 @@ class ComponentRegistry:
                 from .components import as_llm_backend
 
                 built = as_llm_backend(built)
+            elif kind == "environment":  # likewise: OPTIONAL_ENVIRONMENT_METHODS, declared
+                from .components import as_environment
+
+                built = as_environment(built)
             return built
         except SafeEmbodAIError:  # a reported, user-facing problem (a locked database, a missing file)
             raise
