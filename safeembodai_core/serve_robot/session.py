@@ -138,11 +138,11 @@ def prepare_session(scenario: Scenario, plugins: Plugins, *, label: str | None =
     served = scenario.model_copy(update={"environments": [ref if r.key == label else r for r in scenario.environments]})
     record_scenario = session_scenario(served, label)
     environment = ComponentBuilder(served, plugins).environment(label)
-    if type(environment).drive is Environment.drive:
+    environment.reset(scenario.seed)
+    if environment.drive(0.0, 0.0, 0.0) is None:  # a hold of no time: the default's None, or nothing moves
         environment.close()
         raise SafeEmbodAIError(f"environment {ref.use!r} ({label}) cannot be driven by velocity (it has no "
                                "Environment.drive): serve-robot serves rooms that can, such as the pybullet rooms")
-    environment.reset(scenario.seed)
     folder = RunFolder.create(out, record_scenario).path  # made by the record, once the server listens
     return Session(record_scenario, plugins, environment, label, scenario.seed, host, port, folder, speed,
                    rates or Rates(), bag, tuple(allowed_origins))

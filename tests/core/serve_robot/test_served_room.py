@@ -128,3 +128,12 @@ def test_a_twist_stamped_command_is_held_as_its_twist(served):
     time.sleep(0.5)
     result = one.end()
     assert result.steps == 1 and result.distance_mm == pytest.approx(20.0, abs=2.5)  # 0.1 m/s for 0.2 s
+
+
+def test_a_room_that_cannot_be_driven_by_velocity_is_refused_before_any_folder(repo, tmp_path):
+    from safeembodai_core.errors import SafeEmbodAIError
+
+    scenario, plugins = checked_scenario(repo / "scenarios/quickstart.yaml")  # flatland: no Environment.drive
+    with pytest.raises(SafeEmbodAIError, match="'flatland' .* cannot be driven by velocity"):
+        prepare_session(scenario, plugins, out=tmp_path / "runs")
+    assert not (tmp_path / "runs").exists()
