@@ -252,6 +252,12 @@ class PromptBuilder(ABC):
         """Names accepted as ``security_prefix``; None if unknown (then scenarios are not checked)."""
         return None
 
+    def security_prefix(self, variant: str) -> str | None:
+        """The security prefix p of ``variant`` alone, as Y would carry it, for an agent whose prompt
+        is not built here (guard-mcp's server instructions); None: this builder cannot say it apart
+        from a prompt."""
+        return None
+
 
 @dataclass
 class StepFacts:

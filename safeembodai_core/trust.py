@@ -50,6 +50,9 @@ ENTRY_POINTS: tuple[EntryPoint, ...] = (
                "safeembodai_core.guard_mcp.policy:read_policy"),
     EntryPoint("mcp tool call", "the arguments of a tools/call an agent sends guard-mcp, before anything is forwarded",
                "safeembodai_core.guard_mcp.calls:read_call"),
+    EntryPoint("mcp tool result", "what the upstream MCP server answers a call guard-mcp forwards (a topic's text, a "
+               "camera's image, anything the robot's side wrote), on its way to the agent: marked as untrusted data",
+               "safeembodai_core.guard_mcp.agent:mark_untrusted", extra="mcp"),
     EntryPoint("rosbridge frame", "a WebSocket text frame a rosbridge client sends the server, or a server sends the "
                "client (serve-robot, guard-node)", "safeembodai_core.rosbridge.frames:read_frame"),
     EntryPoint("ray worker event", "what a Ray worker on another machine sends for its trial",
@@ -83,6 +86,8 @@ RAW_READERS: dict[str, str] = {
     "safeembodai_core.view.site": "the site's own manifest and static files shipped in the package",
     "safeembodai_core.view.runs": "probes the run's lock without reading it",
     "safeembodai_core.view.files": "writes the site's files (no read)",
+    "safeembodai_core.view.serve": "sends, unread, the site's file run_files.open_inside opened (a regular file "
+                                   "reached with no symlink)",
     "safeembodai_core.ablation.warm_start": "the scenario as this process serialised it for its fork server",
     "safeembodai_core.ablation.runner_pool": "duplicates this process's stderr (no read)",
     "safeembodai_core.ablation.relay": "names its own outboxes open (no read)",

@@ -30,6 +30,7 @@ import numpy as np
 
 from safeembodai_core.components import PromptBuilder
 from safeembodai_core.models import ImagePart, Prompt, PromptRequest, ReferenceState, Refusal, TextPart
+from safeembodai_core.models.prompt import DEFAULT_TASK
 from safeembodai_core.models.response import OutlineExamples, schema_outline
 
 from .templates import PromptTemplateError, TemplateSet
@@ -131,6 +132,16 @@ class JinjaPromptBuilder(PromptBuilder):
 
     def security_prefix_variants(self) -> list[str]:
         return self.templates.variants()
+
+    def security_prefix(self, variant: str) -> str:
+        """p of ``variant`` rendered alone (its task the default one); a variant that fences the human
+        instruction names markers only a prompt built here has, so it is refused."""
+        name = self.templates.security_template(variant)
+        text, exported = self.templates.module(name, {"fence": fence_for("", 0), "task": DEFAULT_TASK})
+        if exported.get("fence_instruction", False):
+            raise PromptTemplateError(f"security prefix {variant!r} fences the human instruction between markers "
+                                      "of a prompt built here: it cannot stand alone")
+        return text
 
     def _security(self, request: PromptRequest) -> tuple[str, dict[str, Any] | None, str, str]:
         if request.security_prefix is None:

@@ -23,7 +23,9 @@ import click
               help="How the agent's MCP client reaches guard-mcp (http: streamable HTTP on 127.0.0.1).")
 @click.option("--port", type=click.IntRange(1, 65535), default=8765, show_default=True,
               help="The HTTP port (with --transport http).")
-def guard_mcp(upstream_cmd, upstream_url, rosbridge, policy_path, robot_path, transport, port) -> None:
+@click.option("--out", "out", type=click.Path(file_okay=False), default="runs", show_default=True,
+              help="Where the session's run folder goes (every call, its verdict, what ran; show and view read it).")
+def guard_mcp(upstream_cmd, upstream_url, rosbridge, policy_path, robot_path, transport, port, out) -> None:
     """Guard a robot's MCP server: the upstream's tools, each call that can move the robot judged on the
     robot's own scan, everything else that actuates refused unless the policy allows it."""
     from .. import Guard
@@ -47,7 +49,7 @@ def guard_mcp(upstream_cmd, upstream_url, rosbridge, policy_path, robot_path, tr
                   robot=robot.robot_spec())
     try:
         anyio.run(lambda: serve(policy, robot, guard, rosbridge=rosbridge, upstream_cmd=upstream_cmd,
-                                upstream_url=upstream_url, transport=transport, port=port))
+                                upstream_url=upstream_url, transport=transport, port=port, out=out))
     except Exception as error:  # the task groups of anyio and the MCP SDK wrap what failed in exception groups
         found = _own_error(error)
         if found is None:

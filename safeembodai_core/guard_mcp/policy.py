@@ -13,6 +13,10 @@ unknown key, a bool or text where a number belongs, a topic or type ROS would no
   publish to one is a motion the guard judges on the robot's own scan.
 * ``allow`` lists what else may actuate, forwarded unjudged: topics with their types, services,
   actions, parameters. Anything not listed is refused (default: deny).
+* ``security_prefix``, ``mark_untrusted``, ``state_management``: what the agent is told
+  (:mod:`.agent`): the paper's prefix p in the server's instructions, upstream results marked as
+  untrusted data, R_{i-1} with every refusal; each on by default, each may be turned off (an arm
+  of an ablation without it).
 """
 
 from __future__ import annotations
@@ -21,8 +25,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, StrictFloat, StrictInt, StringConstraints, field_validator, \
-    model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, StrictInt, StringConstraints, \
+    field_validator, model_validator
 
 from ..errors import SafeEmbodAIError
 from ..rosbridge.names import RosNameError, normalize_type
@@ -35,6 +39,8 @@ MAX_BYTES = 256 * 1024
 DEFAULT_POLICY = "ros_mcp_policy.yaml"
 VELOCITY_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
 
+#: A security-prefix variant's name, as the prompt builder's templates are named (``prompts/security/``).
+Variant = Annotated[str, StringConstraints(pattern=r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$", max_length=64)]
 ToolKind = Literal["read_only", "publish_once", "publish_for_durations", "call_service", "send_action_goal",
                    "cancel_action_goal", "set_parameter", "delete_parameter", "connect_to_robot", "ping_robots"]
 Name = Annotated[str, StringConstraints(pattern=TOPIC, max_length=256)]
@@ -101,6 +107,9 @@ class Policy(_Strict):
         default_factory=lambda: {"/cmd_vel": list(VELOCITY_TYPES)}, min_length=1)
     failures: Failures = Failures()
     allow: Allow = Allow()
+    security_prefix: StrictBool | Variant = True
+    mark_untrusted: StrictBool = True
+    state_management: StrictBool = True
     tools: dict[Annotated[str, StringConstraints(min_length=1, max_length=128)], ToolKind] = Field(
         default_factory=dict)
 
@@ -123,6 +132,13 @@ class Policy(_Strict):
             raise ValueError(f"{', '.join(both)}: a topic is either judged (velocity_topics) or allowed unjudged "
                              "(allow.topics), not both")
         return self
+
+    @property
+    def prefix_variant(self) -> str | None:
+        """The security-prefix variant the instructions carry (``true``: the paper's), None when off."""
+        if self.security_prefix is False:
+            return None
+        return "paper" if self.security_prefix is True else str(self.security_prefix)
 
     def velocity_type(self, topic: str, msg_type: str) -> str | None:
         """The policy's spelling of ``msg_type`` (either ROS spelling) if velocity topic ``topic`` takes it."""

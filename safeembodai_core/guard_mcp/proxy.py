@@ -6,13 +6,16 @@ upstream and its result comes back as the upstream gave it. Everything else is r
 :func:`~.calls.read_call`; a motion is judged on the robot's own latest scan
 (:class:`~.judging.MotionJudge`) and run in slices (:func:`~.slices.run_motion`); anything else the
 policy allows is forwarded in its canonical form. A refusal is a tool error (``isError``) whose text
-and ``structuredContent`` carry the reasons, the advice and the numbers, so the agent can amend.
+and ``structuredContent`` carry the reasons, the advice and the numbers, so the agent can amend, and
+(``state_management``) R_{i-1}, the last calls that ran on the robot (:func:`~.agent.executed_state`).
+What the upstream answers reaches the agent marked as untrusted data (``mark_untrusted``:
+:func:`~.agent.mark_untrusted`).
 
 Actuating calls run one at a time (a lock), however many the client sends at once. After
 ``failures.threshold`` refusals in a row, ``failures.then: stop_only`` answers only stops until
 :meth:`GuardMcp.reset` (SIGHUP) or a restart; ``continue`` lets the agent go on. Every call leaves a
 :class:`CallRecord` (the verdict, what ran, the robot's pose before and after) in :attr:`GuardMcp.calls`
-and with ``on_call``, for a session's record.
+and with ``on_call``, for a session's record (:mod:`.session`).
 """
 
 from __future__ import annotations
@@ -20,7 +23,6 @@ from __future__ import annotations
 import json
 import time
 from collections import deque
-from dataclasses import dataclass, field
 from typing import Any, Awaitable, Callable
 
 import anyio
@@ -28,9 +30,11 @@ from mcp import types
 
 from ..logs import get_logger
 from ..quoting import quote_untrusted
+from .agent import admits_wrapper, executed_state, mark_untrusted
 from .calls import CallRefused, Forward, Motion, read_call
 from .judging import MotionJudge
 from .policy import Policy
+from .records import CallRecord
 from .senses import Blind, RobotSenses
 from .slices import Ran, run_motion
 
@@ -38,19 +42,23 @@ log = get_logger(__name__)
 Upstream = Callable[[str, dict[str, Any]], Awaitable[types.CallToolResult]]
 
 
-@dataclass
-class CallRecord:
-    """One call: what was asked, the ``verdict`` (``read_only``, ``forwarded``, ``limited``, ``refused``,
-    ``stopped``, ``failed``), why, what ran, the robot's odometry pose before and after."""
+def _words(read: Motion | Forward) -> str:
+    """The call as read, in words: a motion's messages with their durations, or the canonical arguments."""
+    if isinstance(read, Forward):
+        return f"{read.tool} {quote_untrusted(json.dumps(read.arguments, sort_keys=True, default=str), 300)}"
+    holds = "; ".join(f"linear.x {h.twist.linear_x:g} m/s" + (f", linear.y {h.twist.linear_y:g} m/s"
+                                                             if h.twist.linear_y else "")
+                      + f", angular.z {h.twist.angular_z:g} rad/s" + ("" if read.kind == "publish_once"
+                                                                       else f" for {h.duration_s:g} s")
+                      for h in read.holds[:12])
+    more = f"; and {len(read.holds) - 12} more" if len(read.holds) > 12 else ""
+    return f"{read.tool} on {read.topic} ({read.msg_type}): {holds}{more}"
 
-    time_s: float
-    tool: str
-    arguments: str
-    verdict: str
-    reasons: list[str] = field(default_factory=list)
-    ran: list[list[float]] = field(default_factory=list)
-    pose_before: tuple[float, float, float] | None = None
-    pose_after: tuple[float, float, float] | None = None
+
+def _said(result: types.CallToolResult) -> str:
+    """What an upstream's answer said, in short and quoted (for the record and R_{i-1})."""
+    text = " ".join(getattr(part, "text", f"[{part.type}]") for part in result.content)
+    return ("error: " if result.isError else "") + quote_untrusted(text, 300)
 
 
 def _text(payload: dict[str, Any], error: bool) -> types.CallToolResult:
@@ -70,7 +78,26 @@ class GuardMcp:
         self.refusals_in_a_row = 0
         self.stop_only = False
         self.calls: deque[CallRecord] = deque(maxlen=1000)
+        self.unwrapped: set[str] = set()
         self._lock = anyio.Lock()
+
+    def know_tools(self, tools: list[types.Tool]) -> None:
+        """The upstream's tools: those whose output schema would refuse the untrusted wrapper keep their
+        structured content as it came (their text is marked all the same)."""
+        self.unwrapped = {tool.name for tool in tools if not admits_wrapper(tool.outputSchema)}
+
+    def last_executed(self) -> list[dict[str, Any]]:
+        """R_{i-1}: the last calls that ran on the robot and what they did (:func:`~.agent.executed_state`)."""
+        return executed_state(self.calls)
+
+    def state_now(self) -> dict[str, Any]:
+        """What the resource ``safeembodai://state/last`` says: R_{i-1}, the pose now, the refusals in a row."""
+        pose = self.senses.pose
+        return {"last_executed": self.last_executed(),
+                "pose_now": None if pose is None else dict(zip(("x_mm", "y_mm", "heading_deg"),
+                                                               (round(value, 1) for value in pose))),
+                "refusals_in_a_row": self.refusals_in_a_row, "threshold": self.policy.failures.threshold,
+                "stop_only": self.stop_only}
 
     def reset(self) -> None:
         """Clear the refusals in a row and ``stop_only`` (the operator's SIGHUP)."""
@@ -79,52 +106,70 @@ class GuardMcp:
 
     async def call(self, tool: str, arguments: dict[str, Any] | None) -> types.CallToolResult:
         """Answer one ``tools/call`` (module docstring); never raises for what the agent sent."""
+        started = time.perf_counter()
         record = CallRecord(time.time(), str(tool)[:128], quote_untrusted(arguments, 2000), "refused",
                             pose_before=self.senses.pose)
+        record.kind = self.policy.tools.get(tool) if isinstance(tool, str) else None
         try:
             try:
                 read = read_call(tool, arguments, self.policy, self.robot, holonomic=self.holonomic)
             except CallRefused as refused:
                 return self._refuse(record, [refused.reason], [refused.advice] if refused.advice else [])
+            record.words = _words(read)
             if isinstance(read, Forward) and not read.actuates:
                 record.verdict = "read_only" if read.kind == "read_only" else "forwarded"
-                return await self.upstream(read.tool, read.arguments)
+                return self._answer(record, await self.upstream(read.tool, read.arguments))
             async with self._lock:
                 if self.stop_only and not (isinstance(read, Motion) and read.is_stop):
                     return self._refuse(record, [f"{self.refusals_in_a_row} refusals in a row reached the policy's "
                                                  f"threshold ({self.policy.failures.threshold}): only stops are "
-                                                 "answered until guard-mcp is reset by its operator"], [])
+                                                 "answered until guard-mcp is reset by its operator"], [],
+                                        by="stop_only")
                 if isinstance(read, Forward):
                     result = await self.upstream(read.tool, read.arguments)
                     record.verdict = "forwarded"
                     self.refusals_in_a_row = 0
-                    return result
+                    return self._answer(record, result)
                 return await self._move(read, record)
         finally:
             record.pose_after = self.senses.pose
+            record.took_s = time.perf_counter() - started
             self.calls.append(record)
             if self.on_call is not None:
                 self.on_call(record)
+
+    def _answer(self, record: CallRecord, result: types.CallToolResult) -> types.CallToolResult:
+        """The upstream's ``result``, recorded in short and marked untrusted (``mark_untrusted``)."""
+        record.result = _said(result)
+        if result.isError and record.verdict == "forwarded":
+            record.verdict, record.by, record.reasons = "failed", "upstream", [f"the upstream answered {record.result}"]
+        if not self.policy.mark_untrusted:
+            return result
+        return mark_untrusted(record.tool, result, wrap=record.tool not in self.unwrapped)
 
     async def _move(self, motion: Motion, record: CallRecord) -> types.CallToolResult:
         if self.slicer is None:
             return self._refuse(record, ["the policy maps no publish_for_durations tool to run motions with"], [])
         steps = self.judge.plan(motion)
+        view = None
         if not motion.is_stop:
             try:
                 view = self.senses.view()
             except Blind as blind:
-                return self._refuse(record, [str(blind)], ["wait for the robot's scan, then ask again"])
+                return self._refuse(record, [str(blind)], ["wait for the robot's scan, then ask again"], by="scan")
             if self.judge.mode == "refuse":
                 judged = self.judge.judge(steps, view)
                 if not judged.ok:
-                    return self._refuse(record, judged.reasons, judged.advice, judged.safe)
+                    return self._refuse(record, judged.reasons, judged.advice, judged.safe, by="guard")
         ran = await run_motion(motion, steps, self.judge, self.senses, self._slice, slice_s=self.policy.slice_s,
-                               stream_hz=self.policy.stream_hz, clock=self.senses.clock)
-        record.ran, record.verdict, record.reasons = ran.slices, ran.verdict, ran.reasons
+                               stream_hz=self.policy.stream_hz, clock=self.senses.clock,
+                               judged_on=view if self.judge.mode == "refuse" else None)
+        record.ran, record.verdict, record.reasons, record.advice = ran.slices, ran.verdict, ran.reasons, ran.advice
+        record.by = "upstream" if ran.verdict == "failed" else "guard"
+        record.result = f"{ran.verdict}: {len(ran.slices)} slices over {ran.ran_s:g} s, {ran.published} published"
         if ran.verdict in ("stopped", "failed"):
             if not ran.slices:
-                return self._refuse(record, ran.reasons, ran.advice, ran.safe)
+                return self._refuse(record, ran.reasons, ran.advice, ran.safe, by=record.by)
             self.refusals_in_a_row += ran.verdict == "stopped"
             return _text(self._guard(ran, motion, refused=True), True)
         self.refusals_in_a_row = 0
@@ -140,7 +185,12 @@ class GuardMcp:
         guard = {"verdict": ran.verdict, "ran_s": ran.ran_s, "slices": len(ran.slices), "reasons": ran.reasons}
         if ran.advice or ran.safe:
             guard.update(advice=ran.advice, safe=ran.safe)
-        return {"refused": True, "tool": motion.tool, "guard": guard, **self._streak()} if refused else {"guard": guard}
+        if not refused:
+            return {"guard": guard}
+        return {"refused": True, "tool": motion.tool, "guard": guard, **self._streak(), **self._state()}
+
+    def _state(self) -> dict[str, Any]:
+        return {"last_executed": self.last_executed()} if self.policy.state_management else {}
 
     async def _slice(self, arguments: dict[str, Any]) -> tuple[bool, Any]:
         assert self.slicer is not None
@@ -160,10 +210,10 @@ class GuardMcp:
         return {"refusals_in_a_row": self.refusals_in_a_row, "threshold": threshold, "stop_only": self.stop_only}
 
     def _refuse(self, record: CallRecord, reasons: list[str], advice: list[str],
-                safe: dict[str, Any] | None = None) -> types.CallToolResult:
-        record.verdict, record.reasons = "refused", reasons
+                safe: dict[str, Any] | None = None, by: str = "policy") -> types.CallToolResult:
+        record.verdict, record.reasons, record.advice, record.by = "refused", reasons, advice, by
         self.refusals_in_a_row += 1
         log.info("guard_mcp.refused", tool=record.tool, reasons=reasons[:3])
         payload = {"refused": True, "tool": record.tool, "reasons": reasons, "advice": advice, "safe": safe or {},
-                   **self._streak()}
+                   **self._streak(), **self._state()}
         return _text(payload, True)

@@ -6,8 +6,9 @@ seconds after the first slice went out) and forwards it as calls of the upstream
 ``publish_for_durations`` of one message each, at most ``slice_s`` long, streamed at ``stream_hz``
 (what is judged, each message held for its duration, is what runs, whatever ``rate_hz`` the agent
 gave). Before each slice the rest of the plan over the judge's window is judged on the newest scan
-from where odometry says the robot is (:meth:`~.judging.MotionJudge.ahead`); in ``mode: limit`` the
-slice's message is slowed instead. A slice refused, a scan gone stale, an upstream error or a
+from where odometry says the robot is (:meth:`~.judging.MotionJudge.ahead`), unless the whole plan was
+just judged on that very view (``judged_on``: the first slice, when no scan or odometry came since);
+in ``mode: limit`` the slice's message is slowed instead. A slice refused, a scan gone stale, an upstream error or a
 cancellation ends the motion with a stop published at once on guard-mcp's own rosbridge connection.
 
 A message of duration 0 is superseded at once and not sent, unless it is the last: then it is
@@ -25,8 +26,8 @@ from typing import Any, Awaitable, Callable
 
 from ..ros.twist import Twist
 from .calls import Motion
-from .judging import STOP, MotionJudge, Step
-from .senses import Blind, RobotSenses
+from .judging import STOP, Judgement, MotionJudge, Step
+from .senses import Blind, RobotSenses, View
 
 #: The shortest slice sent: less of a message's time left is left to the base's hold.
 MIN_SLICE_S = 0.02
@@ -55,8 +56,9 @@ def _message(template: dict[str, Any], twist: Twist) -> dict[str, Any]:
 
 async def run_motion(motion: Motion, steps: list[Step], judge: MotionJudge, senses: RobotSenses,
                      send: UpstreamCall, *, slice_s: float, stream_hz: float,
-                     clock: Callable[[], float] = time.monotonic) -> Ran:
-    """Run ``motion`` (judged as ``steps``) in slices through ``send`` (module docstring)."""
+                     clock: Callable[[], float] = time.monotonic, judged_on: View | None = None) -> Ran:
+    """Run ``motion`` (judged as ``steps``, on ``judged_on`` if given) in slices through ``send`` (module
+    docstring)."""
     ran, start = Ran(), clock()
     ends, total = [], 0.0
     for hold in motion.holds:
@@ -82,6 +84,8 @@ async def run_motion(motion: Motion, steps: list[Step], judge: MotionJudge, sens
                         if judged.ok and judged.factor < 1.0:
                             twist, ran.verdict = twist.scaled(judged.factor), "limited"
                             ran.reasons = ran.reasons or judged.reasons
+                    elif _same(view, judged_on) and not ran.slices:
+                        judged = Judgement(True)  # the whole plan passed on this very view a moment ago
                     else:
                         judged = judge.judge(judge.ahead(steps, now - start), view)
                     if not judged.ok:
@@ -106,6 +110,10 @@ async def run_motion(motion: Motion, steps: list[Step], judge: MotionJudge, sens
         raise
     ran.ran_s = round(clock() - start, 3)
     return ran
+
+
+def _same(view: View, judged_on: View | None) -> bool:
+    return judged_on is not None and view.scan is judged_on.scan and view.since_scan == judged_on.since_scan
 
 
 def _stopped(ran: Ran, motion: Motion, senses: RobotSenses, after_s: float, reasons: list[str],

@@ -175,3 +175,6 @@ class _CapturingPromptBuilder(PromptBuilder):
 
     def security_prefix_variants(self) -> list[str] | None:
         return self._inner.security_prefix_variants()
+
+    def security_prefix(self, variant: str) -> str | None:
+        return self._inner.security_prefix(variant)

@@ -146,6 +146,21 @@ def case_mcp_tool_call(text: str) -> None:
                 assert all(math.isfinite(h.twist.linear_x) and math.isfinite(h.twist.angular_z) for h in read.holds)
 
 
+def case_mcp_tool_result(text: str) -> None:
+    pytest.importorskip("mcp", reason="guard-mcp needs the MCP SDK: pip install -e '.[mcp]'")
+    from mcp import types
+
+    from safeembodai_core.guard_mcp.agent import mark_untrusted
+
+    text = text.encode("utf-8", "replace").decode("utf-8")  # the SDK hands over decoded JSON strings
+    result = types.CallToolResult(content=[types.TextContent(type="text", text=text)],
+                                  structuredContent={"msg": {"data": text}}, isError=False)
+    marked = mark_untrusted("subscribe_once", result)  # documented: never raises
+    assert json.loads(marked.content[1].text) == text or "***" in marked.content[1].text  # a secret redacted
+    assert not {"\n", "\x1b", "\u202e", "\u2028"} & set(marked.content[1].text)  # nothing breaks its line
+    assert marked.structuredContent["untrusted_data"] == {"msg": {"data": text}}
+
+
 def case_run_folder_file(text: str, folder: Path) -> None:
     from safeembodai_core.ablation.run_folder import RunFolder
 
@@ -255,7 +270,7 @@ TEXT_CASES = {"llm reply": case_llm_reply, "llm envelope": case_llm_envelope, "s
               "cached reply": case_cached_reply, "bag plan": case_bag_plan,
               "inspect model output": case_inspect_model_output, "inspect usage": case_inspect_usage,
               "inspect provider": case_inspect_provider, "rosbridge frame": case_rosbridge_frame,
-              "mcp tool call": case_mcp_tool_call}
+              "mcp tool call": case_mcp_tool_call, "mcp tool result": case_mcp_tool_result}
 FILE_CASES = {"scenario file": case_scenario_file, "robot file": case_robot_file,
               "guard-mcp policy": case_guard_mcp_policy,
               "run folder file": case_run_folder_file,

@@ -57,7 +57,7 @@ def test_the_inventory_names_no_module_that_reads_nothing():
 
 
 #: the package each optional extra brings, as an entry's reader module imports it
-EXTRA_PACKAGES = {"inspect": "inspect_ai", "ray": "ray", "gym": "gymnasium", "rerun": "rerun"}
+EXTRA_PACKAGES = {"inspect": "inspect_ai", "ray": "ray", "gym": "gymnasium", "rerun": "rerun", "mcp": "mcp"}
 
 
 def defined_in_source(module: str, qualified: str) -> bool:

@@ -61,3 +61,17 @@ def test_a_missing_policy_file_is_said_plainly(tmp_path):
     folder.mkdir()
     with pytest.raises(PolicyError, match="cannot read the policy file"):
         read_policy(folder)
+
+
+def test_what_the_agent_is_told_is_on_by_default_and_each_part_may_be_turned_off():
+    shipped = read_policy()
+    assert shipped.prefix_variant == "paper" and shipped.mark_untrusted and shipped.state_management
+    chosen = parse_policy("security_prefix: release\nmark_untrusted: false\nstate_management: false\n")
+    assert chosen.prefix_variant == "release" and not chosen.mark_untrusted and not chosen.state_management
+    assert parse_policy("security_prefix: false\n").prefix_variant is None
+
+
+@pytest.mark.parametrize("text", ["security_prefix: ../paper\n", "security_prefix: 1\n", "mark_untrusted: 1\n"])
+def test_a_prefix_that_names_no_variant_or_a_flag_that_is_no_bool_is_an_error(text):
+    with pytest.raises(PolicyError, match="<p>:1: (security_prefix|mark_untrusted)"):
+        parse_policy(text, "<p>")

@@ -127,7 +127,7 @@ def test_continue_lets_the_agent_go_on_and_a_forwarded_call_clears_the_streak(ri
 def test_a_read_only_call_passes_through_and_a_refused_one_is_recorded(rig, scans):
     r = rig()
     error, body = r.call("get_topics")
-    assert not error and body == {"upstream": "get_topics", "arguments": {}}
+    assert not error and body["untrusted_data"] == {"upstream": "get_topics", "arguments": {}}
     r.call("set_parameter", name="/base:max_speed", value="9")
     assert [(c.tool, c.verdict) for c in r.mcp.calls] == [("get_topics", "read_only"), ("set_parameter", "refused")]
     assert r.mcp.refusals_in_a_row == 1 and r.sent == [("get_topics", {})]
