@@ -70,13 +70,14 @@ class ArtefactSettings:
         """What the run folder's markers ask for (nothing for no folder)."""
         if run_dir is None:
             return cls()
-        return cls(bag_storage=_marker(Path(run_dir) / BAGS_DIR / BAG_STORAGE_FILE, ("mcap", "sqlite3")),
-                   recordings=_marker(Path(run_dir) / RECORDINGS_DIR / RECORD_FILE, ("rrd",)) is not None)
+        folder = Path(run_dir)
+        return cls(bag_storage=_marker(folder, folder / BAGS_DIR / BAG_STORAGE_FILE, ("mcap", "sqlite3")),
+                   recordings=_marker(folder, folder / RECORDINGS_DIR / RECORD_FILE, ("rrd",)) is not None)
 
 
-def _marker(path: Path, allowed: tuple[str, ...]) -> str | None:
+def _marker(run_dir: Path, path: Path, allowed: tuple[str, ...]) -> str | None:
     try:
-        text = read_run_text(path, 1024).strip()
+        text = read_run_text(path, 1024, folder=run_dir).strip()  # no symlinked bags/ or recordings/ either
     except FileNotFoundError:
         return None
     except OSError as error:

@@ -114,7 +114,7 @@ class ResponseCache:
     def get(self, key: str) -> BackendReply | None:
         if not self.read:
             return None
-        reply = stored_reply(_read_regular(self._path(key)))
+        reply = stored_reply(_read_regular(self._path(key), folder=self.folder))
         if reply is None:
             self.misses += 1
             return None
@@ -169,10 +169,10 @@ class ResponseCache:
         kept before the index existed are not found here (a worker on another machine calls again)."""
         if not self.read:
             return {}
-        listed = _read_regular(self._index(trial_id), MAX_INDEX_BYTES) or ""
+        listed = _read_regular(self._index(trial_id), MAX_INDEX_BYTES, self.folder) or ""
         replies: dict[str, str] = {}
         for key in dict.fromkeys(listed.splitlines()):
-            text = _read_regular(self._path(key)) if _KEY.fullmatch(key) else None
+            text = _read_regular(self._path(key), folder=self.folder) if _KEY.fullmatch(key) else None
             if text is not None and stored_reply(text) is not None:
                 replies[key] = text
         return replies
@@ -188,10 +188,10 @@ def stored_text(reply: BackendReply) -> str:
     return json.dumps(data, allow_nan=False)
 
 
-def _read_regular(path: Path, limit: int = 0) -> str | None:
-    """The text of ``path`` if it is a regular file (no symlink followed, never a FIFO) of at most
-    ``limit`` bytes (default :data:`MAX_STORED_BYTES`) in UTF-8; else None."""
-    data = read_regular_file(path, limit or MAX_STORED_BYTES)
+def _read_regular(path: Path, limit: int = 0, folder: Path | None = None) -> str | None:
+    """The text of ``path`` if it is a regular file (no symlink followed below ``folder``, the cache's,
+    never a FIFO) of at most ``limit`` bytes (default :data:`MAX_STORED_BYTES`) in UTF-8; else None."""
+    data = read_regular_file(path, limit or MAX_STORED_BYTES, folder)
     try:
         return data.decode("utf-8") if data is not None else None
     except UnicodeDecodeError:

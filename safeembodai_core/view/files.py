@@ -3,11 +3,12 @@
 A run folder may come from someone else: a figure or a trajectory there may be a symlink to a file
 of yours, a device or a FIFO, and the site folder itself (or a folder in it) may have been planted
 as a symlink to somewhere you care about. So: files are read from a run folder only when they are
-regular files (not symlinks), up to a size, and as PNG when a picture is expected
-(:func:`read_run_file`); every file of the site is written aside and renamed into place -- the
-rename replaces a symlink rather than writing through it -- and only where it resolves inside the
-site (:class:`Site`); a site folder that is a symlink, or an existing folder that is not a site of
-ours, is refused.
+regular files reached with no symlink anywhere below the run folder (a symlinked ``figures/`` or
+``trajectories/`` as much as a symlinked picture), up to a size, and as PNG when a picture is expected
+(:func:`read_run_file`), and the page says what was left out and why; every file of the site is
+written aside and renamed into place -- the rename replaces a symlink rather than writing through it
+-- and only where it resolves inside the site (:class:`Site`); a site folder that is a symlink, or an
+existing folder that is not a site of ours, is refused.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import SafeEmbodAIError
-from ..run_files import read_regular_file
+from ..run_files import UnreadableFile, read_untrusted
 
 PNG = b"\x89PNG\r\n\x1a\n"
 MAX_PICTURE_BYTES = 20_000_000
@@ -32,13 +33,29 @@ def safe_name(text: str) -> str:
     return name or "unnamed"
 
 
-def read_run_file(path: Path, max_bytes: int = MAX_PICTURE_BYTES, png: bool = False) -> bytes | None:
-    """The bytes of ``path`` when it is a regular file (not a symlink) of at most ``max_bytes``
-    (and a PNG, with ``png``); None otherwise (:func:`~safeembodai_core.run_files.read_regular_file`)."""
-    data = read_regular_file(path, max_bytes)
-    if data is None or (png and not data.startswith(PNG)):
+def read_run_file(path: Path, max_bytes: int = MAX_PICTURE_BYTES, png: bool = False, folder: Path | None = None,
+                  left_out: list[str] | None = None) -> bytes | None:
+    """The bytes of ``path`` when it is a regular file of at most ``max_bytes`` (and a PNG, with
+    ``png``), reached from the run folder ``folder`` with no symlink anywhere below it (default: its own
+    folder); None otherwise (:func:`~safeembodai_core.run_files.open_inside`). ``left_out``: where to say
+    why a file that is there was refused (``figures/x.png: a symlink (not followed)``), for the page."""
+    try:
+        data = read_untrusted(Path(path), max_bytes, folder)
+    except FileNotFoundError:
+        return None
+    except (OSError, SafeEmbodAIError) as error:
+        _note(left_out, path, folder, error.reason if isinstance(error, UnreadableFile) else str(error))
+        return None
+    if png and not data.startswith(PNG):
+        _note(left_out, path, folder, "not a PNG")
         return None
     return data
+
+
+def _note(left_out: list[str] | None, path: Path, folder: Path | None, why: str) -> None:
+    if left_out is not None:
+        shown = Path(path).relative_to(folder) if folder is not None and Path(path).is_relative_to(folder) else path
+        left_out.append(f"{shown.as_posix()}: {why}")
 
 
 class Site:

@@ -1,8 +1,11 @@
-"""Rerun's web viewer beside ``view --serve``: the viewer that ships inside the ``rerun-sdk`` wheel.
+"""Rerun's web viewer beside ``view --serve --rerun-viewer``: the viewer inside the ``rerun-sdk`` wheel.
 
 ``rerun.serve_web_viewer`` serves the viewer's own HTML, JS and Wasm over HTTP -- no gRPC server,
-no data -- on a port of its own (rerun-sdk 0.41 listens on every interface, ``0.0.0.0``, and has no
-option for the address; it runs until the process ends). The viewer opens the recording named by
+no data -- on a port of its own. It listens on every interface, ``0.0.0.0``: its parameters are the
+port, whether to open a browser and a server to connect to, and rerun-sdk's bindings (0.41) build the
+rest of their ``WebViewerConfig`` from its defaults, whose ``bind_ip`` is ``0.0.0.0`` (the ``rerun`` CLI's
+``--bind`` serves a gRPC server beside it). So it is served only when asked (``--rerun-viewer``), with a
+warning; it runs until the process ends. The viewer opens the recording named by
 its ``url`` query parameter (``http://HOST:PORT/?url=...``) and fetches it from the site's server,
 which lets the viewer's origin, and only it, read ``.rrd`` files (:mod:`.serve`).
 

@@ -11,12 +11,12 @@ from collections import Counter
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from stat import S_ISREG
+from stat import S_ISLNK, S_ISREG
 from typing import Any
 
 from ..ablation.run_folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
 from ..errors import SafeEmbodAIError
-from ..run_files import RECORDINGS_DIR
+from ..run_files import FIGURES_DIR, RECORDINGS_DIR, UnreadableFile, folder_names
 from .report_tables import report_tables
 
 
@@ -69,16 +69,19 @@ def skipped_folders(source: Path) -> list[tuple[Path, str]]:
 
 def running(folder: Path) -> bool:
     """Whether an ``ablate`` holds the run now: its coordinator lock file exists and is locked.
-    Probed with a shared, non-blocking lock on a read-only open: never created, never kept."""
+    Probed with a shared, non-blocking lock on a read-only, non-blocking open of a regular file (a FIFO
+    or a symlink there is no lock): never created, never kept."""
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX: no locks to probe
         return False
     try:
-        fd = os.open(folder / COORDINATOR_LOCK, os.O_RDONLY)
+        fd = os.open(folder / COORDINATOR_LOCK, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
     except OSError:
         return False
     try:
+        if not S_ISREG(os.fstat(fd).st_mode):
+            return False
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
         return True
@@ -93,7 +96,8 @@ def signature(folder: Path) -> str:
     """Changes whenever the run's results may have: the size and time of every file directly in
     the run folder -- scenario, ledger, lock, report, and whatever files the state store keeps
     there (its name for them is the store's business, not the view's) -- and in its ``recordings/``
-    (Rerun recordings exported there after the run)."""
+    (Rerun recordings exported there after the run); a symlink there by its name only (it is read as
+    none: :func:`~safeembodai_core.run_files.open_inside`), so one coming or going renders the run anew."""
     parts = []
     try:
         paths = sorted(folder.iterdir())
@@ -104,10 +108,12 @@ def signature(folder: Path) -> str:
         return "-"
     for path in paths:
         try:
-            stat = path.stat()
+            stat = path.lstat()
         except OSError:
             continue
-        if S_ISREG(stat.st_mode):
+        if S_ISLNK(stat.st_mode):
+            parts.append(f"{path.relative_to(folder)}:symlink")
+        elif S_ISREG(stat.st_mode):
             parts.append(f"{path.relative_to(folder)}:{stat.st_size}:{stat.st_mtime_ns}")
     return "|".join(parts)
 
@@ -161,6 +167,7 @@ class RunSummary:
     error: str | None = None
     page: str = ""  # the run page, relative to the site (none for an unreadable run)
     nodes: list[tuple[str, int]] = field(default_factory=list)  # Ray nodes and their trials (none: this machine)
+    left_out: list[str] = field(default_factory=list)  # the run's files there but refused, and why (its page)
 
 
 def trial_page(trial_id: str) -> str:
@@ -203,12 +210,25 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
             counts = Counter(r.node or "this machine" for r in results)
             summary.nodes = sorted(counts.items())
         summary.tables = report_tables(folder / "report.md")
-        summary.figures = (sorted(p.name for p in (folder / "figures").glob("*.png"))
-                           if (folder / "figures").is_dir() else [])
+        summary.figures = _figures(folder, summary.left_out)
     except BaseException:  # the caller gets no runner to close: close it here
         runner.close()
         raise
     return summary, runner, results
+
+
+def _figures(folder: Path, left_out: list[str]) -> list[str]:
+    """The PNG names in the run's ``figures/``, reached with no symlink (a ``figures/`` that is one is
+    left out, said in ``left_out``)."""
+    try:
+        names = folder_names(folder, folder / FIGURES_DIR)
+    except FileNotFoundError:
+        return []
+    except (OSError, SafeEmbodAIError) as error:
+        why = error.reason if isinstance(error, UnreadableFile) else str(error)
+        left_out.append(f"{FIGURES_DIR}/: {why}")
+        return []
+    return [name for name in names if name.endswith(".png")]
 
 
 def broken(folder: Path, error: Exception) -> RunSummary:

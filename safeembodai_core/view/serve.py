@@ -11,15 +11,16 @@ viewer's origin (only it, only for ``.rrd``) with a CORS header so the viewer ma
 from __future__ import annotations
 
 import functools
-import io
 import os
 import threading
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any, BinaryIO, Callable, cast
-from urllib.parse import quote, unquote, urlsplit
+from urllib.parse import quote, unquote
 
+from ..errors import SafeEmbodAIError
 from ..logs import get_logger
+from ..run_files import open_inside
 from .html import CSP_HEADER
 from .rerun_viewer import VIEWER_PREFIX, viewer_url
 
@@ -27,44 +28,70 @@ log = get_logger(__name__)
 
 
 class _Handler(SimpleHTTPRequestHandler):
-    """Serves the site's own files only: nothing a symlink in it points to outside it, no folder
-    listing, no dot-file (a page being written), and only to requests addressed to this server
-    (a ``Host`` header naming another host is refused: no DNS rebinding onto it)."""
+    """Serves the site's own files only, each opened once and served as opened: a regular file reached
+    from the site folder with no symlink anywhere (:func:`~safeembodai_core.run_files.open_inside`), never
+    a FIFO or a device, no folder listing, no dot-file (a page being written); only a path as the request
+    target (no ``http://host/...``), and only to requests addressed to this server (a ``Host`` header
+    naming another host is refused: no DNS rebinding onto it). A malformed request line is answered by
+    http.server's own error (400, 414, 505), with its status line (never an HTTP/0.9 answer)."""
 
     allowed_hosts: frozenset[str] = frozenset()
     viewer_port: int | None = None  # Rerun's web viewer's port, when it is served
     viewer_origins: frozenset[str] = frozenset()  # the origins it is reached at: they may read .rrd files
     cors_origin: str | None = None  # this request's: answered with Access-Control-Allow-Origin
+    vary_origin = False  # this request's: a recording, whose answer depends on the Origin
+    default_request_version = "HTTP/1.0"  # a line without a version is answered with a status line too
 
-    def send_head(self) -> io.BytesIO | BinaryIO | None:
-        self.cors_origin = None
+    def handle_one_request(self) -> None:
+        self.cors_origin, self.vary_origin = None, False  # set per request; a malformed one sets neither
+        super().handle_one_request()
+
+    def send_head(self) -> BinaryIO | None:
         host = (self.headers.get("Host") or "").lower()
         if host not in self.allowed_hosts:
             self.send_error(421, "Misdirected Request")
             return None
-        raw = urlsplit(self.path).path
-        asked = unquote(raw)
+        asked = _asked_path(self.path)
+        if asked is None:
+            self.send_error(400, "Bad request target: a path only (no scheme, host or control characters)")
+            return None
         if asked == "/":  # the address `view --serve` prints without its page: the index
             self._redirect("/index.html")
             return None
         if asked.startswith(VIEWER_PREFIX):
-            self._to_viewer(host, "/" + raw[len(VIEWER_PREFIX):])
+            self._to_viewer(host, asked[len(VIEWER_PREFIX) - 1:])
             return None
-        if not self._in_site(raw):
+        opened = self._site_file(asked)
+        if opened is None:
             self.send_error(404, "File not found")
             return None
+        fd, info = opened
         if asked.endswith(".rrd"):
             origin = self.headers.get("Origin")
             self.cors_origin = origin if origin in self.viewer_origins else None
-        return super().send_head()
+            self.vary_origin = True
+        try:
+            self.send_response(200)
+            self.send_header("Content-Type", self.guess_type(asked))
+            self.send_header("Content-Length", str(info.st_size))
+            self.send_header("Last-Modified", self.date_time_string(int(info.st_mtime)))
+            self.end_headers()
+            return os.fdopen(fd, "rb")
+        except BaseException:
+            os.close(fd)
+            raise
 
-    def _in_site(self, raw: str, exists: bool = False) -> bool:
-        """The URL path ``raw`` may name a file of the site: inside it (no symlink out), no folder, no
-        dot part (and, with ``exists``, a file that is there)."""
-        root = Path(os.path.realpath(self.directory))
-        real = Path(os.path.realpath(self.translate_path(raw)))
-        return (root in real.parents and not real.is_dir() and (real.is_file() or not exists)
-                and not any(part.startswith(".") for part in unquote(raw).split("/")))
+    def _site_file(self, asked: str) -> tuple[int, os.stat_result] | None:
+        """The file of the site at the decoded URL path ``asked``, opened (a descriptor and its status), or
+        None: not there, a folder, a dot part, a symlink anywhere in the site, not a regular file."""
+        parts = asked.split("/")[1:]
+        if not parts or any(not part or part.startswith(".") or "\\" in part for part in parts):
+            return None
+        root = Path(self.directory)
+        try:
+            return open_inside(root, root.joinpath(*parts))
+        except (OSError, SafeEmbodAIError):
+            return None
 
     def _redirect(self, location: str) -> None:
         self.send_response(302)
@@ -72,16 +99,17 @@ class _Handler(SimpleHTTPRequestHandler):
         self.send_header("Content-Length", "0")
         self.end_headers()
 
-    def _to_viewer(self, host: str, raw: str) -> None:
-        """A redirect to Rerun's web viewer opening the recording ``raw`` (a URL path of this site),
-        at the address the browser used (so the viewer's origin is one of :attr:`viewer_origins`)."""
+    def _to_viewer(self, host: str, asked: str) -> None:
+        """A redirect to Rerun's web viewer opening the recording ``asked`` (a decoded URL path of this
+        site), at the address the browser used (so the viewer's origin is one of :attr:`viewer_origins`)."""
         if self.viewer_port is None:
             self.send_error(404, "Rerun's web viewer is not served here")
             return
-        asked = unquote(raw)
-        if not asked.endswith(".rrd") or not self._in_site(raw, exists=True):
+        opened = self._site_file(asked) if asked.endswith(".rrd") else None
+        if opened is None:
             self.send_error(404, "File not found")
             return
+        os.close(opened[0])
         recording = f"http://{host}{quote(asked)}"
         self._redirect(viewer_url(host.rsplit(":", 1)[0], self.viewer_port, recording))
 
@@ -92,12 +120,27 @@ class _Handler(SimpleHTTPRequestHandler):
         self.send_header("Cache-Control", "no-cache")
         if self.cors_origin is not None:
             self.send_header("Access-Control-Allow-Origin", self.cors_origin)
-        if self.path.split("?", 1)[0].endswith(".rrd"):
+        if self.vary_origin:
             self.send_header("Vary", "Origin")
         super().end_headers()
 
     def log_message(self, format: str, *args: Any) -> None:  # structlog, not stderr lines
         log.debug("view.request", request=format % args)
+
+
+def _asked_path(target: str) -> str | None:
+    """The decoded path of a request target, without its query; None unless the target is a path
+    (origin-form: ``/...``; not ``http://host/...``, ``host:port`` or ``*``), in UTF-8, with no control
+    character (a NUL included) once decoded."""
+    if not target.startswith("/") or target.startswith("//"):
+        return None
+    try:
+        asked = unquote(target.split("?", 1)[0].split("#", 1)[0], errors="strict")
+    except UnicodeDecodeError:
+        return None
+    if any(ord(char) < 0x20 or ord(char) == 0x7F for char in asked):
+        return None
+    return asked
 
 
 class SiteServer:

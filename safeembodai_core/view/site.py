@@ -17,7 +17,7 @@ from typing import Any
 
 from ..logs import get_logger
 from ..runner import trajectory_file
-from ..run_files import MAX_RECORDING_BYTES, RECORDINGS_DIR, RRD_MAGIC
+from ..run_files import FIGURES_DIR, MAX_RECORDING_BYTES, RECORDINGS_DIR, RRD_MAGIC
 from ..trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
@@ -142,8 +142,8 @@ def _render_run(folder: Path, site: Site, base: str, plugins: Any, known: dict[s
     summary, runner, results = summarise(folder, plugins)
     try:
         shown = []
-        for name in summary.figures:
-            picture = read_run_file(folder / "figures" / name, png=True)  # a regular PNG, never a symlink
+        for name in summary.figures:  # a regular PNG, no symlink anywhere below the run folder
+            picture = read_run_file(folder / FIGURES_DIR / name, png=True, folder=folder, left_out=summary.left_out)
             if picture is not None:
                 site.write(f"{base}/figures/{safe_name(name)}", picture)
                 shown.append(safe_name(name))
@@ -220,18 +220,23 @@ def _render_trial(folder: Path, site: Site, base: str, runner: Any, summary: Run
     robot = runner.environment(spec.environment).robot if scans else None
     steps = step_views(records, prompts, site, f"{base}/img/{name}", f"../img/{name}", scans,
                        robot.radius_mm if robot is not None else 170.0)
-    picture = read_run_file(trajectory_file(folder, spec.trial_id), png=True)
+    left_out: list[str] = []  # the trial's files that are there but refused, and why: said on its page
+    picture = read_run_file(trajectory_file(folder, spec.trial_id), png=True, folder=folder, left_out=left_out)
     trajectory = None
     if picture is not None:
         site.write(f"{base}/img/{name}.png", picture)
         trajectory = f"../img/{name}.png"
-    recorded = read_run_file(recording_file(folder, spec.trial_id), MAX_RECORDING_BYTES)
+    recorded = read_run_file(recording_file(folder, spec.trial_id), MAX_RECORDING_BYTES, folder=folder,
+                             left_out=left_out)
     recording = in_viewer = None
-    if recorded is not None and recorded.startswith(RRD_MAGIC):  # a Rerun recording, nothing else
+    if recorded is not None and not recorded.startswith(RRD_MAGIC):  # a Rerun recording, nothing else
+        left_out.append(f"{recording_file(folder, spec.trial_id).relative_to(folder).as_posix()}: "
+                        "not a Rerun recording")
+    elif recorded is not None:
         site.write(f"{base}/recordings/{name}.rrd", recorded)
         recording = f"../recordings/{name}.rrd"
         if viewer:  # the site server's redirect to Rerun's web viewer opening it (.serve)
             in_viewer = f"../../..{VIEWER_PREFIX}{base}/recordings/{name}.rrd"
     site.write(f"{base}/trials/{name}.html",
                render("trial.html.j2", run=summary, result=result, steps=steps, trajectory=trajectory,
-                      recording=recording, in_viewer=in_viewer, missing=missing, refresh=0))
+                      recording=recording, in_viewer=in_viewer, missing=missing, left_out=left_out, refresh=0))

@@ -81,6 +81,40 @@ def test_files_a_run_folder_points_elsewhere_are_not_copied(run, tmp_path):
     assert read_run_file(secret, png=True) is not None and read_run_file(figures / "zz_leak.png") is None
 
 
+def test_a_run_folders_symlinked_folders_are_not_followed_and_the_pages_say_so(run, tmp_path):
+    """figures/ and trajectories/ as symlinks to folders outside, holding files of the very names the site
+    would copy: none is copied, and each page says what was left out and why; a symlinked recordings/
+    (whose marker says whether the run records) makes the run unreadable, its row saying why."""
+    trajectories = sorted((run / "trajectories").glob("*.png"))
+    outside = {name: tmp_path / "outside" / name for name in ("figures", "trajectories", "recordings")}
+    for folder in outside.values():
+        folder.mkdir(parents=True)
+    (outside["figures"] / "moer.png").write_bytes(b"\x89PNG\r\n\x1a\nTOP-SECRET")
+    for picture in trajectories:
+        (outside["trajectories"] / picture.name).write_bytes(b"\x89PNG\r\n\x1a\nTOP-SECRET")
+        (outside["recordings"] / f"{picture.stem}.rrd").write_bytes(b"RRF2TOP-SECRET")
+    for name in ("figures", "trajectories"):
+        shutil.rmtree(run / name, ignore_errors=True)
+        (run / name).symlink_to(outside[name])
+    out = tmp_path / "site"
+
+    def nothing_copied() -> None:
+        for path in out.rglob("*"):
+            if path.is_file():
+                assert b"TOP-SECRET" not in path.read_bytes(), path
+
+    build_site(run, out)
+    nothing_copied()
+    page = (out / "runs" / "hostile" / "index.html").read_text(encoding="utf-8")
+    assert "left out figures/: figures is a symlink (not followed)" in page
+    trial = next((out / "runs" / "hostile" / "trials").glob("*.html")).read_text(encoding="utf-8")
+    assert "left out trajectories/" in trial and "trajectories is a symlink (not followed)" in trial
+    (run / "recordings").symlink_to(outside["recordings"])
+    build_site(run, out)
+    nothing_copied()
+    assert "recordings is a symlink (not followed)" in (out / "index.html").read_text(encoding="utf-8")
+
+
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
 def test_a_report_that_is_a_fifo_or_a_device_is_not_read(tmp_path):
     fifo = tmp_path / "report.md"

@@ -55,12 +55,12 @@ def make_run(folder: Path, steps: int = 3, scenario: Path = REPO / "scenarios" /
 
 
 class Served:
-    """``safeembodai view RUNS --serve --port 0`` in a subprocess, until stopped."""
+    """``safeembodai view RUNS --serve --port 0 --rerun-viewer`` in a subprocess, until stopped."""
 
     def __init__(self, runs: Path) -> None:
         self.process = subprocess.Popen([sys.executable, "-m", "safeembodai_core", "view", str(runs), "--serve",
-                                         "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                        text=True, env={**os.environ, "COLUMNS": "400"})
+                                         "--port", "0", "--rerun-viewer"], stdout=subprocess.PIPE,
+                                        stderr=subprocess.STDOUT, text=True, env={**os.environ, "COLUMNS": "400"})
         self.lines: list[str] = []
         self.url = ""
         deadline = time.monotonic() + 180

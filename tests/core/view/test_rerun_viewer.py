@@ -2,7 +2,8 @@
 links to ``/rerun-viewer/<the recording>``, which the site's server redirects to the viewer opening the
 recording's absolute address (escaped as one query value); a ``.rrd`` -- and only a ``.rrd`` -- answers
 the viewer's origin, and only it, with a CORS header; the static site keeps the plain link; without
-rerun-sdk ``--serve`` serves as before and says once why there is no viewer. No browser, no viewer
+rerun-sdk ``--serve --rerun-viewer`` serves as before and says once why there is no viewer; without
+``--rerun-viewer`` (the viewer listens on every interface) none is started. No browser, no viewer
 process: the viewer's port is a number here (the browser test is tests/core/view/test_rerun_browser.py)."""
 
 from __future__ import annotations
@@ -162,7 +163,7 @@ def test_without_rerun_sdk_serve_works_and_says_once_why_there_is_no_viewer(runs
                                                                            monkeypatch):
     monkeypatch.setitem(sys.modules, "rerun", None)  # as if the extra were not installed
     site = tmp_path / "site"
-    done = _serve(cli_runner, monkeypatch, [str(runs), "--out", str(site)])
+    done = _serve(cli_runner, monkeypatch, [str(runs), "--out", str(site), "--rerun-viewer"])
     assert done.exit_code == 0, done.output
     said = " ".join(done.output.split())
     assert said.count("Rerun's web viewer is not served") == 1
@@ -170,13 +171,31 @@ def test_without_rerun_sdk_serve_works_and_says_once_why_there_is_no_viewer(runs
     assert not LINK.search(_page(site, _trial(runs))) and ".rrd" in _page(site, _trial(runs))
 
 
-def test_serve_with_the_viewer_links_it(runs, tmp_path, cli_runner, monkeypatch):
+def test_serve_with_the_viewer_links_it_and_warns_it_listens_on_every_interface(runs, tmp_path, cli_runner,
+                                                                                 monkeypatch):
     monkeypatch.setattr(rerun_viewer, "start_web_viewer", lambda port: 4321 if port == 0 else port)
+    site = tmp_path / "site"
+    done = _serve(cli_runner, monkeypatch, [str(runs), "--out", str(site), "--rerun-viewer"])
+    assert done.exit_code == 0, done.output
+    said = " ".join(done.output.split())
+    assert "Rerun's web viewer on port 4321" in said and "Warning: it listens on every interface (0.0.0.0" in said
+    assert LINK.search(_page(site, _trial(runs)))
+
+
+def test_the_viewer_is_served_only_when_asked(runs, tmp_path, cli_runner, monkeypatch):
+    """Rerun's web viewer listens on 0.0.0.0 (rerun-sdk has no option for the address): ``--serve`` alone,
+    with rerun-sdk installed, serves the site on 127.0.0.1 and no viewer."""
+    started: list[int] = []
+    monkeypatch.setitem(sys.modules, "rerun", type(sys)("rerun"))  # as if the extra were installed
+    monkeypatch.setattr(rerun_viewer, "start_web_viewer", lambda port: started.append(port) or 4321)
     site = tmp_path / "site"
     done = _serve(cli_runner, monkeypatch, [str(runs), "--out", str(site)])
     assert done.exit_code == 0, done.output
-    assert "Rerun's web viewer on port 4321" in " ".join(done.output.split())
-    assert LINK.search(_page(site, _trial(runs)))
+    said = " ".join(done.output.split())
+    assert started == [] and "Rerun's web viewer" not in said and "serving http://127.0.0.1:" in said
+    assert not LINK.search(_page(site, _trial(runs))) and ".rrd" in _page(site, _trial(runs))
+    asked = cli_runner.invoke(cli, ["view", str(runs), "--out", str(tmp_path / "static"), "--rerun-viewer"])
+    assert asked.exit_code == 2 and "needs --serve" in asked.output and started == []
 
 
 def test_the_viewer_is_refused_without_rerun_or_on_a_taken_port(monkeypatch):

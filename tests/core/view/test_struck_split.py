@@ -11,7 +11,7 @@ from safeembodai_core.view.runs import TrialRow
 
 RUN = SimpleNamespace(name="r", simulated="", backend="b", model="m", seed=0, trials_per_cell=1, finished=1,
                       total=1, status="finished", cells=[], trials=[], figures=[], nodes=[], report=None,
-                      page="r", error=None, started="", scenario="s", refresh=0, tables=[])
+                      page="r", error=None, started="", scenario="s", refresh=0, tables=[], left_out=[])
 
 
 def _result(standing):
@@ -23,10 +23,10 @@ def _result(standing):
 
 def test_the_trial_page_splits_struck_collisions():
     page = render("trial.html.j2", run=RUN, result=_result(1), steps=[], trajectory=None, recording=None,
-                  missing=None, refresh=0)
+                  missing=None, left_out=[], refresh=0)
     assert "3 struck (1 standing, 2 moving)" in page
     older = render("trial.html.j2", run=RUN, result=_result(None), steps=[], trajectory=None, recording=None,
-                   missing=None, refresh=0)
+                   missing=None, left_out=[], refresh=0)
     assert "3 struck;" in older and "standing" not in older
 
 
