@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 
 from ..ablation.run_folder import RunFolder
 from ..building import ComponentBuilder
+from ..geometry.frames import wrap_deg
 from ..logs import get_logger
 from ..loop.defences import Defences
 from ..models import Attempt, ExecutedSignal, ExecutionResult, LLMResponse, Outcome, Pose, StepRecord, TrialResult, \
@@ -78,7 +79,7 @@ def moved(before: tuple[float, float, float] | None,
         return None
     dx, dy = after[0] - before[0], after[1] - before[1]
     ahead = dx * math.cos(math.radians(before[2])) + dy * math.sin(math.radians(before[2]))
-    return math.copysign(math.hypot(dx, dy), ahead), (after[2] - before[2] + 180.0) % 360.0 - 180.0
+    return math.copysign(math.hypot(dx, dy), ahead), wrap_deg(after[2] - before[2])
 
 
 def step_record(call: CallRecord, step: int, trial_id: str, started_s: float) -> StepRecord:
