@@ -211,8 +211,9 @@ class Guard:
         ``resolution_s``). ``lidar_mm`` and the rest are as for :meth:`check`. ``since_scan``: where
         the robot is now, ``(x_mm, y_mm, heading_deg)`` in the frame the scan was taken in, when it
         has moved on since (the rules judge from there, with the scan's own shadows: what it never
-        saw stays unseen). A non-finite command, a negative duration or a sideways command to a
-        robot that cannot drive sideways raises ``ValueError`` naming it."""
+        saw stays unseen). A non-finite command, a negative duration, a ``resolution_s`` under
+        :data:`~safeembodai_core.twist_judging.MIN_RESOLUTION_S` or a sideways command to a robot that
+        cannot drive sideways raises ``ValueError`` naming it."""
         twist = self.read_twist(twist)
         context = self._context(lidar_mm, max_range_mm, pose, time_s, since_scan=since_scan)
         return judge_twist(twist, duration_s, context, self.rules, resolution_s)

@@ -32,6 +32,10 @@ from .ros.laser_scan import finite_number
 from .ros.twist import MAX_PIECES, Twist, arc_signals, longest_judged_s
 from .validation import ValidationContext, Validator, validate_plan
 
+#: The finest ``resolution_s`` the other rules' longest safe hold is bisected to (a microsecond: no
+#: controller's period is shorter, and a finer one would only bisect rounding).
+MIN_RESOLUTION_S = 1e-6
+
 
 @dataclass(frozen=True)
 class SlowdownZone:
@@ -80,6 +84,23 @@ def _seconds(name: str, value: Any, positive: bool = False) -> float:
     return seconds
 
 
+def _resolution(value: Any) -> float:
+    seconds = finite_number("", "resolution_s", value, "seconds")
+    if not seconds >= MIN_RESOLUTION_S:
+        raise ValueError(f"resolution_s must be at least {MIN_RESOLUTION_S:g} seconds, got {value!r}")
+    return seconds
+
+
+def _motion(twist: Twist, duration_s: float) -> Motion:
+    """``twist`` held for ``duration_s`` as the rules' :class:`Motion` (millimetres per second), or a
+    ``ValueError`` naming the Twist's field whose speed overflows in millimetres (about 1.8e305 m/s)."""
+    for name, speed in (("linear.x", twist.linear_x), ("linear.y", twist.linear_y)):
+        if not math.isfinite(speed * 1000.0):
+            raise ValueError(f"Twist {name} = {speed:g} m/s is too fast to judge: in millimetres per second it "
+                             "overflows")
+    return Motion(twist.linear_x * 1000.0, twist.linear_y * 1000.0, twist.angular_z, duration_s)
+
+
 def _motion_verdict(name: str, rule: MotionValidator, motion: Motion, context: ValidationContext) -> MotionVerdict:
     try:
         judged = rule.validate_motion(motion, context)
@@ -93,9 +114,12 @@ def _motion_verdict(name: str, rule: MotionValidator, motion: Motion, context: V
 
 def judge_twist(twist: Twist, duration_s: Any, context: ValidationContext, rules: Sequence[tuple[str, Validator]],
                 resolution_s: float = 0.05) -> TwistReport:
-    """``twist`` held for ``duration_s`` seconds, judged by ``rules`` from ``context`` (module docstring)."""
+    """``twist`` held for ``duration_s`` seconds, judged by ``rules`` from ``context`` (module docstring).
+    ``resolution_s`` (at least :data:`MIN_RESOLUTION_S`) is how finely the other rules' longest safe hold
+    is bisected. A bad duration or resolution, or a speed too large to judge, is a ``ValueError`` naming it."""
     duration_s = _seconds("duration_s", duration_s)
-    motion = Motion(twist.linear_x * 1000.0, twist.linear_y * 1000.0, twist.angular_z, duration_s)
+    resolution_s = _resolution(resolution_s)
+    motion = _motion(twist, duration_s)
     verdicts: list[Verdict] = []
     safe, contact, kind = duration_s, None, None
     firsts: dict[str, float] = {}
@@ -133,6 +157,8 @@ def judge_twist(twist: Twist, duration_s: Any, context: ValidationContext, rules
                 low = high
             while high - low > resolution_s:
                 middle = (low + high) / 2
+                if not low < middle < high:  # no float between them: a hold of ~1e16 s is bisected to its ulp
+                    break
                 if all(v.valid for v in validate_plan(arc_signals(twist, middle), context, pieces_rules)):
                     low = middle
                 else:
@@ -173,4 +199,4 @@ def limit_twist(twist: Twist, horizon_s: Any, context: ValidationContext, rules:
                        report=report, reasons=reasons, zones=held)
 
 
-__all__ = ["SlowdownZone", "judge_twist", "limit_twist"]
+__all__ = ["MIN_RESOLUTION_S", "SlowdownZone", "judge_twist", "limit_twist"]

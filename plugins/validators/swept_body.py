@@ -18,6 +18,10 @@ once the motion takes the body deeper over it (:func:`~safeembodai_core.geometry
 a robot in contact may back off it, into space the scan saw.
 
 Only points within reach of the motion are looked at: the centre's travel plus the body's reach.
+The work does not grow with the speed asked: unseen space is looked for out to
+:data:`FIRST_LOOK_MM` along the path first, farther only while no touch is found before the body
+could reach what is not yet looked at, and of a long ray only the stretches that come near the path
+are sampled -- the same samples, so the same verdicts, as looking everywhere within reach.
 A refusal says what was touched, where, and how much of the motion is safe ("at most N mm is
 safe", "at most N deg"). Beyond the paper: V(C) judges the beams within ±r of the heading only, so
 it drives through a return just off the heading that the body sweeps, and accepts any turn.
@@ -26,7 +30,7 @@ it drives through a return just off the heading that the body sweeps, and accept
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Callable, Literal
 
 import numpy as np
 
@@ -43,18 +47,55 @@ _DEEPER = "goes deeper over a return of the scan"
 _JUMP_STEPS = 2.0  # a neighbour this many sample steps farther leaves a shadow edge worth sampling
 #: The farthest a judged motion's centre may travel (100 km); beyond it nothing is placed, so it is refused.
 MAX_TRAVEL_MM = 1e8
+#: Unseen space is first looked for this far (mm) along the path past the body; each next look is four times as far.
+FIRST_LOOK_MM = 2000.0
+_CULL_ABOVE = 20_000  # of more samples along rays than this, stretches of ray far from the path are dropped first
+_FINEST = 8  # samples in the shortest stretch of ray judged near the path or not
+#: (points, slack mm) -> per point: whether it may lie within the slack of a point near the judged path
+Near = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def _stretches(starts: np.ndarray, counts: np.ndarray, angles: np.ndarray, step: float,
+               near: Near) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The stretches of ray that may hold a sample near the path, as (ray, first sample, samples),
+    in the rays' order and outwards. A stretch whose middle lies farther from the path than the
+    stretch is long (``near`` with that slack says no) holds no sample near it and is dropped; the
+    others are halved until :data:`_FINEST` samples long."""
+    ray = np.flatnonzero(counts > 0)
+    first, n = np.zeros(len(ray), dtype=int), counts[ray]
+    done = []
+    while ray.size:
+        half = step * (n - 1) / 2.0
+        middle = starts[ray] + step * first + half
+        ok = near(np.column_stack((middle * np.cos(angles[ray]), middle * np.sin(angles[ray]))), half)
+        ray, first, n = ray[ok], first[ok], n[ok]
+        fine = n <= _FINEST
+        done.append((ray[fine], first[fine], n[fine]))
+        ray, first, n = ray[~fine], first[~fine], n[~fine]
+        low = n // 2
+        ray, first, n = np.concatenate((ray, ray)), np.concatenate((first, first + low)), np.concatenate((low, n - low))
+    ray, first, n = (np.concatenate(parts) for parts in zip(*done))
+    order = np.lexsort((first, ray))
+    return ray[order], first[order], n[order]
 
 
 def _rays(angles: np.ndarray, starts: np.ndarray, stops: np.ndarray, step: float,
-          thin_rad: float | None = None) -> np.ndarray:
+          thin_rad: float | None = None, near: Near | None = None) -> np.ndarray:
     """Samples every ``step`` mm along each beam from ``starts`` to ``stops`` (scan frame). With
     ``thin_rad`` (the beams' spacing, for neighbouring beams that are all unread) a ring of radius r
-    keeps only every k-th beam, k = step / (r * thin_rad): samples about ``step`` apart across too."""
+    keeps only every k-th beam, k = step / (r * thin_rad): samples about ``step`` apart across too.
+    With ``near``, of many samples only those of the stretches of ray that may come near the path
+    (:func:`_stretches`): the same samples, in the same order, less some that lie far from it."""
     counts = np.maximum(np.floor((stops - starts) / step).astype(int) + 1, 0)
-    if not counts.sum():
+    total = int(counts.sum())
+    if not total:
         return np.empty((0, 2))
-    beam = np.repeat(np.arange(len(angles)), counts)
-    radii = starts[beam] + step * (np.arange(beam.size) - np.repeat(np.cumsum(counts) - counts, counts))
+    if near is not None and total > _CULL_ABOVE:
+        ray, first, n = _stretches(starts, counts, angles, step, near)
+    else:
+        ray, first, n = np.arange(len(angles)), np.zeros(len(angles), dtype=int), counts
+    beam = np.repeat(ray, n)
+    radii = starts[beam] + step * (np.repeat(first, n) + np.arange(beam.size) - np.repeat(np.cumsum(n) - n, n))
     if thin_rad is not None:
         every = np.maximum(1, np.floor(step / np.maximum(radii * thin_rad, 1e-9))).astype(int)
         index = np.rint(angles[beam] / thin_rad).astype(int)
@@ -63,16 +104,25 @@ def _rays(angles: np.ndarray, starts: np.ndarray, stops: np.ndarray, step: float
     return np.column_stack((radii * np.cos(angles[beam]), radii * np.sin(angles[beam])))
 
 
-def scene(scan: LidarScan, reach_mm: float, step_mm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The returns within ``reach_mm`` of the scan's origin, and the unseen samples with their kind
-    (an index into ``_UNSEEN``), in the frame the scan was taken in (module docstring); samples inside
-    the body where the scan was taken are still among them."""
+def scene_returns(scan: LidarScan, reach_mm: float) -> np.ndarray:
+    """The returns of the binned scan within ``reach_mm`` of its origin (the frame it was taken in)."""
+    ranges = scan.ranges_mm
+    angles = np.radians(scan.angles_deg)
+    near = np.isfinite(ranges) & (ranges <= reach_mm)
+    return np.column_stack((ranges[near] * np.cos(angles[near]), ranges[near] * np.sin(angles[near])))
+
+
+def unseen_samples(scan: LidarScan, reach_mm: float, step_mm: float,
+                   near: Near | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The unseen samples within ``reach_mm`` of the scan's origin, with their kind (an index into
+    ``_UNSEEN``), in the frame the scan was taken in (module docstring); samples inside the body
+    where the scan was taken are still among them. Every sample lies where it would for a larger
+    ``reach_mm``, and in the same order: a smaller reach keeps those within it. ``near`` (points,
+    slack) -> mask may drop stretches of ray whose samples all lie far from the path (:func:`_rays`)."""
     ranges = scan.ranges_mm
     angles = np.radians(scan.angles_deg)
     read = ~np.isnan(ranges)
     depth = np.where(read, np.minimum(ranges, scan.max_range_mm), np.nan)
-    near = np.isfinite(ranges) & (ranges <= reach_mm)
-    returns = np.column_stack((ranges[near] * np.cos(angles[near]), ranges[near] * np.sin(angles[near])))
     parts, kinds = [], []
     unread = ~read
     if unread.any():
@@ -83,13 +133,14 @@ def scene(scan: LidarScan, reach_mm: float, step_mm: float) -> tuple[np.ndarray,
         edges = unread & ~inner
         parts.append(np.concatenate([
             _rays(angles[inner], np.zeros(int(inner.sum())), np.full(int(inner.sum()), stop), step_mm,
-                  math.radians(scan.increment_deg)),
-            _rays(angles[edges], np.zeros(int(edges.sum())), np.full(int(edges.sum()), stop), step_mm)]))
+                  math.radians(scan.increment_deg), near),
+            _rays(angles[edges], np.zeros(int(edges.sum())), np.full(int(edges.sum()), stop), step_mm, near=near)]))
         kinds.append(0)
     for neighbour in (np.roll(depth, -1), np.roll(depth, 1)):
         edge = read & ~np.isnan(neighbour) & (neighbour > depth + _JUMP_STEPS * step_mm) & (depth < reach_mm)
         if edge.any():
-            parts.append(_rays(angles[edge], depth[edge] + step_mm, np.minimum(neighbour[edge], reach_mm), step_mm))
+            parts.append(_rays(angles[edge], depth[edge] + step_mm, np.minimum(neighbour[edge], reach_mm), step_mm,
+                               near=near))
             kinds.append(1)
     if reach_mm >= scan.max_range_mm:  # the body can leave the disc the sensor saw: its rim where beams saw free
         rim = np.arange(0.0, 2 * math.pi, step_mm / scan.max_range_mm)
@@ -98,9 +149,9 @@ def scene(scan: LidarScan, reach_mm: float, step_mm: float) -> tuple[np.ndarray,
         parts.append(scan.max_range_mm * np.column_stack((np.cos(rim), np.sin(rim))))
         kinds.append(2)
     if not parts:
-        return returns, np.empty((0, 2)), np.empty(0, dtype=int)
+        return np.empty((0, 2)), np.empty(0, dtype=int)
     labels = np.concatenate([np.full(len(p), k) for p, k in zip(parts, kinds)])
-    return returns, np.concatenate(parts), labels
+    return np.concatenate(parts), labels
 
 
 def _where(point: np.ndarray) -> str:
@@ -131,11 +182,11 @@ class SweptBodyRule(MotionValidator):
             return [None, (0.0, f"touches space the scan did not see (the body reaches past the sensor's range of "
                                 f"{scan.max_range_mm:g} mm)", here)]
         reach = math.hypot(x, y) + motion.centre_travel_mm + body.reach_mm + o.unseen_step_mm
-        returns, unseen, labels = scene(scan, reach, o.unseen_step_mm)
+        returns = scene_returns(scan, reach)
         if scan.returns_mm is not None and len(scan.returns_mm):  # the unbinned returns as well
             exact = scan.returns_mm[~(np.hypot(scan.returns_mm[:, 0], scan.returns_mm[:, 1]) > reach)]
             returns = np.concatenate((returns, exact))
-        touched = hidden = None
+        touched = None
         if len(returns):
             planned = context.to_planned_frame(returns)
             times = contact_times(planned, motion, body, escape=True)
@@ -144,17 +195,44 @@ class SweptBodyRule(MotionValidator):
                 held = bool(body.inside(planned[order[:1]])[0])
                 what = _DEEPER if held else "touches a return of the scan"
                 touched = (float(times[order[o.min_points - 1]]), what, planned[order[0]])
-        if len(unseen):
-            planned = context.to_planned_frame(unseen)
-            keep = np.flatnonzero(near_path(planned, motion, body.reach_mm))
-            keep = keep[~body.inside(unseen[keep])]  # where the robot stood when it scanned
-            if keep.size:
-                times = contact_times(planned[keep], motion, body)
-                k = int(np.argmin(times))
-                if np.isfinite(times[k]):
-                    what = f"touches space the scan did not see ({_UNSEEN[labels[keep[k]]]})"
-                    hidden = (float(times[k]), what, planned[keep[k]])
-        return [touched, hidden]
+        return [touched, self._first_unseen(scan, motion, context, reach)]
+
+    def _first_unseen(self, scan: LidarScan, motion: Motion, context: ValidationContext,
+                      reach: float) -> tuple[float, str, np.ndarray] | None:
+        """The first touch of unseen space within ``reach`` of the scan's origin, as (time, what,
+        point) or None. Looked for out to :data:`FIRST_LOOK_MM` along the path first, then four
+        times as far each time, until a touch is found before the body could reach the samples not
+        yet looked at (the centre moves ``speed * t`` by time ``t``): the work grows with how far
+        the first touch is, not with how far the motion goes. Of many samples, only those on
+        stretches of ray near the path are made (:func:`_stretches`)."""
+        o = self.options
+        body = context.robot.body(o.margin_mm)
+        x, y, _ = context.offset
+        start = math.hypot(x, y) + body.reach_mm  # no point of the body lies farther from the scan's origin at t = 0
+
+        def near(points: np.ndarray, slack: np.ndarray) -> np.ndarray:  # 1 mm more: the frame change's rounding
+            return near_path(context.to_planned_frame(points), motion, body.reach_mm + slack + 1.0)
+
+        look = FIRST_LOOK_MM
+        while True:
+            radius = min(reach, start + o.unseen_step_mm + look)
+            unseen, labels = unseen_samples(scan, radius, o.unseen_step_mm, near)
+            hidden = None
+            if len(unseen):
+                planned = context.to_planned_frame(unseen)
+                keep = np.flatnonzero(near_path(planned, motion, body.reach_mm))
+                keep = keep[~body.inside(unseen[keep])]  # where the robot stood when it scanned
+                if keep.size:
+                    times = contact_times(planned[keep], motion, body)
+                    k = int(np.argmin(times))
+                    if np.isfinite(times[k]):
+                        what = f"touches space the scan did not see ({_UNSEEN[labels[keep[k]]]})"
+                        hidden = (float(times[k]), what, planned[keep[k]])
+            # a sample not looked at lies beyond radius: the body cannot touch it before it has come that far
+            if radius >= reach or (hidden is not None
+                                   and start + hidden[0] * motion.speed_mm_s + 1.0 < radius * (1.0 - 1e-9)):
+                return hidden
+            look *= 4.0
 
     def validate(self, signal: ControlSignal, context: ValidationContext) -> Verdict:
         if isinstance(signal, Straight):

@@ -21,6 +21,7 @@ strictly: finite vertices, at least three, not self-intersecting, of non-zero ar
 from __future__ import annotations
 
 import math
+import reprlib
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -35,6 +36,24 @@ _AREA_EPS_MM2 = 1e-6
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def _millimetres(value: Any) -> float:
+    """``value`` as a float; NaN, which the caller refuses by name, when it is none (an integer too large)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError, OverflowError):
+        return math.nan
+
+
+def _shown(value: Any) -> str:
+    """``value`` for an error message, short (a huge integer cut)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
+        return f"an integer of {value.bit_length()} bits"
+    try:
+        return reprlib.repr(value)
+    except ValueError:  # an integer past Python's digit limit
+        return f"a {type(value).__name__}"
 
 
 def _segments_cross(p1: np.ndarray, p2: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> bool:
@@ -58,8 +77,8 @@ def read_polygon(vertices: Any, field: str = "footprint_mm") -> np.ndarray:
     except neighbours at their shared vertex, an area above zero."""
     try:
         points = np.array(vertices, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{field} must be a list of (x, y) pairs in mm, got {vertices!r}") from None
+    except (TypeError, ValueError, OverflowError):  # an integer too large for a float too
+        raise ValueError(f"{field} must be a list of (x, y) pairs in mm, got {_shown(vertices)}") from None
     if points.ndim != 2 or points.shape[1] != 2 or not 3 <= len(points) <= MAX_VERTICES:
         raise ValueError(f"{field} must be 3 to {MAX_VERTICES} (x, y) pairs in mm, got shape {points.shape}")
     if not np.isfinite(points).all():
@@ -97,13 +116,13 @@ class Body:
     @classmethod
     def of(cls, radius_mm: float, footprint_mm: Sequence[Sequence[float]] | None, margin_mm: float = 0.0) -> "Body":
         """The body of a robot of ``radius_mm`` (used when ``footprint_mm`` is None) grown by ``margin_mm``."""
-        margin = float(margin_mm)
+        margin = _millimetres(margin_mm)
         if not math.isfinite(margin) or margin < 0:
-            raise ValueError(f"margin_mm must be a finite number of mm >= 0, got {margin_mm!r}")
+            raise ValueError(f"margin_mm must be a finite number of mm >= 0, got {_shown(margin_mm)}")
         if footprint_mm is None:
-            radius = float(radius_mm)
+            radius = _millimetres(radius_mm)
             if not math.isfinite(radius) or radius <= 0:
-                raise ValueError(f"radius_mm must be a finite number of mm > 0, got {radius_mm!r}")
+                raise ValueError(f"radius_mm must be a finite number of mm > 0, got {_shown(radius_mm)}")
             return cls(radius, None, margin)
         polygon = read_polygon(footprint_mm)
         return cls(float(np.max(np.hypot(polygon[:, 0], polygon[:, 1]))), polygon, margin)

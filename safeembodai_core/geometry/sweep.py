@@ -163,10 +163,11 @@ def deeper_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
     return times
 
 
-def near_path(points: np.ndarray, motion: Motion, reach_mm: float) -> np.ndarray:
-    """Per point: whether it lies within ``reach_mm`` of the path the body's centre drives (only
-    such a point can be touched by a body that reaches no farther than that from its centre). A
-    distance that cannot be computed (NaN) keeps the point: the filter only ever drops."""
+def near_path(points: np.ndarray, motion: Motion, reach_mm: float | np.ndarray) -> np.ndarray:
+    """Per point: whether it lies within ``reach_mm`` (one for all, or one per point) of the path the
+    body's centre drives (only such a point can be touched by a body that reaches no farther than
+    that from its centre). A distance that cannot be computed (NaN) keeps the point: the filter only
+    ever drops."""
     w, travel = motion.w_rad_s, motion.centre_travel_mm
     if travel <= 1e-9:  # the centre stays put (to a nanometre): a turn in place, or no motion
         return ~(np.hypot(points[:, 0], points[:, 1]) > reach_mm + travel)

@@ -108,7 +108,8 @@ class CommandFilter:
 
     def on_command(self, twist: Any, time_s: float) -> Decision:
         """What to send for ``twist`` (a :class:`Twist`, a decoded ``geometry_msgs/Twist`` or a tuple)
-        arriving at ``time_s``. A command that cannot be read is stopped, with the reason."""
+        arriving at ``time_s``. A command that cannot be read, or judged (a speed beyond any the guard
+        can put in millimetres), is stopped, with the reason naming its field."""
         time_s = finite_number("CommandFilter.on_command", "time_s", time_s, "seconds")
         try:
             requested = self.guard.read_twist(twist)
@@ -122,13 +123,16 @@ class CommandFilter:
                    "arrives" if age >= 0 else f"the command's time is {-age:.3f} s before the latest scan's")
             return Decision("stop", STOP, requested, time_s, [why], scan_age_s=age)
         scan, moved = self._scan, self._since_scan()
-        if self.mode == "refuse":
-            report = self.guard.check_twist(requested, self.horizon_s, lidar_mm=scan, since_scan=moved)
-            if report.valid:
-                return Decision("forward", requested, requested, time_s, scan_age_s=age)
-            return Decision("stop", STOP, requested, time_s, report.reasons, age, report.collision_time_s)
-        limited = self.guard.limit_twist(requested, self.horizon_s, slowdown=self.slowdown, lidar_mm=scan,
-                                         since_scan=moved)
+        try:
+            if self.mode == "refuse":
+                report = self.guard.check_twist(requested, self.horizon_s, lidar_mm=scan, since_scan=moved)
+                if report.valid:
+                    return Decision("forward", requested, requested, time_s, scan_age_s=age)
+                return Decision("stop", STOP, requested, time_s, report.reasons, age, report.collision_time_s)
+            limited = self.guard.limit_twist(requested, self.horizon_s, slowdown=self.slowdown, lidar_mm=scan,
+                                             since_scan=moved)
+        except (ArithmeticError, ValueError) as error:  # numbers the guard cannot judge: never let them through
+            return Decision("stop", STOP, requested, time_s, [f"command refused unjudged: {error}"], age)
         action: Literal["forward", "limit", "stop"] = (
             "forward" if not limited.limited else ("stop" if limited.stopped else "limit"))
         return Decision(action, limited.twist if action != "stop" else STOP, requested, time_s, limited.reasons, age,

@@ -28,9 +28,10 @@ MAX_PIECES = 2000
 
 
 def longest_judged_s(twist: "Twist", step_mm: float = STEP_MM, step_deg: float = STEP_DEG) -> float:
-    """How long ``twist`` can be held before its arc needs more than :data:`MAX_PIECES` pieces."""
+    """How long ``twist`` can be held before its arc needs more than :data:`MAX_PIECES` pieces (a
+    billionth short of it: :func:`arc_signals` rounds its own way, and must cut this hold into no more)."""
     per_second = max(abs(twist.linear_x) * 1000.0 / step_mm, abs(math.degrees(twist.angular_z)) / step_deg)
-    return math.inf if per_second == 0 else MAX_PIECES / per_second
+    return math.inf if per_second == 0 else MAX_PIECES / per_second * (1.0 - 1e-9)
 
 
 def piece_count(distance_mm: float, angle_deg: float, step_mm: float = STEP_MM, step_deg: float = STEP_DEG) -> int:

@@ -9,6 +9,7 @@ import pytest
 
 from safeembodai_core import Guard, RobotSpec, SlowdownZone
 from safeembodai_core.ros import CommandFilter, LaserScan, Twist
+from safeembodai_core.ros.laser_scan import SensorMount
 
 
 def scan_msg(ranges_m, increment_deg=1.0):
@@ -130,3 +131,94 @@ def test_a_robot_on_a_return_is_let_back_off_it_but_not_on(at_m, mode):
         assert back.action == "limit" and back.twist.linear_x == pytest.approx(-0.3)
     else:
         assert back.action == "stop" and back.twist == Twist(0.0, 0.0)
+
+
+@pytest.mark.parametrize("mode", ["limit", "refuse"])
+@pytest.mark.parametrize("command, field", [
+    (Twist(1.8e305, 0.0), "linear.x"),
+    (Twist(-1.7e308, 0.5), "linear.x"),
+    ({"linear": {"x": 1e306, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0}}, "linear.x"),
+    ((0.0, 0.0, 1.8e305), "linear.y"),
+])
+def test_a_command_too_fast_to_judge_is_a_stop_naming_its_field(mode, command, field):
+    node = CommandFilter(Guard(robot=RobotSpec(holonomic=True)), mode=mode)
+    node.on_scan(scan_msg([3.0] * 360), 0.0)
+    decision = node.on_command(command, 0.01)
+    assert decision.action == "stop" and decision.twist == Twist(0.0, 0.0)
+    speed = decision.requested.linear_x if field == "linear.x" else decision.requested.linear_y
+    assert decision.reasons == [f"command refused unjudged: Twist {field} = {speed:g} m/s is too fast to judge: in "
+                                "millimetres per second it overflows"]
+
+
+def test_a_hold_past_the_longest_arc_is_a_decision_not_an_error():
+    node = CommandFilter(Guard(["lidar_clearance"]), horizon_s=60.0)
+    node.on_scan(scan_msg([5.0] * 360), 0.0)
+    assert node.on_command(Twist(2.1911947173421553, 0.0), 0.01).action in ("limit", "stop")
+
+
+HUGE = 10**400
+
+
+def scan_dict(**fields):
+    message = {"angle_min": 0.0, "angle_increment": math.radians(1.0), "angle_max": math.radians(359.0),
+               "range_min": 0.05, "range_max": 8.0, "ranges": [3.0] * 360, "time_increment": 0.0, "scan_time": 0.1}
+    return {**message, **fields}
+
+
+def twist_dict(vector, axis):
+    message = {"linear": {"x": 0.1, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+    message[vector][axis] = HUGE
+    return message
+
+
+def live_node():
+    node = CommandFilter(Guard())
+    node.on_scan(scan_dict(), 0.0)
+    return node
+
+
+SCAN_FIELDS = ["angle_min", "angle_increment", "angle_max", "range_min", "range_max", "time_increment", "scan_time"]
+#: every number the guard reads, each given an integer too large for a float: (the field's name, the call)
+HUGE_INPUTS = [
+    *[(f"LaserScan.{name}", lambda name=name: live_node().on_scan(scan_dict(**{name: HUGE}), 0.01))
+      for name in SCAN_FIELDS],
+    (r"LaserScan.ranges\[7\]", lambda: live_node().on_scan(scan_dict(ranges=[3.0] * 7 + [HUGE] + [3.0] * 352), 0.01)),
+    *[(f"SensorMount.{name}", lambda name=name: SensorMount(**{name: HUGE})) for name in ("x_mm", "y_mm", "yaw_deg")],
+    *[(f"Twist.{name}", lambda name=name: Twist(**{"linear_x": 0.0, "angular_z": 0.0, name: HUGE}))
+      for name in ("linear_x", "angular_z", "linear_y")],
+    *[(f"CommandFilter.on_pose.{name}", lambda i=i: live_node().on_pose(tuple(HUGE if j == i else 0.0
+                                                                              for j in range(3)), 0.01))
+      for i, name in enumerate(("x_mm", "y_mm", "heading_deg"))],
+    *[(f"CommandFilter.{method}.time_s", lambda method=method, args=args: getattr(live_node(), method)(*args, HUGE))
+      for method, args in (("on_scan", (scan_dict(),)), ("on_pose", ((0.0, 0.0, 0.0),)),
+                           ("on_command", (Twist(0.1, 0.0),)))],
+    *[(f"CommandFilter.{name}", lambda name=name: CommandFilter(Guard(), **{name: HUGE}))
+      for name in ("horizon_s", "scan_timeout_s")],
+    ("SlowdownZone.factor", lambda: SlowdownZone(HUGE, band_mm=100.0)),
+    ("SlowdownZone.band_mm", lambda: SlowdownZone(0.5, band_mm=HUGE)),
+    ("SlowdownZone.polygon_mm", lambda: SlowdownZone(0.5, polygon_mm=((0, 0), (HUGE, 0), (0, 1)))),
+    ("RobotSpec.footprint_mm", lambda: RobotSpec(footprint_mm=((0, 0), (HUGE, 0), (0, 1)))),
+    ("radius_mm", lambda: RobotSpec(radius_mm=HUGE).body()),
+    ("duration_s", lambda: Guard().check_twist((0.1, 0.0), HUGE, lidar_mm=[3000.0] * 360)),
+    ("horizon_s", lambda: Guard().limit_twist((0.1, 0.0), HUGE, lidar_mm=[3000.0] * 360)),
+    ("time_s", lambda: Guard().check_twist((0.1, 0.0), 1.0, lidar_mm=[3000.0] * 360, time_s=HUGE)),
+    ("x_mm", lambda: Guard().check_twist((0.1, 0.0), 1.0, lidar_mm=[3000.0] * 360, pose=(HUGE, 0.0, 0.0))),
+    ("heading_deg", lambda: Guard().check_twist((0.1, 0.0), 1.0, lidar_mm=[3000.0] * 360, since_scan=(0.0, 0.0, HUGE))),
+]
+
+
+@pytest.mark.parametrize("field, call", HUGE_INPUTS, ids=[field.replace("\\", "") for field, _ in HUGE_INPUTS])
+def test_a_huge_integer_in_any_number_the_guard_reads_is_a_value_error_naming_it(field, call):
+    """JSON and rosbridge carry integers of any size: not one reaches a float conversion unguarded."""
+    with pytest.raises(ValueError, match=field):
+        call()
+
+
+@pytest.mark.parametrize("vector, axis", [(v, a) for v in ("linear", "angular") for a in "xyz"])
+def test_a_huge_integer_in_a_command_is_a_stop_naming_its_field(vector, axis):
+    decision = live_node().on_command(twist_dict(vector, axis), 0.01)
+    assert decision.action == "stop" and f"Twist.{vector}.{axis} must be a number" in decision.reasons[0]
+    for index in range(3):  # the tuple form
+        command = tuple(HUGE if j == index else 0.0 for j in range(3))
+        decision = CommandFilter(Guard(robot=RobotSpec(holonomic=True))).on_command(command, 0.01)
+        assert decision.action == "stop" and "must be a number" in decision.reasons[0]

@@ -212,3 +212,41 @@ def test_hostile_numbers_are_refused_not_judged():
     for pose in ((1, 2), None, (0.0, math.nan, 0.0)):
         with pytest.raises(ValueError, match="on_pose"):
             node.on_pose(pose, 0.0)
+
+
+@pytest.mark.timeout(60)  # before the check, -1 or 1e-300 bisected other rules' safe hold for ever
+@pytest.mark.parametrize("rules", [None, ["lidar_clearance"], ["footprint_sweep"], ["moving_obstacles"],
+                                   ["command_limits", "swept_body", "lidar_clearance"]])
+@pytest.mark.parametrize("resolution", [-1, 0, 1e-300, math.nan, math.inf, True, 10**400],
+                         ids=["-1", "0", "1e-300", "nan", "inf", "True", "10**400"])
+def test_a_resolution_the_bisection_cannot_end_on_is_refused_by_name(rules, resolution):
+    guard = Guard(rules) if rules else Guard()
+    wall = LidarScan(np.full(360, 400.0), 8000.0)
+    with pytest.raises(ValueError, match="resolution_s"):
+        guard.check_twist((0.5, 0.0), 2.0, lidar_mm=wall, resolution_s=resolution)
+    with pytest.raises(ValueError, match="resolution_s"):
+        guard.limit_twist((0.5, 0.0), 2.0, lidar_mm=wall, resolution_s=resolution)
+
+
+@pytest.mark.timeout(60)  # before, the bisection halved a 1e19 s hold towards 0.05 s below its floats' spacing
+def test_a_hold_too_long_for_floats_to_bisect_still_answers():
+    report = Guard(["lidar_clearance"]).check_twist((1e-20, 0.0), 1e30, lidar_mm=LidarScan(np.full(360, 400.0), 8000.0))
+    assert not report.valid and 0.0 < report.safe_duration_s < 1e30
+
+
+@pytest.mark.parametrize("twist, field", [((1.8e305, 0.0), "linear.x"), ((-1.7e308, 0.3), "linear.x"),
+                                          ((0.0, 0.0, 1.8e305), "linear.y")])
+def test_a_speed_too_large_to_judge_is_an_error_naming_the_twists_field(twist, field):
+    guard = Guard(robot=RobotSpec(holonomic=True))
+    free = LidarScan(np.full(360, 5000.0), 8000.0)
+    for judge in (guard.check_twist, guard.limit_twist):
+        with pytest.raises(ValueError, match=rf"^Twist {field} = .* m/s is too fast to judge") as error:
+            judge(twist, 1.0, lidar_mm=free)
+        assert "Motion" not in str(error.value)
+
+
+@pytest.mark.parametrize("rules", [["lidar_clearance"], ["footprint_sweep"]])
+def test_a_hold_past_the_longest_arc_is_refused_not_a_rounding_error(rules):
+    """2.19... m/s needs 2,000 pieces of 50 mm in 45.6 s; cut at exactly that hold it rounded to 2,001."""
+    report = Guard(rules).check_twist((2.1911947173421553, 0.0), 60.0, lidar_mm=LidarScan(np.full(360, 5000.0), 8000.0))
+    assert not report.valid and "more than 2000 pieces" in " ".join(report.reasons)
