@@ -11,9 +11,18 @@ velocity command (:meth:`~CommandFilter.on_command`) decides what reaches the ba
 
 A stop also goes out, with its reason, when there is no scan yet or the latest is older than
 ``scan_timeout_s`` (Nav2's ``source_timeout``: a sensor that stops arriving stops the robot), or a
-command's time is earlier than the scan's. When the robot has moved since the scan (a pose given
-after it), the rules judge from where the robot now is, in the scan's own frame (``Guard``'s
-``since_scan``: the scan's shadows stay where they are, what it never saw stays unseen). Every
+command's time is earlier than the scan's. A scan older than the one held (a late message) is
+refused with a ``ValueError`` naming both times, and the newer one stays: the guard never judges on
+an older view of the world than it has had.
+
+Poses place the scan. The pose latest given when a scan arrives is where that scan was taken; when
+the robot has moved since (a pose given after it), the rules judge from where the robot now is, in
+the scan's own frame (``Guard``'s ``since_scan``: the scan's shadows stay where they are, what it
+never saw stays unseen). Without any pose the robot is taken to be where its latest scan was taken
+(a scanner on the robot, no odometry). But a scan taken before the first pose cannot be placed once
+poses arrive -- the first pose may already be far from where the scan was taken, and guessing it the
+same would judge the robot on ground it left -- so every command is stopped, with that reason, until
+a new scan arrives (fail closed: at worst one scan period at start-up). Every
 :class:`Decision` says why, for the planner. Wire the three methods to your subscriptions (rclpy,
 rosbridge, a bag) and publish ``decision.twist``; one filter per robot, not shared between threads.
 """
@@ -21,10 +30,13 @@ rosbridge, a bag) and publish ``decision.twist``; one filter per robot, not shar
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal, Sequence
+from collections.abc import Sequence
+from typing import Any, Literal
+
+import numpy as np
 
 from ..geometry import relative_pose
-from .laser_scan import LaserScan, SensorMount, finite_number
+from .laser_scan import LaserScan, SensorMount, finite_number, shown
 from .twist import Twist
 
 STOP = Twist(0.0, 0.0)
@@ -78,6 +90,9 @@ class CommandFilter:
         ``ValueError`` and the last good one stays (and ages towards the timeout)."""
         scan = scan if isinstance(scan, LaserScan) else LaserScan.from_ros(scan, self.mount)
         time_s = finite_number("CommandFilter.on_scan", "time_s", time_s, "seconds")
+        if self._scan_time is not None and time_s < self._scan_time:
+            raise ValueError(f"CommandFilter.on_scan: a scan taken at {time_s!r} s is older than the one held "
+                             f"(taken at {self._scan_time!r} s): the newer one stays")
         self._scan, self._scan_time, self._scan_pose = scan, time_s, self._pose
 
     @property
@@ -86,22 +101,28 @@ class CommandFilter:
         return self._scan_time
 
     def on_pose(self, pose: Sequence[float], time_s: float) -> None:
-        """The robot's pose ``(x_mm, y_mm, heading_deg)`` in one map frame at ``time_s``; the latest
+        """The robot's pose ``(x_mm, y_mm, heading_deg)`` in one map frame at ``time_s``: a sequence of
+        exactly three numbers (a tuple, a list, an array; not text, bytes, a set or a dict); the latest
         pose given before a scan is where that scan was taken."""
         finite_number("CommandFilter.on_pose", "time_s", time_s, "seconds")
-        try:
-            values = tuple(pose)
-        except TypeError:
-            raise ValueError(f"CommandFilter.on_pose: pose must be (x_mm, y_mm, heading_deg), got {pose!r}") from None
+        if isinstance(pose, (str, bytes, bytearray, memoryview)) or not isinstance(pose, (Sequence, np.ndarray)):
+            raise ValueError(f"CommandFilter.on_pose: pose must be a sequence (x_mm, y_mm, heading_deg), got "
+                             f"{shown(pose)}")
+        values = tuple(pose)
         if len(values) != 3:
             raise ValueError(f"CommandFilter.on_pose: pose must be (x_mm, y_mm, heading_deg), got {len(values)} values")
         x, y, heading = (finite_number("CommandFilter.on_pose", name, value)
                          for name, value in zip(("x_mm", "y_mm", "heading_deg"), values))
         self._pose = (x, y, heading)
 
+    @property
+    def _scan_unplaced(self) -> bool:
+        """Poses arrived after a scan taken with none known: where the robot is relative to it is unknown."""
+        return self._scan_pose is None and self._pose is not None
+
     def _since_scan(self) -> tuple[float, float, float] | None:
         """Where the robot is now in the frame its latest scan was taken in; None when it has not moved
-        (or no pose was given)."""
+        (or no pose was ever given)."""
         if self._scan_pose is None or self._pose is None or self._pose == self._scan_pose:
             return None
         return relative_pose(self._scan_pose, self._pose)
@@ -122,6 +143,10 @@ class CommandFilter:
             why = (f"the latest scan is {age:.3f} s old (timeout {self.scan_timeout_s:g} s): stop until a new one "
                    "arrives" if age >= 0 else f"the command's time is {-age:.3f} s before the latest scan's")
             return Decision("stop", STOP, requested, time_s, [why], scan_age_s=age)
+        if self._scan_unplaced:
+            return Decision("stop", STOP, requested, time_s, [
+                "the latest scan was taken before any pose was known, and poses have arrived since: where the robot "
+                "is relative to that scan is unknown; stop until a new scan arrives"], scan_age_s=age)
         scan, moved = self._scan, self._since_scan()
         try:
             if self.mode == "refuse":

@@ -27,9 +27,11 @@ float is a ``ValueError`` naming the field.
 from __future__ import annotations
 
 import math
+import numbers
 import reprlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from decimal import Decimal
 from typing import Any, Literal, Sequence, cast
 
 import numpy as np
@@ -63,12 +65,14 @@ def shown(value: Any) -> str:
         return f"a {type(value).__name__}"
 
 
-def real_number(owner: str, name: str, value: Any, unit: str = "", *, text: bool = True) -> float:
+def real_number(owner: str, name: str, value: Any, unit: str = "") -> float:
     """``value`` as a float, ``inf`` and ``nan`` included, or a ``ValueError`` naming ``owner.name``
-    (``name`` alone when ``owner`` is empty): a bool, a container or an integer too large for a float
-    is no number, nor is text (``"10"``) unless ``text`` (a caller's own value: yes; the wire's: no)."""
+    (``name`` alone when ``owner`` is empty). Only a real number is one (``int``, ``float``, numpy's,
+    ``Fraction``, ``Decimal``): a bool, text (``"10"``, ``"1_0"``, ``b"1"``), a container or an integer
+    too large for a float is not -- the guard's numbers come from the wire and from callers alike, and
+    no form of them is guessed."""
     label, of = f"{owner}.{name}" if owner else name, f" of {unit}" if unit else ""
-    if isinstance(value, (bool, np.bool_)) or (not text and isinstance(value, _TEXT)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Real, Decimal)):
         raise ValueError(f"{label} must be a number{of}, got {shown(value)}")
     try:
         return float(value)
@@ -76,10 +80,10 @@ def real_number(owner: str, name: str, value: Any, unit: str = "", *, text: bool
         raise ValueError(f"{label} must be a number{of}, got {shown(value)}") from None
 
 
-def finite_number(owner: str, name: str, value: Any, unit: str = "", *, text: bool = True) -> float:
+def finite_number(owner: str, name: str, value: Any, unit: str = "") -> float:
     """``value`` as a finite float, or a ``ValueError`` naming ``owner.name`` (``name`` alone when
     ``owner`` is empty) and, when given, the ``unit`` it is read in (:func:`real_number`)."""
-    number = real_number(owner, name, value, unit, text=text)
+    number = real_number(owner, name, value, unit)
     if not math.isfinite(number):
         label, of = f"{owner}.{name}" if owner else name, f" of {unit}" if unit else ""
         raise ValueError(f"{label} must be {'a finite number' + of if unit else 'finite'}, got {shown(value)}")
@@ -105,7 +109,7 @@ def read_ranges(values: Any) -> np.ndarray:
         if value is None:
             raise ValueError(f"LaserScan.ranges[{index}] is null (rosbridge's inf, -inf or nan): read the message "
                              "with LaserScan.from_ros(message, null_range=...)")
-    return np.array([real_number("LaserScan", f"ranges[{index}]", value, "metres", text=False)
+    return np.array([real_number("LaserScan", f"ranges[{index}]", value, "metres")
                      for index, value in enumerate(items)], dtype=float)
 
 
@@ -130,10 +134,10 @@ def _check_fields(message: Any) -> None:
         raise ValueError(f"not a sensor_msgs/LaserScan: unknown field {', '.join(map(shown, unknown))}")
     for name in ("angle_min", "angle_increment", "range_min", "range_max", "angle_max"):
         if name in message:  # text is no number on the wire
-            real_number("LaserScan", name, message[name], text=False)
+            real_number("LaserScan", name, message[name])
     for name in ("time_increment", "scan_time"):
         if message.get(name) is not None:  # null is nan on the wire; neither is read
-            real_number("LaserScan", name, message[name], "seconds", text=False)
+            real_number("LaserScan", name, message[name], "seconds")
     if "header" in message and not isinstance(message["header"], Mapping):
         raise ValueError(f"LaserScan.header must be an object, got {shown(message['header'])}")
     if "intensities" in message and not isinstance(message["intensities"], list):
@@ -161,8 +165,10 @@ class SensorMount:
 @dataclass(frozen=True)
 class LaserScan:
     """The fields of ``sensor_msgs/LaserScan`` the guard reads (SI units, as ROS sends them), and
-    the sensor's mounting. ``angle_max`` is kept for the record; beam angles follow ``angle_min``
-    and ``angle_increment``, as ROS defines them."""
+    the sensor's mounting. Beam angles follow ``angle_min`` and ``angle_increment``, as ROS defines
+    them; ``angle_max``, when given, must be where the last beam points (``angle_min + (len(ranges) -
+    1) * angle_increment``, or one increment on, within half an increment): a scan that contradicts
+    itself is refused, not judged."""
 
     angle_min: float
     angle_increment: float
@@ -188,10 +194,24 @@ class LaserScan:
         ranges = read_ranges(self.ranges)
         if ranges.ndim != 1 or ranges.size == 0:
             raise ValueError(f"LaserScan.ranges must hold at least one beam, got shape {ranges.shape}")
+        if self.angle_max is not None:
+            self._check_angle_max(ranges.size, self.angle_max)
         ranges.flags.writeable = False
         object.__setattr__(self, "ranges", ranges)
         if not isinstance(self.mount, SensorMount):
             raise ValueError(f"LaserScan.mount must be a SensorMount, got {type(self.mount).__name__}")
+
+    def _check_angle_max(self, count: int, angle_max: float) -> None:
+        """Refuse a scan whose ``angle_max`` is not where its last beam points, within half an increment:
+        ``angle_min + (count - 1) * angle_increment`` (REP 117), or one increment on (the end of the last
+        beam's sector: how Nav2's own collision-monitor tests and some drivers write a full turn; the
+        beams' angles are the same either way)."""
+        last, half = self.angle_min + (count - 1) * self.angle_increment, abs(self.angle_increment) / 2
+        if not (abs(last - angle_max) <= half or abs(last + self.angle_increment - angle_max) <= half):
+            raise ValueError(
+                f"LaserScan contradicts itself: angle_min {self.angle_min!r} + ({count} ranges - 1) * angle_increment "
+                f"{self.angle_increment!r} puts the last beam at {last!r} rad, but angle_max is {angle_max!r} "
+                "(they must agree within half an increment)")
 
     @classmethod
     def from_ros(cls, message: Any, mount: SensorMount | None = None, *,

@@ -111,8 +111,7 @@ class Twist:
             except AttributeError:
                 raise ValueError(f"not a geometry_msgs/Twist: {type(message).__name__} has no linear/angular "
                                  "x, y, z") from None
-        # named as ROS names them; text is no number on the wire
-        parts = {name: finite_number("Twist", name, value, text=not wire) for name, value in parts.items()}
+        parts = {name: finite_number("Twist", name, value) for name, value in parts.items()}  # named as ROS names them
         for name in ("linear.y", "linear.z", "angular.x", "angular.y"):
             if parts[name] != 0.0 and not (holonomic and name == "linear.y"):
                 sideways = " (a holonomic base: RobotSpec(holonomic=True))" if name == "linear.y" else ""

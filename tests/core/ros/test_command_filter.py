@@ -222,3 +222,76 @@ def test_a_huge_integer_in_a_command_is_a_stop_naming_its_field(vector, axis):
         command = tuple(HUGE if j == index else 0.0 for j in range(3))
         decision = CommandFilter(Guard(robot=RobotSpec(holonomic=True))).on_command(command, 0.01)
         assert decision.action == "stop" and "must be a number" in decision.reasons[0]
+
+
+def test_a_late_older_scan_is_refused_and_the_newer_one_stays():
+    """Issue 52 item 11: a free scan stamped 0.6 s arriving after a wall scan at 1.0 s must not turn the
+    limited command into a forwarded one."""
+    node = CommandFilter(Guard(), horizon_s=1.0, scan_timeout_s=0.5)
+    node.on_scan(scan_msg(wall_ahead(0.8)), 1.0)
+    assert node.on_command(Twist(0.8, 0.0), 1.05).action == "limit"
+    with pytest.raises(ValueError, match=r"taken at 0\.6 s is older than the one held \(taken at 1\.0 s\)"):
+        node.on_scan(scan_msg([math.inf] * 360), 0.6)
+    assert node.latest_scan_time == 1.0 and node.on_command(Twist(0.8, 0.0), 1.06).action == "limit"
+    node.on_scan(scan_msg([math.inf] * 360), 1.0)  # the same time again is not older: it replaces it
+    assert node.on_command(Twist(0.8, 0.0), 1.07).action == "forward"
+
+
+@pytest.mark.parametrize("mode", ["limit", "refuse"])
+def test_poses_that_start_after_a_scan_taken_without_one_stop_until_a_new_scan(mode):
+    """Issue 52 item 12: a scan taken before any pose cannot be placed once poses arrive (the robot may
+    be anywhere relative to it): a stop, not the scan judged as if the robot had not moved."""
+    node = CommandFilter(Guard(), horizon_s=1.0, scan_timeout_s=1.0, mode=mode)
+    node.on_scan(scan_msg([math.inf] * 360), 0.0)
+    assert node.on_command(Twist(0.2, 0.0), 0.05).action == "forward"  # no poses at all: the scan is where it is
+    node.on_pose((0.0, 0.0, 0.0), 0.1)
+    node.on_pose((1e6, 0.0, 0.0), 0.2)  # 1 km on
+    lost = node.on_command(Twist(0.2, 0.0), 0.25)
+    assert lost.action == "stop" and lost.twist == Twist(0.0, 0.0) and "before any pose" in lost.reasons[0]
+    node.on_scan(scan_msg([math.inf] * 360), 0.3)  # taken where the robot now is
+    assert node.on_command(Twist(0.2, 0.0), 0.35).action == "forward"
+    node.on_pose((2e6, 0.0, 0.0), 0.4)  # another km on, after a scan placed by a pose: judged, and stopped
+    assert node.on_command(Twist(0.2, 0.0), 0.45).action == "stop"
+
+
+def test_with_a_pose_before_the_scan_the_same_jump_stops():
+    node = CommandFilter(Guard(), horizon_s=1.0, scan_timeout_s=1.0)
+    node.on_pose((0.0, 0.0, 0.0), 0.0)
+    node.on_scan(scan_msg([math.inf] * 360), 0.0)
+    node.on_pose((1e6, 0.0, 0.0), 0.2)
+    assert node.on_command(Twist(0.2, 0.0), 0.25).action == "stop"
+
+
+@pytest.mark.parametrize("pose", [b"abc", bytearray(b"abc"), "123", {1.0, 2.0, 3.0}, {"x": 0, "y": 0, "h": 0},
+                                  iter((0.0, 0.0, 0.0)), (0.0, 0.0), (0.0, 0.0, 0.0, 0.0), ("1", "2", "3"),
+                                  (True, 0.0, 0.0), (0.0, 0.0, [0.0]), 12.0, None])
+def test_a_pose_is_a_sequence_of_exactly_three_numbers(pose):
+    """Issue 52 item 14: bytes were read as (97, 98, 99), a set in whatever order it iterates."""
+    node = live_node()
+    with pytest.raises(ValueError, match="CommandFilter.on_pose"):
+        node.on_pose(pose, 0.01)
+    assert node._pose is None
+
+
+def test_a_pose_may_be_a_tuple_a_list_or_an_array():
+    import numpy as np
+
+    for pose in ((1.0, 2.0, 3.0), [1, 2, 3], np.array([1.0, 2.0, 3.0])):
+        node = live_node()
+        node.on_pose(pose, 0.01)
+        assert node._pose == (1.0, 2.0, 3.0)
+
+
+@pytest.mark.parametrize("call", [lambda node: node.on_scan(scan_dict(), "0.1"),
+                                  lambda node: node.on_pose((0.0, 0.0, 0.0), "0.1"),
+                                  lambda node: node.on_command(Twist(0.1, 0.0), "0.1"),
+                                  lambda node: node.on_command(Twist(0.1, 0.0), b"0.1")])
+def test_a_time_as_text_is_no_time(call):
+    with pytest.raises(ValueError, match="time_s must be a number of seconds"):
+        call(live_node())
+
+
+@pytest.mark.parametrize("command", [("1_0", 0.0), (0.1, "0"), (b"1", 0.0), (True, 0.0)])
+def test_a_command_with_text_or_a_bool_for_a_number_is_a_stop(command):
+    decision = live_node().on_command(command, 0.01)
+    assert decision.action == "stop" and "must be a number" in decision.reasons[0]

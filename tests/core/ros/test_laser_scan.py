@@ -280,3 +280,45 @@ def test_any_json_in_any_field_is_read_or_refused_with_a_value_error(name, value
         LaserScan.from_ros(scan).to_lidar_scan()
     except ValueError as error:
         assert name in str(error)
+
+
+def scan_90(count: int, **fields) -> LaserScan:
+    """A scan declaring +-45 degrees in 1-degree steps (91 beams when consistent), free all round."""
+    return LaserScan(**{"angle_min": -45 * DEG, "angle_max": 45 * DEG, "angle_increment": DEG,
+                        "ranges": [math.inf] * count, "range_min": 0.05, "range_max": 8.0, **fields})
+
+
+def test_a_scan_whose_angle_max_contradicts_its_beams_is_refused():
+    """Issue 52 item 13: +-45 degrees declared but 360 ranges carried let a backward command pass."""
+    backward = [{"command": "straight", "direction": "backward", "distance": 300}]
+    assert not Guard(["lidar_clearance"]).check(backward, lidar_mm=scan_90(91)).valid
+    for count in (360, 90 - 1, 93):
+        with pytest.raises(ValueError, match=r"LaserScan contradicts itself: angle_min .* angle_increment .* "
+                                             r"angle_max is 0\.785"):
+            scan_90(count)
+    message = SimpleNamespace(angle_min=-45 * DEG, angle_max=45 * DEG, angle_increment=DEG, range_min=0.05,
+                              range_max=8.0, ranges=[math.inf] * 360)
+    with pytest.raises(ValueError, match="contradicts itself"):
+        LaserScan.from_ros(message)
+    assert scan_90(360, angle_max=None).ranges.size == 360  # none declared: nothing to contradict
+
+
+@pytest.mark.parametrize("count, angle_max_deg", [
+    (91, 45.0), (91, 45.49), (91, 44.51),  # REP 117: the last beam at angle_max, within half a step
+    (90, 45.0),  # the end of the last beam's sector (Nav2's collision-monitor tests: 360 beams, 0 to 2 pi)
+])
+def test_angle_max_within_half_an_increment_of_the_last_beam_is_read(count, angle_max_deg):
+    assert scan_90(count, angle_max=angle_max_deg * DEG).ranges.size == count
+
+
+def test_a_reversed_scan_checks_angle_max_too():
+    assert scan_90(91, angle_min=45 * DEG, angle_max=-45 * DEG, angle_increment=-DEG).ranges.size == 91
+    with pytest.raises(ValueError, match="contradicts itself"):
+        scan_90(91, angle_min=45 * DEG, angle_max=-45 * DEG, angle_increment=DEG)
+
+
+@pytest.mark.parametrize("name", ["angle_min", "angle_increment", "angle_max", "range_min", "range_max"])
+@pytest.mark.parametrize("value", ["1", "1_0", b"1", True])
+def test_a_scan_reads_no_text_or_bool_as_a_number(name, value):
+    with pytest.raises(ValueError, match=f"LaserScan.{name} must be a number"):
+        scan_90(91, **{name: value})

@@ -139,3 +139,26 @@ def test_a_twist_refuses_bools_and_numbers_too_large_for_a_float():
         Twist(True, 0.0)
     with pytest.raises(ValueError, match="Twist.angular_z must be a number, got an integer of 1329 bits"):
         Twist(0.1, 10**400)
+
+
+@pytest.mark.parametrize("value", ["1_0", "1", " 1 ", "inf", b"1", bytearray(b"1"), True, False, np.bool_(True),
+                                  [1.0], np.array([1.0]), None, {}, 1j])
+def test_a_twist_reads_no_text_bool_or_container_as_a_number(value):
+    """Issue 52 item 14: ``Twist("1_0", 0)`` was 10 m/s, ``Twist(True, 0)`` 1 m/s."""
+    for fields in ({"linear_x": value, "angular_z": 0.0}, {"linear_x": 0.0, "angular_z": value},
+                   {"linear_x": 0.0, "angular_z": 0.0, "linear_y": value}):
+        with pytest.raises(ValueError, match="must be a number"):
+            Twist(**fields)
+    decoded = SimpleNamespace(linear=SimpleNamespace(x=value, y=0.0, z=0.0),
+                              angular=SimpleNamespace(x=0.0, y=0.0, z=0.0))
+    with pytest.raises(ValueError, match="Twist.linear.x must be a number"):
+        Twist.from_ros(decoded)
+
+
+def test_a_twist_reads_every_kind_of_real_number():
+    from decimal import Decimal
+    from fractions import Fraction
+
+    twist = Twist(np.float32(0.5), Fraction(1, 4), Decimal("0.125"))
+    assert (twist.linear_x, twist.angular_z, twist.linear_y) == (0.5, 0.25, 0.125)
+    assert Twist(np.int64(1), 0).linear_x == 1.0 and type(Twist(np.int64(1), 0).linear_x) is float

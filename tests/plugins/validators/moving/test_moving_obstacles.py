@@ -275,9 +275,10 @@ def test_a_guard_given_times_keeps_its_scans_for_moving_obstacles():
         Guard(rules).check(plan, lidar_mm=now, pose=ROBOT, time_s=float("nan"))
 
 
-def test_a_guard_copes_with_a_refilled_buffer_a_clock_reset_and_a_time_as_text():
+def test_a_guard_copes_with_a_refilled_buffer_a_clock_reset_and_refuses_a_time_as_text():
     """Scans are copied when kept (a driver refilling one buffer must not rewrite them); a time
-    earlier than the last kept one starts a new history; a time is a number of seconds."""
+    earlier than the last kept one starts a new history; a time is a number of seconds, never text
+    (issue 52 item 14: ``"10"`` was read as 10 s once; no number the guard reads comes as text)."""
     from safeembodai_core import Guard
 
     rules = ["command_limits", {"use": "moving_obstacles", "options": {"think_time_s": THINK_S}}]
@@ -285,7 +286,9 @@ def test_a_guard_copes_with_a_refilled_buffer_a_clock_reset_and_a_time_as_text()
     before, now = scan_from(ROBOT, CROSSING["before"]), scan_from(ROBOT, CROSSING["now"])
     guard, buffer = Guard(rules), np.empty(before.beam_count)
     buffer[:] = before.ranges_mm
-    guard.check(plan[:1], lidar_mm=buffer, max_range_mm=before.max_range_mm, pose=ROBOT, time_s="10")
+    with pytest.raises(ValueError, match="time_s must be a number of seconds, got '10'"):
+        guard.check(plan[:1], lidar_mm=buffer, max_range_mm=before.max_range_mm, pose=ROBOT, time_s="10")
+    guard.check(plan[:1], lidar_mm=buffer, max_range_mm=before.max_range_mm, pose=ROBOT, time_s=10)
     buffer[:] = now.ranges_mm
     assert not guard.check(plan, lidar_mm=buffer, max_range_mm=now.max_range_mm, pose=ROBOT, time_s=15).valid
     assert guard.history[0].scan.ranges_mm is not buffer and not guard.history[0].scan.ranges_mm.flags.writeable
