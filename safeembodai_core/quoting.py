@@ -23,14 +23,9 @@ import json
 import re
 from typing import Any
 
-from .redaction import redact
+from .redaction import UNSAFE_BEYOND_JSON, redact  # the one set of invisible characters: defined there
 
 CLIPPED = "[...]"
-#: Characters that can reorder, hide or break a line a reader sees and that JSON leaves as they
-#: are: DEL and C1 controls, line/paragraph separators, bidi controls, lone surrogates (a regex
-#: character-class body; :mod:`.text_safety` adds the C0 controls for terminals).
-UNSAFE_BEYOND_JSON = ("\x7f-\x9f\u00ad\u034f\u061c\u180e\u200b-\u200f\u2028\u2029\u202a-\u202e\u2060-\u2064"
-                      "\u2066-\u2069\ufeff\ufff9-\ufffb\ud800-\udfff\U000e0000-\U000e007f\U000e0100-\U000e01ef")
 _STILL_UNSAFE = re.compile(f"[{UNSAFE_BEYOND_JSON}]")
 
 

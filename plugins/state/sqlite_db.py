@@ -74,7 +74,26 @@ _REFUSALS = ("SELECT trial_id, rule, COUNT(*) FROM (SELECT DISTINCT trial_id, st
 #: per trial and attack kind, the steps attacked with that kind
 _ATTACKS = ("SELECT trial_id, kind, COUNT(*) FROM (SELECT DISTINCT trial_id, step, kind FROM attacks) "
             "GROUP BY trial_id, kind")
+_EXPECTED: dict[str, tuple[tuple[str, str], ...]] = {}  # table -> (column, declared type), from SCHEMA
 _INHERITED: list[sqlite3.Connection] = []  # kept alive so a forked child never closes its parent's handle
+
+
+def _columns(conn: sqlite3.Connection, table: str) -> tuple[tuple[str, str], ...]:
+    return tuple((row[1], str(row[2]).upper()) for row in conn.execute("SELECT * FROM pragma_table_info(?)", (table,)))
+
+
+def expected_tables() -> dict[str, tuple[tuple[str, str], ...]]:
+    """Each table of :data:`SCHEMA` and its columns (name, declared type), read from a database
+    made with it, so the check and the schema cannot disagree."""
+    if not _EXPECTED:
+        conn = sqlite3.connect(":memory:")
+        try:
+            conn.executescript(SCHEMA)
+            names = [row[0] for row in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+            _EXPECTED.update({name: _columns(conn, name) for name in names})
+        finally:
+            conn.close()
+    return _EXPECTED
 
 
 class SqliteStateStore(StateStore):
@@ -198,6 +217,7 @@ class SqliteStateStore(StateStore):
             found = ", ".join(sorted(tables)) or "none"
             raise StateStoreError(f"state store {str(self.path)!r}: "
                                   f"not a SafeEmbodAI results database (tables: {found})")
+        self._check_objects(conn)
         row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
         version = row[0] if row else None
         if version != str(SCHEMA_VERSION):
@@ -205,6 +225,21 @@ class SqliteStateStore(StateStore):
                 f"state store {str(self.path)!r}: schema version {version} is not the supported version "
                 f"{SCHEMA_VERSION}; use a new file (or the SafeEmbodAI version that wrote it)"
             )
+
+    def _check_objects(self, conn: sqlite3.Connection) -> None:
+        """Every table of :data:`SCHEMA` is a table with its columns, checked in ``sqlite_master``
+        before any row is read: a file from elsewhere whose ``steps`` is a view yielding rows
+        forever (a recursive CTE) is refused at once, not after :data:`MAX_QUERY_S`."""
+        kinds = {str(name).lower(): kind for name, kind in conn.execute("SELECT name, type FROM sqlite_master")}
+        for table, columns in expected_tables().items():
+            kind = kinds.get(table)
+            if kind != "table":
+                found = f"a {kind}" if kind else "missing"
+                raise StateStoreError(f"state store {str(self.path)!r}: not a SafeEmbodAI results database "
+                                      f"({table!r} is {found}, not a table)")
+            if _columns(conn, table) != columns:
+                raise StateStoreError(f"state store {str(self.path)!r}: not a SafeEmbodAI results database "
+                                      f"(table {table!r} does not have the expected columns)")
 
     def _transaction(self, doing: str, work: Callable[[sqlite3.Connection], None]) -> None:
         """Run ``work`` in one ``BEGIN IMMEDIATE`` transaction: all of it is stored, or none."""

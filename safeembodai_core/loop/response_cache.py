@@ -16,7 +16,9 @@ The cache is a folder of small JSON files, one per reply, by default the run fol
 read back as hostile input: only a regular file of bounded size is opened (no symlink followed),
 its fields are type- and size-checked, and the loop reads its text as strictly as a live one. Keys
 are hashes and replies are stored as the backend returned them (the backend masks its key out of
-the text first), so no credential is written. A reply that cannot be kept (a full disk) is logged
+the text first); a reply that still holds a registered key in any encoding a reflecting server
+uses (:func:`~safeembodai_core.redaction.secret_encoding`: base64, hex, reversed, ...) is not kept,
+and the log says which encoding, so no credential is written. A reply that cannot be kept (a full disk) is logged
 and the trial goes on with it.
 """
 
@@ -38,7 +40,9 @@ from ..components import LLMBackend
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import ControlLimits, Prompt, TokenUsage
-from ..models.reply import BackendReply, envelope_error_text, finish_reason_text, plain_token
+from ..models.reply import ENVELOPE_ERROR_CHARS, BackendReply, finish_reason_text, plain_token
+from ..quoting import quote_untrusted
+from ..redaction import secret_encoding
 from ..run_files import read_regular_file, read_run_text
 
 log = get_logger(__name__)
@@ -134,6 +138,10 @@ class ResponseCache:
         """Keep a reply already in its stored form (the caller has read it with :func:`stored_reply`)."""
         if not _KEY.fullmatch(key):
             raise ValueError(f"not a response cache key: {key[:80]!r}")
+        held = secret_encoding(text)
+        if held is not None:  # a reflecting server's copy of the key: the trial goes on, nothing is kept
+            log.warning("cache.unkept_reply", cache=str(self.folder), error=f"the reply holds the API key ({held})")
+            return
         target = self._path(key)
         aside = target.with_name(f".{target.name}.{os.getpid()}.{threading.get_ident()}")
         try:
@@ -221,10 +229,16 @@ def stored_reply(text: Any) -> BackendReply | None:
         return BackendReply(text=fields["text"], usage=usage, latency_s=float(latency),
                             model=plain_token(fields["model"]) if fields["model"] else "",
                             finish_reason=finish_reason_text(fields["finish_reason"]), reasoning=fields["reasoning"],
-                            choices=choices, envelope_error=envelope_error_text(fields["envelope_error"]),
+                            choices=choices, envelope_error=_quoted(fields["envelope_error"]),
                             origin=plain_token(fields["origin"], 200) if fields["origin"] else None)
     except (ValueError, TypeError, RecursionError):
         return None
+
+
+def _quoted(error: str | None) -> str | None:
+    """A stored envelope error as the file's words, not ours: quoted as an LLM's words are
+    (:func:`~safeembodai_core.quoting.quote_untrusted`), so the retry prompt never repeats it bare."""
+    return None if error is None else quote_untrusted(error, ENVELOPE_ERROR_CHARS)
 
 
 def request_key(trial_id: str, request: dict[str, Any]) -> str:

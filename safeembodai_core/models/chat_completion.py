@@ -21,7 +21,8 @@ attempt's record keeps the body as its text), and the rest is read as:
 * numbers anywhere in the envelope are read as the answer's are: ``NaN``, literals over 32
   characters or magnitudes above 10^15 (a token count of 1e30) refuse the whole reply -- such a
   server is broken; ``usage`` is read by :func:`read_usage`: anything but two whole, non-negative
-  counts is unusable (``usage_known`` False), and the backend counts the call's tokens itself.
+  counts is unusable (``usage_known`` False), and the backend counts the call's tokens itself, never
+  less than what the server said (:func:`said_usage`, :func:`counted_usage`).
 * a body that carries an ``error`` (an HTTP 200 carrying an error, with or without choices) -- an
   envelope error that quotes its message; a backend that sees it first treats it as the provider's
   error instead;
@@ -32,6 +33,7 @@ attempt's record keeps the body as its text), and the rest is read as:
 from __future__ import annotations
 
 import json
+import math
 from typing import Any
 
 from ..quoting import quote_untrusted
@@ -85,6 +87,34 @@ def read_usage(usage: Any) -> TokenUsage | None:
     if prompt is None or completion is None:
         return None
     return TokenUsage(prompt_tokens=prompt, completion_tokens=completion)
+
+
+def said_usage(usage: Any) -> TokenUsage:
+    """What an unreadable usage (:func:`read_usage` None) still says, as a floor for the call's count:
+    each count that is a finite, non-negative number, rounded up (``900.9`` is 901), else 0; marked
+    estimated. A spending cap never counts less than the provider's own figure."""
+    get = usage.get if isinstance(usage, dict) else (lambda name: getattr(usage, name, None))
+
+    def floor(name: str) -> int:
+        try:
+            value = get(name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+                return 0
+            return min(MAX_TOKENS_REPORTED, math.ceil(value)) if value < 2**63 else MAX_TOKENS_REPORTED
+        except Exception:  # an object whose attributes misbehave says nothing
+            return 0
+
+    if usage is None:
+        return TokenUsage(estimated=True)
+    return TokenUsage(prompt_tokens=floor("prompt_tokens"), completion_tokens=floor("completion_tokens"),
+                      estimated=True)
+
+
+def counted_usage(said: TokenUsage, estimate: TokenUsage) -> TokenUsage:
+    """The count of a call whose usage was unreadable: per count the larger of what the server said
+    (:func:`said_usage`) and the estimate made here, marked estimated."""
+    return TokenUsage(prompt_tokens=max(said.prompt_tokens, estimate.prompt_tokens),
+                      completion_tokens=max(said.completion_tokens, estimate.completion_tokens), estimated=True)
 
 
 def error_text(body: Any) -> str | None:
@@ -173,7 +203,8 @@ def _read(data: Any, reply: BackendReply) -> BackendReply:
     if not isinstance(data, dict):
         raise ResponseParseError(f"the reply is not a JSON object (got {type(data).__name__})")
     usage = read_usage(data.get("usage"))
-    reply.usage, reply.usage_known = (usage, True) if usage is not None else (TokenUsage(), False)
+    # unreadable: what it said is kept as a floor for the count the backend makes (counted_usage)
+    reply.usage, reply.usage_known = (usage, True) if usage is not None else (said_usage(data.get("usage")), False)
     if isinstance(data.get("model"), str):
         reply.model = data["model"]  # whole: a backend masks its secrets before it shortens it
     message = error_message(data)

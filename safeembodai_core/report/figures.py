@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Sequence
 
 from ..metrics import CellMetrics, Metric, metric_catalog
 from ..metrics.intervals import MIN_N_FOR_INTERVAL
+from ..text_safety import terminal_text
 from .paper import paper_value
 
 if TYPE_CHECKING:
@@ -107,9 +108,9 @@ def metric_figure(cells: list[CellMetrics], metric: Metric | str, note: str | No
                 paper_drawn = True
                 axis.scatter(paper_x, paper_y, marker="D", s=28, facecolors="white", edgecolors="black",
                              linewidths=1.2, zorder=4)
-        axis.set_xticks(range(len(environments)), environments)
+        axis.set_xticks(range(len(environments)), [_shown(e) for e in environments])
         axis.set_xlim(-0.5, len(environments) - 0.5)  # an empty panel spans the environments as the others do
-        axis.set_title(condition.replace("_", " "))
+        axis.set_title(_shown(condition).replace("_", " "))
         if not drawn:  # say why a panel is empty (ADR without attacks), rather than leave it blank
             axis.text(0.5, 0.5, "n/a: nothing to estimate", transform=axis.transAxes, ha="center", va="center",
                       fontsize="small", color="grey")
@@ -119,10 +120,17 @@ def metric_figure(cells: list[CellMetrics], metric: Metric | str, note: str | No
     _legend(fig, arms, paper_drawn, bars)
     top = 1.0
     if note:
-        fig.suptitle(note, fontsize="small", color="darkred", fontstyle="italic")
+        fig.suptitle(_shown(note), fontsize="small", color="darkred", fontstyle="italic")
         top = 0.93
     fig.tight_layout(rect=(0, 0.17 if bars else 0.1, 1, top))
     return fig
+
+
+def _shown(text: str) -> str:
+    """A name from the store as a figure label: control characters shown as escapes (matplotlib
+    warns about a glyph it lacks, printing the raw character to the terminal) and ``$`` kept from
+    starting mathtext."""
+    return terminal_text(text).replace("$", r"\$")
 
 
 def _colour(index: int) -> str:
@@ -134,9 +142,9 @@ def _legend(fig: "Figure", arms: list[str], paper_drawn: bool, bars: str | None)
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    handles: list = [Patch(facecolor=_colour(a), label=arm) for a, arm in enumerate(arms)]
+    handles: list = [Patch(facecolor=_colour(a), label=_shown(arm)) for a, arm in enumerate(arms)]
     if paper_drawn:
         handles.append(Line2D([], [], marker="D", linestyle="none", markersize=6, markerfacecolor="white",
                               markeredgecolor="black", markeredgewidth=1.2, label=PAPER_LABEL))
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize="small", frameon=False,
-               title=bars, title_fontsize="small")
+               title=_shown(bars) if bars else None, title_fontsize="small")

@@ -47,7 +47,7 @@ from safeembodai_core.errors import BackendError
 from safeembodai_core.logs import register_secret
 from safeembodai_core.models import Prompt, TokenUsage
 from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
-from safeembodai_core.models.chat_completion import usage_believable
+from safeembodai_core.models.chat_completion import counted_usage, usage_believable
 from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
 from safeembodai_core.quoting import quote_untrusted
 
@@ -312,7 +312,8 @@ class LiteLLMBackend(LLMBackend):
                     reply = self._reply(response, recorder, time.perf_counter() - started)
                     if not (reply.usage_known and usage_believable(reply.usage, reply.text)):
                         # the call was paid all the same: never counted as 0
-                        reply.usage = self._counted(kwargs["messages"], reply.text + (reply.reasoning or ""))
+                        reply.usage = counted_usage(reply.usage, self._counted(kwargs["messages"],
+                                                                               reply.text + (reply.reasoning or "")))
                     self._limiter.spent(reply.usage.total, o.tokens_per_minute)
                     self._limiter.settle(answered=True)  # calls held after a 429 may go, its tokens counted
                     return reply

@@ -33,7 +33,7 @@ from typing import Any, Iterable
 from safeembodai_core.components import BackendReply
 from safeembodai_core.logs import mask_values
 from safeembodai_core.models import TokenUsage
-from safeembodai_core.models.chat_completion import read_usage, reply_from_chat_completion
+from safeembodai_core.models.chat_completion import read_usage, reply_from_chat_completion, said_usage
 from safeembodai_core.models.reply import (NORMAL_FINISH_REASONS, finish_reason_text, normal_finish_reason,
                                            plain_token)
 
@@ -94,10 +94,11 @@ def reply_from_response(response: Any, configured: str, secrets: Iterable[str], 
     message = getattr(choice, "message", None)
     content = getattr(message, "content", None)
     reasoning = getattr(message, "reasoning_content", None)
-    usage = token_usage(getattr(response, "usage", None))
+    said = getattr(response, "usage", None)
+    usage = token_usage(said)
     return BackendReply(
         text=mask_values(content if isinstance(content, str) else "", secrets),
-        usage=usage or TokenUsage(), usage_known=usage is not None, latency_s=latency_s,
+        usage=usage or said_usage(said), usage_known=usage is not None, latency_s=latency_s,
         model=model_name(getattr(response, "model", None), configured, secrets),
         finish_reason=finish_reason(choice) if choice is not None else None,
         reasoning=mask_values(reasoning, secrets) if isinstance(reasoning, str) and reasoning else None,

@@ -36,7 +36,7 @@ import numpy as np
 from ...components import BackendReply, LLMBackend
 from ...errors import BackendError
 from ...models import ImagePart, Prompt, Refusal, TextPart, TokenUsage
-from ...models.chat_completion import read_usage, usage_believable
+from ...models.chat_completion import counted_usage, read_usage, said_usage, usage_believable
 from ...models.reply import CLIPPED, envelope_error_text
 from ...models.token_estimate import estimated_usage
 from ...text_safety import one_line
@@ -198,16 +198,18 @@ def reasoning_text(message: Any) -> str | None:
 def output_usage(output: Any, prompt: Prompt | None, detail: str = "low") -> TokenUsage:
     """Inspect's ``ModelUsage`` of ``output`` read as a server's usage is (:func:`read_usage`: two
     whole, non-negative counts, and believable); anything else -- none, a zero for a request, a
-    negative or fractional count -- is the call counted here (:func:`estimated_usage`), never 0.
+    negative or fractional count -- is the call counted here (:func:`estimated_usage`), never 0 nor
+    less than what it said (:func:`counted_usage`).
     Counts ``safeembodai/<backend>`` made itself stay marked estimated (the output's metadata)."""
     usage = getattr(output, "usage", None)
-    read = None if usage is None else read_usage({"prompt_tokens": getattr(usage, "input_tokens", None),
-                                                  "completion_tokens": getattr(usage, "output_tokens", None)})
+    counts = None if usage is None else {"prompt_tokens": getattr(usage, "input_tokens", None),
+                                         "completion_tokens": getattr(usage, "output_tokens", None)}
+    read = read_usage(counts)
     text = output.completion if isinstance(output.completion, str) else ""
     if read is not None and usage_believable(read, text):
         marked = ((getattr(output, "metadata", None) or {}).get(META) or {}).get("usage_estimated") is True
         return read.model_copy(update={"estimated": True}) if marked else read
-    return estimated_usage(prompt or Prompt(system="", user=()), text, detail)
+    return counted_usage(said_usage(counts), estimated_usage(prompt or Prompt(system="", user=()), text, detail))
 
 
 def backend_reply(output: Any, started: float, prompt: Prompt | None = None, detail: str = "low") -> BackendReply:

@@ -200,3 +200,34 @@ def test_show_says_whether_a_simulated_pilot_answered(cli_runner, repo, tmp_path
     assert (banner in shown.output) if banner else ("simulated pilot" not in shown.output.lower())
     bare = invoke(cli_runner, run / "results.sqlite", "--trial", "0", "--arm", "baseline", "--condition", "no_attack")
     assert "may have been a simulated pilot" in " ".join(bare.output.split())
+
+
+ENDLESS_STEPS = ("CREATE VIEW steps AS WITH RECURSIVE n(i) AS (SELECT 1 UNION ALL SELECT i + 1 FROM n) "
+                 "SELECT t.trial_id AS trial_id, n.i AS step, 1 AS accepted, 0 AS attacked, 0 AS flagged, "
+                 "0 AS prompt_tokens, 0 AS completion_tokens, '{}' AS record FROM trials AS t, n")
+
+
+@pytest.mark.timeout(20)
+@pytest.mark.parametrize("swap", [
+    ("DROP TABLE steps", ENDLESS_STEPS),  # a view yielding rows forever
+    ("DROP TABLE attacks", "CREATE TABLE attacks (trial_id TEXT)"),  # a table without the expected columns
+])
+def test_a_store_whose_tables_are_not_the_schemas_is_refused_before_any_row_is_read(cli_runner, ablation_dir,
+                                                                                   swap):
+    import sqlite3
+
+    from safeembodai_plugins.state.sqlite_db import SqliteStateStore
+
+    path = ablation_dir / "results.sqlite"
+    conn = sqlite3.connect(path)
+    for statement in swap:
+        conn.execute(statement)
+    conn.commit()
+    conn.close()
+    result = invoke(cli_runner, ablation_dir, "--trial", "OF/baseline/no_attack/1")
+    said = result.output + str(result.exception)  # the command line prints the error without a traceback
+    assert result.exit_code != 0 and "not a SafeEmbodAI results database" in said and str(path) in said
+    for readonly in (True, False):
+        with pytest.raises(StateStoreError, match="not a SafeEmbodAI results database") as refused:
+            SqliteStateStore(path, readonly=readonly)
+        assert str(path) in str(refused.value)

@@ -196,6 +196,22 @@ def test_an_unusable_usage_is_counted_here_never_zero(built_plugins, fake_server
     assert reply.usage.estimated and reply.usage.prompt_tokens > 0 and reply.usage.completion_tokens > 0
 
 
+def test_an_unreadable_usage_never_counts_less_than_the_server_said(built_plugins, fake_server, fake_key):
+    """Fractional counts are unreadable, but the estimate (a few hundred tokens) must not replace a
+    larger figure of the provider's own: each count is the larger of the two, rounded up."""
+    fake_server.default = Envelope([choice(GOOD)], {"usage": {"prompt_tokens": 9000.9, "completion_tokens": 1.5}})
+    reply = _complete(built_plugins, fake_server)
+    assert reply.usage.estimated and reply.usage.prompt_tokens == 9001
+    assert 2 <= reply.usage.completion_tokens < 1000  # the estimate of the answer: larger than 1.5 rounded up
+    from safeembodai_core.models.chat_completion import said_usage
+
+    said = said_usage({"prompt_tokens": 900.9, "completion_tokens": 120.5})
+    assert (said.prompt_tokens, said.completion_tokens, said.estimated) == (901, 121, True)
+    for nothing in (-3, float("nan"), "12", True, None):  # says nothing: the estimate alone
+        assert said_usage({"prompt_tokens": nothing, "completion_tokens": nothing}).total == 0
+    assert said_usage({"prompt_tokens": float("inf"), "completion_tokens": 1e300}).prompt_tokens == 2**31 - 1
+
+
 def test_pydantic_warnings_about_an_odd_reply_never_reach_stderr(built_plugins, fake_server, fake_key, capfd):
     choice = '{"index": 0, "message": {"role": "assistant", "content": "%s"}, "finish_reason": "stop"%s}'
     fake_server.push(Raw('{"choices": [%s]}' % (choice % (GOOD.replace('"', '\\"'), ', "logprobs": "FRAGMENT-1"'))),
