@@ -56,8 +56,9 @@ def security_prefix(policy: Policy, plugins: Plugins | None = None) -> str | Non
 
         plugins = load_plugins()
     from ..errors import SafeEmbodAIError
+    from ..refs import ComponentRef
 
-    builder = plugins.registry.build("prompt_builder", "jinja", {})
+    builder = plugins.registry.build_ref("prompt_builder", ComponentRef(use="jinja"))
     known = builder.security_prefix_variants() or []
     if variant not in known:
         raise SafeEmbodAIError(f"policy security_prefix {variant!r}: no such variant; choose from "

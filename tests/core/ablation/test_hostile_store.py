@@ -76,8 +76,9 @@ def test_a_step_row_of_another_step_or_not_a_record_is_refused(run):
 
 #: ``trials`` as the schema declares it, less its primary key: what a forged store may hold
 _TRIALS_WITHOUT_KEY = ("CREATE TABLE trials (trial_id TEXT, scenario TEXT NOT NULL, environment TEXT NOT NULL, "
-                       "arm TEXT NOT NULL, condition TEXT NOT NULL, trial_index INTEGER NOT NULL, seed INTEGER NOT NULL, "
-                       "status TEXT NOT NULL, outcome TEXT, steps INTEGER, spec TEXT NOT NULL, result TEXT)")
+                       "arm TEXT NOT NULL, condition TEXT NOT NULL, trial_index INTEGER NOT NULL, "
+                       "seed INTEGER NOT NULL, status TEXT NOT NULL, outcome TEXT, steps INTEGER, spec TEXT NOT NULL, "
+                       "result TEXT)")
 
 
 def test_two_rows_for_one_trial_are_refused(run):
