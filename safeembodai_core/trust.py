@@ -64,6 +64,12 @@ ENTRY_POINTS: tuple[EntryPoint, ...] = (
                "safeembodai_core.integrations.inspect.bridge:output_usage", extra="inspect"),
     EntryPoint("inspect provider", "the model Inspect was told to use: a provider that parses the body itself is "
                "refused", "safeembodai_core.integrations.inspect.providers:check_provider", extra="inspect"),
+    EntryPoint("view request", "an HTTP request to `view --serve` (request line and headers read by http.server, "
+               "the target by _asked_path): the one file of the site it is answered with",
+               "safeembodai_core.view.serve:open_site_file"),
+    EntryPoint("guard events", "what a CommandFilter is given, in any order: scans, poses, velocity commands and "
+               "their times (guard-node's subscriptions, a bag, a caller's)",
+               "safeembodai_core.ros.command_filter:CommandFilter.on_command"),
 )
 
 #: Modules that call a raw reader, and why they may. Everything else goes through an entry point's reader.

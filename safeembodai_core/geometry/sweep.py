@@ -36,7 +36,11 @@ _TWO_PI = 2.0 * math.pi
 _STRAIGHT_ENOUGH_MM = 1e-2
 #: a point held no more than this (mm) deeper than at the start is held as deep: a pose's rounding
 _DEEPER_MM = 1e-6
-_CHUNK = 64  # points judged together by deeper_times: its samples grow with the footprint's vertices
+#: points judged together by deeper_times: its arrays grow with the footprint's vertices (squared: crossings
+#: per point, then depths per crossing), so the chunk shrinks as they grow, to _CHUNK at the least
+_CHUNK = 64
+_CHUNK_MOST = 1024
+_CHUNK_BUDGET = 16384  # chunk x vertices
 
 
 @dataclass(frozen=True)
@@ -140,8 +144,10 @@ def deeper_times(points: np.ndarray, motion: Motion, body: Body) -> np.ndarray:
     if straight and not float(velocity @ velocity) > 0.0:
         return times  # no speed, and too little turn to move a point by _STRAIGHT_ENOUGH_MM
     span = motion.duration_s if straight else min(motion.duration_s, _TWO_PI / abs(motion.w_rad_s))
-    for chunk in range(0, len(points), _CHUNK):
-        p = points[chunk:chunk + _CHUNK]
+    vertices = 1 if body.polygon is None else len(body.polygon)
+    size = int(min(_CHUNK_MOST, max(_CHUNK, _CHUNK_BUDGET // vertices)))
+    for chunk in range(0, len(points), size):
+        p = points[chunk:chunk + size]
         start = body.depth(p)
         segments, circles = body.level_pieces(start)
         if straight:

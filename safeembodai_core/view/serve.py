@@ -33,7 +33,8 @@ class _Handler(SimpleHTTPRequestHandler):
     a FIFO or a device, no folder listing, no dot-file (a page being written); only a path as the request
     target (no ``http://host/...``), and only to requests addressed to this server (a ``Host`` header
     naming another host is refused: no DNS rebinding onto it). A malformed request line is answered by
-    http.server's own error (400, 414, 505), with its status line (never an HTTP/0.9 answer)."""
+    http.server's own error (400, 414, 505), with its status line (never an HTTP/0.9 answer: a request
+    saying ``HTTP/0.9`` is a 505)."""
 
     allowed_hosts: frozenset[str] = frozenset()
     viewer_port: int | None = None  # Rerun's web viewer's port, when it is served
@@ -41,10 +42,22 @@ class _Handler(SimpleHTTPRequestHandler):
     cors_origin: str | None = None  # this request's: answered with Access-Control-Allow-Origin
     vary_origin = False  # this request's: a recording, whose answer depends on the Origin
     default_request_version = "HTTP/1.0"  # a line without a version is answered with a status line too
+    raw_requestline: bytes  # http.server's, read by handle_one_request (typeshed leaves it out)
 
     def handle_one_request(self) -> None:
         self.cors_origin, self.vary_origin = None, False  # set per request; a malformed one sets neither
         super().handle_one_request()
+
+    def parse_request(self) -> bool:
+        # http.server answers a request line ending in HTTP/0.9 with the body alone: no status line and no
+        # header (no CSP, no nosniff), its errors (431) included
+        words = str(self.raw_requestline, "iso-8859-1").rstrip("\r\n").split()
+        if len(words) >= 3 and words[-1] == "HTTP/0.9":
+            self.command, self.requestline = "", " ".join(words)
+            self.request_version, self.close_connection = self.default_request_version, True
+            self.send_error(505, "HTTP/0.9 is not served")
+            return False
+        return super().parse_request()
 
     def send_head(self) -> BinaryIO | None:
         host = (self.headers.get("Host") or "").lower()
@@ -82,16 +95,7 @@ class _Handler(SimpleHTTPRequestHandler):
             raise
 
     def _site_file(self, asked: str) -> tuple[int, os.stat_result] | None:
-        """The file of the site at the decoded URL path ``asked``, opened (a descriptor and its status), or
-        None: not there, a folder, a dot part, a symlink anywhere in the site, not a regular file."""
-        parts = asked.split("/")[1:]
-        if not parts or any(not part or part.startswith(".") or "\\" in part for part in parts):
-            return None
-        root = Path(self.directory)
-        try:
-            return open_inside(root, root.joinpath(*parts))
-        except (OSError, SafeEmbodAIError):
-            return None
+        return open_site_file(Path(self.directory), asked)
 
     def _redirect(self, location: str) -> None:
         self.send_response(302)
@@ -141,6 +145,19 @@ def _asked_path(target: str) -> str | None:
     if any(ord(char) < 0x20 or ord(char) == 0x7F for char in asked):
         return None
     return asked
+
+
+def open_site_file(root: Path, asked: str) -> tuple[int, os.stat_result] | None:
+    """The file of the site in ``root`` at the decoded URL path ``asked`` (:func:`_asked_path`), opened
+    (a descriptor and its status), or None: not there, a folder, a dot part, a backslash, a symlink
+    anywhere in the site, not a regular file. What it opens is what is served."""
+    parts = asked.split("/")[1:]
+    if not parts or any(not part or part.startswith(".") or "\\" in part for part in parts):
+        return None
+    try:
+        return open_inside(root, root.joinpath(*parts))
+    except (OSError, SafeEmbodAIError):
+        return None
 
 
 class SiteServer:

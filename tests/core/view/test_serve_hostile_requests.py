@@ -131,7 +131,9 @@ def test_a_target_with_a_null_byte_or_a_control_character_is_a_bad_request(site,
     (b"GET / HTTP/9.9", 505),
     (b"GET / HTTP/1.1 four", 400),
     (b"GET /index.html FOO/1.1", 400),
-], ids=["70kB", "1MB", "one-word", "HTTP/9.9", "four-words", "bad-version"])
+    (b"GET /index.html HTTP/0.9", 505),  # http.server would send the page alone: no status line, no CSP header
+    (b"GET / HTTP/0.9\r\n" + b"X: y\r\n" * 120, 505),  # and its 431 for too many headers, bare
+], ids=["70kB", "1MB", "one-word", "HTTP/9.9", "four-words", "bad-version", "HTTP/0.9", "HTTP/0.9-431"])
 def test_a_malformed_request_line_gets_its_status(site, capsys, request_line, expected):
     server = served(site)
     port = server.httpd.server_address[1]

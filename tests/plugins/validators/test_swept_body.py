@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from safeembodai_core import Guard, RobotSpec
@@ -177,6 +177,9 @@ def test_escape_contact_times_match_densely_sampled_depths(which, vx, vy, w, dur
     body = BODIES[which]
     motion = Motion(vx, vy, w, duration)
     points = np.random.default_rng(seed).uniform(-450, 450, size=(60, 2))
+    # a turn that moves no point by more than sweep's _STRAIGHT_ENOUGH_MM (0.01 mm), with no speed, is no
+    # motion by the guard's own rule, while the sampled reference would see nanometres of depth change
+    assume(not (vx == 0.0 and vy == 0.0 and motion.straight_enough(body.reach_mm + 450.0 * 2 ** 0.5)))
     exact = contact_times(points, motion, body, escape=True)
     sampled = _sampled_escape(points, motion, body)
     held = body.inside(points)
