@@ -82,6 +82,9 @@ RAW_READERS: dict[str, str] = {
     "safeembodai_core.cli.guard_bag_cmd": "a bag's messages, through rosbags' reader, then read_json_document",
     "safeembodai_core.rosbridge.frames": "the rosbridge frame reader itself (size, depth, duplicate keys, numbers)",
     "safeembodai_core.ros.bag_guard": "rosbags' reader of a bag (the library parses the container)",
+    "safeembodai_core.mcp_agent.tools": "appends an MCP server's stderr to the trial's own log (no read)",
+    "safeembodai_core.mcp_agent.trial": "the shipped default guard-mcp policy (package data), merged with the arm's "
+                                        "keys",
     "safeembodai_core.serve_robot.session_bag": "writes the session's own bag; export reads a session's bag back "
                                                 "through rosbags' reader (the library parses the container)",
     "safeembodai_core.trial_files": "a bag this process has just written in a scratch folder of its own",

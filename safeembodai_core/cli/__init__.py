@@ -87,6 +87,7 @@ def _show_plugin_traces(level: str) -> None:
 
 def _register_builtin_commands() -> None:
     from .ablate_cmd import ablate
+    from .agent_ablate_cmd import agent_ablate
     from .export_cmd import export
     from .guard_bag_cmd import guard_bag
     from .guard_mcp_cmd import guard_mcp
@@ -97,7 +98,8 @@ def _register_builtin_commands() -> None:
     from .serve_robot_cmd import serve_robot
     from .view_cmd import view
 
-    for command in (plugins, run, ablate, report, export, guard_bag, view, serve_robot, guard_node, guard_mcp):
+    for command in (plugins, run, ablate, report, export, guard_bag, view, serve_robot, guard_node, guard_mcp,
+                    agent_ablate):
         cli.add_command(command)
 
 
