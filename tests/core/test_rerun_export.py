@@ -146,8 +146,10 @@ def test_view_links_each_trial_page_to_its_recording_in_the_run_folder(exported,
     finally:
         shutil.rmtree(folder / "recordings")
     pages = {p.stem: p.read_text(encoding="utf-8") for p in (tmp_path / "site").rglob("trials/*.html")}
-    linked = [name for name, html in pages.items() if "Rerun recording" in html]
+    linked = [name for name, html in pages.items() if 'class="recording"' in html]
     assert len(linked) == len(steps) - 1
+    [refused] = [name for name, html in pages.items() if "not a Rerun recording" in html]  # said, not linked
+    assert refused == second.replace("/", "__") and refused not in linked
     [copied] = [p for p in (tmp_path / "site").rglob("recordings/*.rrd") if first.replace("/", "__") in p.name]
     assert copied.read_bytes() == (out / (first.replace("/", "__") + ".rrd")).read_bytes()
     assert not any(second.replace("/", "__") in p.name for p in (tmp_path / "site").rglob("recordings/*"))
