@@ -194,10 +194,15 @@ def case_results_store(text: str, folder: Path) -> None:
     path = folder / "results.sqlite"
     store = SqliteStateStore(path)
     store.close()
+    try:  # sqlite3 cannot bind a lone surrogate as text: a forged file holds its bytes (a blob) instead
+        text.encode("utf-8")
+        value: str | bytes = text
+    except UnicodeEncodeError:
+        value = text.encode("utf-8", "surrogatepass")
     conn = sqlite3.connect(path)
     conn.execute("INSERT OR REPLACE INTO trials VALUES ('t', 's', 'e', 'a', 'c', 0, 0, 'finished', 'completed', 1, "
-                 "'{}', ?)", (text,))
-    conn.execute("INSERT OR REPLACE INTO steps VALUES ('t', 1, 1, 0, 0, 0, 0, ?)", (text,))
+                 "'{}', ?)", (value,))
+    conn.execute("INSERT OR REPLACE INTO steps VALUES ('t', 1, 1, 0, 0, 0, 0, ?)", (value,))
     conn.commit()
     conn.close()
     store = SqliteStateStore(path, readonly=True)

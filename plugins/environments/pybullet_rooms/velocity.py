@@ -27,6 +27,8 @@ from .quiet import silenced
 from safeembodai_core.geometry.frames import wrap_deg
 
 if TYPE_CHECKING:
+    from safeembodai_core.models.records import Collision
+
     from .labbots import LabbotSwarm
     from .motion import CollisionRecord
     from .options import RoomOptions
@@ -60,7 +62,7 @@ class HeldVelocity:
 
         def _wait(self, seconds: float) -> int | None: ...
 
-        def _touch(self, touched: set[int], collision: str) -> int: ...
+        def _touch(self, touched: set[int], collision: Collision) -> int: ...
 
         def _collision_record(self, hit: int, when: str) -> CollisionRecord: ...
 
