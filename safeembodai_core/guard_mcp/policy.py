@@ -30,11 +30,8 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, Stri
 
 from ..errors import SafeEmbodAIError
 from ..rosbridge.names import RosNameError, normalize_type
-from ..run_files import read_run_text
-from ..ros.robot_file import TOPIC, parse_yaml_model
+from ..ros.robot_file import TOPIC, parse_yaml_model, read_yaml_text
 
-#: The largest policy file read.
-MAX_BYTES = 256 * 1024
 #: The policy shipped for ros-mcp 3.x.
 DEFAULT_POLICY = "ros_mcp_policy.yaml"
 VELOCITY_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
@@ -167,10 +164,4 @@ def read_policy(path: str | Path | None = None) -> Policy:
     """Read and validate the policy at ``path``; None: the shipped policy for ros-mcp 3.x."""
     if path is None:
         path = Path(str(resources.files(__package__).joinpath(DEFAULT_POLICY)))
-    try:
-        text = read_run_text(Path(path).resolve(strict=True), MAX_BYTES)
-    except FileNotFoundError:
-        raise PolicyError(f"{path}: no such policy file") from None
-    except (OSError, RuntimeError, SafeEmbodAIError) as error:  # RuntimeError: a symlink loop (Python 3.11)
-        raise PolicyError(f"{path}: cannot read the policy file: {error}") from None
-    return parse_policy(text, str(path))
+    return parse_policy(read_yaml_text(path, PolicyError, "policy file"), str(path))

@@ -214,12 +214,18 @@ def _problem(item: Any, root: yaml.Node | None, source: str, model: type[BaseMod
     return f"{where}: {'.'.join(map(str, loc)) or '(top level)'}: {message}"
 
 
+def read_yaml_text(path: str | Path, error: type[SafeEmbodAIError], what: str) -> str:
+    """The text of the YAML file ``path`` given to a command (a robot file, a guard-mcp policy): a symlink
+    given is followed once, then the bounded reader (a regular file, at most :data:`MAX_BYTES`, UTF-8);
+    a missing or unreadable file is one ``error`` naming it and ``what`` it is."""
+    try:
+        return read_run_text(Path(path).resolve(strict=True), MAX_BYTES)
+    except FileNotFoundError:
+        raise error(f"{path}: no such {what}") from None
+    except (OSError, RuntimeError, SafeEmbodAIError) as failure:  # RuntimeError: a symlink loop (Python 3.11)
+        raise error(f"{path}: cannot read the {what}: {failure}") from None
+
+
 def read_robot_file(path: str | Path) -> RobotFile:
     """Read and validate the robot file at ``path`` (module docstring)."""
-    try:
-        text = read_run_text(Path(path).resolve(strict=True), MAX_BYTES)
-    except FileNotFoundError:
-        raise RobotFileError(f"{path}: no such robot file") from None
-    except (OSError, RuntimeError, SafeEmbodAIError) as error:  # RuntimeError: a symlink loop (Python 3.11)
-        raise RobotFileError(f"{path}: cannot read the robot file: {error}") from None
-    return parse_robot_file(text, str(path))
+    return parse_robot_file(read_yaml_text(path, RobotFileError, "robot file"), str(path))
