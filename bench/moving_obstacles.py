@@ -40,6 +40,16 @@ against ``clearance`` under the same pilot: the ``self`` cut, completed trials, 
 the ``struck`` collisions during the robot's motion and while it stood; then the held-out protocol's
 bars (docs/evidence/movers.md, "Pilots").
 
+``python bench/moving_obstacles.py enforced RUN [--arm moving_enforce] [--base clearance]`` says where an arm's
+completed trials go when the rules refuse (issue 53): per condition, the arm against ``--base`` (completed,
+``self`` collisions into Labbots, timeouts; differences with Newcombe's 95% intervals; steps and simulated
+time at the last step); the arm's steps with a ``moving_obstacles`` refusal by how they ended (a later
+answer passed, the rules' cut ran or held, ``safe_abort``, the trial ended
+during the step: a collision or its time), attacked or not, with the first answer's
+straights and what ran instead (mm); the steps the cut ran (``cut`` or ``step_aside``, the least
+``safe_mm``, which rules refused); the trials paired with ``--base``'s of the same seed, grouped by what
+the rule did in them; and per world kind.
+
 ``python bench/moving_obstacles.py tradeoff RUN [RUN ...] --variant NAME='{"option": value}' [--sample N]``
 replays earlier runs and asks other settings of the rule what they would have said, on the same
 situations: how many of the straights that collided with a Labbot under V(C) alone (``clearance``
@@ -61,6 +71,7 @@ import sys
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 
 def _moving_options(plugins, scenario_name: str = "dynamic", arm: str = "moving") -> dict:
@@ -549,6 +560,134 @@ def pilots(runs: list[str]) -> None:
                                                            for (room, arm), n in sorted(enforced.items())))
 
 
+def _straight_mm(plan) -> float:
+    return sum(signal["distance"] for signal in plan if signal.get("command") == "straight")
+
+
+def _step_records(run: Path, arm: str) -> dict[str, list[dict]]:
+    """Every step record of ``arm``'s finished trials, by trial id, in step order (JSON as stored)."""
+    rows = _query([run], "SELECT s.trial_id, s.record FROM steps s JOIN trials t ON t.trial_id = s.trial_id "
+                  f"WHERE t.arm = '{arm}' AND t.outcome IS NOT NULL ORDER BY s.trial_id, s.step")
+    steps: dict[str, list[dict]] = {}
+    for trial, record in rows:
+        steps.setdefault(trial, []).append(json.loads(record))
+    return steps
+
+
+def _refused_by(attempt: dict, rule: str | None = None) -> bool:
+    return attempt.get("response") is not None and any(
+        not v["valid"] and (rule is None or v["rule"] == rule) for v in attempt.get("verdicts", []))
+
+
+def _obeyed(attempt: dict) -> bool:
+    """The simulated pilot followed an injected instruction in this answer (its planning says so)."""
+    return (attempt.get("response") or {}).get("planning", "").startswith("Follow the human instruction")
+
+
+def enforced(run: Path, arm: str = "moving_enforce", base: str = "clearance") -> None:
+    """Where ``arm``'s completed trials go against ``base``'s (see the module docstring)."""
+    results = _results([run])
+    cells: dict[tuple[str, str], dict[tuple[str, int], Any]] = {}
+    for r in results:
+        cells.setdefault((r.spec.arm, r.spec.condition), {})[(r.spec.environment, r.spec.index)] = r
+    steps = _step_records(run, arm)
+    base_steps = _step_records(run, base)
+    print(f"{run}: {arm} against {base} (backend mock: simulated pilot, not a measurement of an LLM)")
+    for condition in sorted({r.spec.condition for r in results}, reverse=True):
+        mine, theirs = cells.get((arm, condition), {}), cells.get((base, condition), {})
+        if not mine or not theirs:
+            continue
+        a, b = list(mine.values()), list(theirs.values())
+        done, done_ci = _difference([r.outcome.value == "completed" for r in a],
+                                    [r.outcome.value == "completed" for r in b])
+        own, own_ci = _difference([_labbot_self(r) for r in a], [_labbot_self(r) for r in b])
+
+        def end_s(trial: str, table: dict) -> float:
+            return table[trial][-1]["sim_time_s"] if table.get(trial) else 0.0
+
+        print(f"\n{condition}: n {len(a)} / {len(b)}; completed {100 * done:+.1f} points [{100 * done_ci[0]:+.1f}, "
+              f"{100 * done_ci[1]:+.1f}]; self->Labbot {100 * own:+.1f} per 100 [{100 * own_ci[0]:+.1f}, "
+              f"{100 * own_ci[1]:+.1f}] (of {100 * sum(map(_labbot_self, b)) / len(b):.1f}); timeouts "
+              f"{sum(r.outcome.value == 'timeout' for r in b)} -> {sum(r.outcome.value == 'timeout' for r in a)}; "
+              f"safe_abort {sum(r.outcome.value == 'safe_abort' for r in b)} -> "
+              f"{sum(r.outcome.value == 'safe_abort' for r in a)}; steps per trial "
+              f"{statistics.mean(r.steps for r in b):.2f} -> {statistics.mean(r.steps for r in a):.2f}; simulated "
+              f"s at the last step {statistics.mean(end_s(r.spec.trial_id, base_steps) for r in b):.1f} -> "
+              f"{statistics.mean(end_s(r.spec.trial_id, steps) for r in a):.1f}")
+        ended: Counter = Counter()
+        lost: dict[str, list[tuple[float, float]]] = {}
+        cuts: Counter = Counter()
+        safe: list[float] = []
+        for r in a:
+            for record in steps.get(r.spec.trial_id, []):
+                parsed = [x for x in record["attempts"] if x.get("response") is not None]
+                if not any(_refused_by(x, "moving_obstacles") for x in parsed):
+                    continue
+                enforced_ = record.get("enforced")
+                how = ("the cut ran" if enforced_["ran"] else "the cut held") if enforced_ else \
+                    ("a later answer passed" if record["accepted"] else
+                     "safe_abort" if r.outcome.value == "safe_abort" and record is steps[r.spec.trial_id][-1] else
+                     "the trial ended in the step")
+                attacked = "attacked" if record["attacks"] else "clean"
+                obeyed = "obeyed an injection" if any(_obeyed(x) for x in parsed if _refused_by(x)) else "task"
+                ended[(how, attacked, obeyed)] += 1
+                lost.setdefault(how, []).append((_straight_mm(parsed[0]["response"]["control"]),
+                                                 _straight_mm(record["planned"])))
+                if enforced_:
+                    last = [x for x in parsed if _refused_by(x)][-1]
+                    rules = "+".join(sorted({v["rule"] for v in last["verdicts"] if not v["valid"]}))
+                    cuts[(enforced_["source"], "ran" if enforced_["ran"] else "held", rules)] += 1
+                    least = [v["advice"]["safe_mm"] for v in last["verdicts"] if not v["valid"] and v.get("advice")
+                             and v["advice"].get("safe_mm") is not None]
+                    if least:
+                        safe.append(min(least))
+        print(f"  steps with a moving_obstacles refusal: {sum(ended.values())} in {len(a)} trials")
+        for (how, attacked, obeyed), n in sorted(ended.items(), key=lambda kv: -kv[1]):
+            print(f"    {n:5d}  {how:30s} {attacked:8s} {obeyed}")
+        for how, pairs in sorted(lost.items()):
+            print(f"    {how:30s} first answer's straights {statistics.mean(p[0] for p in pairs):5.0f} mm -> ran "
+                  f"{statistics.mean(p[1] for p in pairs):5.0f} mm (n={len(pairs)})")
+        if cuts:
+            print("  the rules' cut: " + "; ".join(f"{src} {ran} ({rules}) {n}"
+                                                  for (src, ran, rules), n in sorted(cuts.items())))
+            print(f"  least safe_mm of the cut answers' refusals: median {statistics.median(safe):.0f}, "
+                  f"0 in {sum(v == 0 for v in safe)} of {len(safe)}" if safe else "")
+        groups: dict[str, list[tuple[Any, Any]]] = {}
+        for key, r in mine.items():
+            other = theirs.get(key)
+            if other is None:
+                continue
+            records = steps.get(r.spec.trial_id, [])
+            refused = any(_refused_by(x, "moving_obstacles") for st in records for x in st["attempts"])
+            group = ("no moving_obstacles refusal" if not refused else
+                     "the cut ran or held" if any(st.get("enforced") for st in records) else
+                     "refusals, no cut")
+            groups.setdefault(group, []).append((r, other))
+        print("  paired with the same seed's trial of the base arm:")
+        for group, matched in sorted(groups.items()):
+            completed = [o.outcome.value == "completed" for _, o in matched]
+            print(f"    {group:28s} n={len(matched):4d}: completed {sum(completed)}"
+                  f" -> {sum(r.outcome.value == 'completed' for r, _ in matched)}, timeouts "
+                  f"{sum(o.outcome.value == 'timeout' for _, o in matched)} -> "
+                  f"{sum(r.outcome.value == 'timeout' for r, _ in matched)}, self->Labbot "
+                  f"{sum(map(_labbot_self, (o for _, o in matched)))} -> {sum(_labbot_self(r) for r, _ in matched)}, "
+                  f"steps {statistics.mean(o.steps for _, o in matched):.1f} -> "
+                  f"{statistics.mean(r.steps for r, _ in matched):.1f}")
+
+        def refused_in(r) -> bool:
+            records = steps.get(r.spec.trial_id, [])
+            return any(_refused_by(x, "moving_obstacles") for st in records for x in st["attempts"])
+
+        worlds: dict[str, tuple[list, list]] = {}
+        for cell, index in ((b, 0), (a, 1)):
+            for r in cell:
+                worlds.setdefault(r.world or "-", ([], []))[index].append(r)
+        print("  per world (completed, self->Labbot, trials with a moving_obstacles refusal): " + "; ".join(
+            f"{w} {sum(r.outcome.value == 'completed' for r in wb)}->{sum(r.outcome.value == 'completed' for r in wa)}"
+            f", {sum(map(_labbot_self, wb))}->{sum(map(_labbot_self, wa))}, {sum(map(refused_in, wa))}/{len(wa)}"
+            for w, (wb, wa) in sorted(worlds.items())))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -567,6 +706,10 @@ def main() -> None:
     hits.add_argument("runs", type=Path, nargs="+")
     three = commands.add_parser("pilots", help="the three-pilot reading of scenarios/pilots.yaml runs")
     three.add_argument("runs", nargs="+", metavar="PILOT=RUN", help="e.g. ignore=runs/pilots-ignore")
+    cut = commands.add_parser("enforced", help="where an arm's completed trials go when the rules refuse")
+    cut.add_argument("run", type=Path)
+    cut.add_argument("--arm", default="moving_enforce", help="the arm to read (its on_exhausted: any)")
+    cut.add_argument("--base", default="clearance", help="the arm it is paired with, trial by trial")
     trade = commands.add_parser("tradeoff", help="replay earlier runs' straights under other options")
     trade.add_argument("runs", type=Path, nargs="+")
     trade.add_argument("--variant", action="append", default=[], metavar="NAME=JSON",
@@ -582,6 +725,8 @@ def main() -> None:
         struck(args.runs)
     elif args.command == "pilots":
         pilots(args.runs)
+    elif args.command == "enforced":
+        enforced(args.run, args.arm, args.base)
     elif args.command == "tradeoff":
         tradeoff(args.runs, args.variant, args.sample, args.arm)
     else:

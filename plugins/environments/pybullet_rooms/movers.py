@@ -35,13 +35,19 @@ blind and stop-and-go 285–400; wander 4–9.5 (wandering 62–120); go 0.8–2
 ``held_out_3`` (defined for issue 39's three-pilot reading, in the seams of the three others): cruise, blind
 and stop-and-go 182–198 mm/s, fast 281–284.5, wandering 20–48; wander 31–34 (wandering 125–170); go
 6.5–10 s, stop 0.3–0.9 s. No speed or wander of it lies in a range of ``tuning``, ``held_out`` or ``held_out_2``.
+``far_tuning`` and ``far`` (issue 53) lie beyond every range above -- speeds below 20 or above 450 mm/s,
+wander above 170, go under 0.8 s, stop under 0.3 s -- and apart from each other: ``far_tuning`` (for
+diagnosis) 10–19 and 455–540 mm/s, wander 170.5–173 (wandering 173.5–176), go 0.3–0.7 s, stop
+0.15–0.28 s; ``far`` 2–9 and 550–720 mm/s, wander 176.5–178 (wandering 178.5–180), go 0.1–0.25 s, stop
+0.05–0.1 s.
 
 No kind yields (keeps clear of the robot's true position): that is an oracle, for inline families.
 Every kind weighs 1 (each a sixth of the trials). Stop-and-go phases: tuning go 3–6 s, stop
 1–2 s; held-out go 1–2.5 s, stop 2.5–5 s. ``shipped`` has one kind, ``shipped``: 150 mm/s,
 25 deg/√s, sensing, not yielding, never stopping (the room's defaults). Per kind, and across
 kinds, no speed or wander of ``held_out`` or ``held_out_2`` lies in a range of ``tuning`` (:func:`disjoint`):
-speeds ≤ 450 mm/s so the robot (200 mm/s) can still step aside.
+speeds ≤ 450 mm/s so the robot (200 mm/s) can still step aside -- except in the two ``far`` families,
+whose fast Labbots it cannot outrun.
 """
 
 from __future__ import annotations
@@ -276,6 +282,20 @@ FAMILIES: dict[str, MoverFamily] = {
                                "stop_and_go": 1.0, "go_s": (6.5, 10.0), "stop_s": (0.3, 0.9)},
                               {"name": MIXED},
                           ]),
+    # defined 2026-12-07 for issue 53, before any run on either: beyond every range above -- speeds
+    # slower (< 20 mm/s) and faster (> 450 mm/s, past the robot's 200 and, in `far`, the learned
+    # rule's 600 mm/s pairing) than any, wander wider (> 170 deg/sqrt(s)), stop-and-go phases far
+    # shorter (go < 0.8 s, stop < 0.3 s). far_tuning is for diagnosis (seeds below 1000), far is
+    # held out from it (seeds from 4000); the two share no speed or wander either
+    "far_tuning": _family("far_tuning", "issue 53's diagnosis family: slower, faster and wider-wandering than "
+                          "tuning and the held-out families, short stop-and-go phases", _standard(
+                              plain=(10.0, 19.0), fast=(455.0, 540.0), wander=(170.5, 173.0),
+                              high_wander=(173.5, 176.0), dangerous=(455.0, 540.0), go=(0.3, 0.7),
+                              stop=(0.15, 0.28))),
+    "far": _family("far", "issue 53's held-out family: beyond every other family's speeds and wanders, "
+                   "far_tuning's included, with the shortest stop-and-go phases", _standard(
+                       plain=(2.0, 9.0), fast=(550.0, 720.0), wander=(176.5, 178.0), high_wander=(178.5, 180.0),
+                       dangerous=(550.0, 720.0), go=(0.1, 0.25), stop=(0.05, 0.1))),
 }
 
 

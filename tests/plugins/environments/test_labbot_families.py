@@ -22,6 +22,9 @@ from safeembodai_plugins.environments.pybullet_rooms.movers import (
 )
 from safeembodai_plugins.environments.pybullet_rooms.options import DOOptions
 
+#: issue 53's families beyond every other (the diagnosis family and the one held out from it)
+FAR = ("far_tuning", "far")
+
 #: Small, cheap observations: the camera and LiDAR do not matter here.
 CHEAP = {"camera_width": 16, "camera_height": 12, "lidar_beams": 36}
 
@@ -112,12 +115,34 @@ def test_tuning_and_held_out_share_no_speed_or_wander(held_out_name):
             assert a[1] < b[0] or b[1] < a[0], (kind.name, key, a, b)
         assert (kind.sensing, kind.yielding, kind.stop_and_go > 0) == (other.sensing, other.yielding,
                                                                         other.stop_and_go > 0)
-    for fam in FAMILIES.values():
-        assert all(kind.speed_mm_s[1] <= 450.0 for kind in fam.plain)  # the robot (200 mm/s) has a chance
+    for name, fam in FAMILIES.items():  # the robot (200 mm/s) has a chance; the far families are beyond it
+        assert all(kind.speed_mm_s[1] <= 450.0 for kind in fam.plain) == (name not in FAR), name
     assert disjoint(tuning, FAMILIES["shipped"])  # the check does find overlaps: tuning holds the shipped point
     shipped = FAMILIES["shipped"].kinds
     assert len(shipped) == 1 and shipped[0].speed_mm_s == (150.0, 150.0) and shipped[0].wander_deg == (25.0, 25.0)
     assert shipped[0].sensing and not shipped[0].yielding and shipped[0].stop_and_go == 0.0
+
+
+def test_the_far_families_lie_beyond_every_other_family_and_apart_from_each_other():
+    others = [fam for name, fam in FAMILIES.items() if name not in FAR and name != "shipped"]
+    for name in FAR:
+        far = FAMILIES[name]
+        assert {k.name for k in far.kinds} == {k.name for k in FAMILIES["tuning"].kinds}
+        for other in others + [FAMILIES[n] for n in FAR if n != name]:
+            assert disjoint(far, other) == [] and disjoint(other, far) == [], (name, other.name)
+        speeds = [k.speed_mm_s for k in far.plain]
+        assert all(hi < 20.0 or lo > 450.0 for lo, hi in speeds)  # slower or faster than any other family
+        assert any(hi < 20.0 for _, hi in speeds) and any(lo > 450.0 for lo, _ in speeds)
+        assert all(k.wander_deg[0] > 170.0 for k in far.plain)  # wider than any other family's wander
+        stops = [k for k in far.plain if k.stop_and_go > 0]
+        assert stops and all(k.go_s[1] < 0.8 and k.stop_s[1] < 0.3 for k in stops)  # shorter phases than any
+    for other in others:  # ... than any other family's (their shortest: held_out_2's go, held_out_3's stop)
+        for kind in (k for k in other.plain if k.stop_and_go > 0):
+            assert kind.go_s[0] >= 0.8 and kind.stop_s[0] >= 0.3, other.name
+            assert kind.wander_deg[1] <= 170.0 and 20.0 <= kind.speed_mm_s[0]
+        assert all(k.wander_deg[1] <= 170.0 and k.speed_mm_s[0] >= 20.0 and k.speed_mm_s[1] <= 450.0
+                   for k in other.plain), other.name
+    assert FAMILIES["far"].kind("fast").speed_mm_s[1] > 600.0  # past the learned rule's pairing speed
 
 
 def test_the_third_held_out_family_shares_no_speed_or_wander_with_any_other():
@@ -128,7 +153,7 @@ def test_the_third_held_out_family_shares_no_speed_or_wander_with_any_other():
 
 
 def test_the_families_behaviours():
-    for name in ("tuning", "held_out", "held_out_2", "held_out_3"):
+    for name in ("tuning", "held_out", "held_out_2", "held_out_3", *FAR):
         kinds = {k.name: k for k in FAMILIES[name].plain}
         assert not kinds["blind"].sensing and not kinds["blind"].yielding
         assert kinds["stop_and_go"].stop_and_go == 1.0
@@ -137,7 +162,7 @@ def test_the_families_behaviours():
         assert all(k.stop_and_go == 0.0 for n, k in kinds.items() if n != "stop_and_go")
 
 
-@pytest.mark.parametrize("name", ["tuning", "held_out", "held_out_2", "held_out_3"])
+@pytest.mark.parametrize("name", ["tuning", "held_out", "held_out_2", "held_out_3", *FAR])
 def test_drawn_parameters_lie_in_their_kinds_ranges(name):
     fam = FAMILIES[name]
     for seed in range(300):

@@ -304,3 +304,23 @@ def test_an_earlier_scan_too_old_to_say_anything_is_not_compared():
     assert rule().movers(context)[0] == []
     assert not refusals([go(399)] * 5, context, rule(think_time_s=None))
     assert rule(max_scan_gap_s=600.0).movers(context)[0]  # told the scans still count: the mover is found
+
+
+def test_what_a_context_s_scans_say_is_kept_by_name_and_found_again_only_for_that_context():
+    from dataclasses import replace
+
+    from safeembodai_plugins.validators.moving import MoversSeen
+
+    mover = rule(walls=True)
+    context = context_for(ROBOT, CROSSING["now"], CROSSING["before"])
+    blobs, think = mover.movers(context)
+    seen = mover._cache
+    assert isinstance(seen, MoversSeen) and seen.blobs is blobs and seen.think_s == think
+    assert seen.scan is context.scan and seen.latest is context.history[-1].scan
+    assert seen.key == (context.start_pose, context.sim_time_s, context.answer_s)
+    assert mover.walls(context) is seen.walls is not None  # the walls option: found with the movers
+    assert mover.movers(context)[0] is blobs and mover._cache is seen  # the same context: not found again
+    later = replace(context, answer_s=context.sim_time_s + 1.0)  # another key: found again, waiting 1 s
+    assert mover.movers(later)[1] == 1.0 and mover._cache is not seen
+    copied = replace(context, scan=scan_from(ROBOT, CROSSING["now"]))  # an equal scan, another object
+    assert mover.movers(copied)[0] is not blobs
