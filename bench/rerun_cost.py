@@ -34,7 +34,7 @@ def ablate(scenario, plugins, folder: Path, recordings: bool, writes: list[tuple
            ) -> tuple[float, list[tuple[float, float]]]:
     """The run's seconds and each trial's own (wall, CPU) seconds (from the previous trial's end to its
     end; CPU: this process's, every thread's); ``writes`` gets each recording's (wall, CPU) seconds."""
-    from safeembodai_core import rerun_export
+    from safeembodai_core.runs import rerun_recording as rerun_export
     from safeembodai_core.ablation import Ablation, RunFolder
 
     real = rerun_export.recording_bytes
@@ -82,7 +82,7 @@ def main() -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
 
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins()

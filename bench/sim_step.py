@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from safeembodai_core.models import Straight, Turn
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 
 STRAIGHT = Straight(command="straight", direction="forward", distance=300.0)
 BACK = Straight(command="straight", direction="backward", distance=300.0)

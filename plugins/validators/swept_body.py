@@ -36,9 +36,9 @@ import numpy as np
 
 from safeembodai_core.geometry import Motion, contact_times
 from safeembodai_core.geometry.sweep import near_path
-from safeembodai_core.held_motion import MotionValidator, MotionVerdict
+from safeembodai_core.guard.held_motion import MotionValidator, MotionVerdict
 from safeembodai_core.models import Advice, ControlSignal, LidarScan, Straight, Verdict
-from safeembodai_core.validation import ValidationContext
+from safeembodai_core.validation.context import ValidationContext
 
 from .rules import checked_scan
 

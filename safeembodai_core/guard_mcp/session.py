@@ -28,20 +28,20 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..ablation.run_folder import RunFolder
-from ..building import ComponentBuilder
+from ..runs.folder import RunFolder
+from ..plugin.building import ComponentBuilder
 from ..geometry.frames import wrap_deg
 from ..logs import get_logger
 from ..loop.defences import Defences
 from ..models import Attempt, ExecutedSignal, ExecutionResult, LLMResponse, Outcome, Pose, StepRecord, TrialResult, \
     TrialSpec, Verdict
 from ..models.control import MAX_TEXT
-from ..refs import ComponentRef
+from ..plugin.refs import ComponentRef
 from ..scenario import Condition, Scenario
 from ..serve_robot.session_record import held_signal
 
 if TYPE_CHECKING:
-    from ..plugins import Plugins
+    from ..plugin.manager import Plugins
     from .policy import Policy
     from .proxy import GuardMcp
     from .records import CallRecord

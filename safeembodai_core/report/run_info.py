@@ -2,7 +2,7 @@
 (its fingerprint), how many trials per cell -- and, for a simulated pilot, that it is one and which
 of its options are the inputs behind the numbers that look like findings.
 
-The backend describes itself (:meth:`~safeembodai_core.components.BackendOptions.describe`, on its
+The backend describes itself (:meth:`~safeembodai_core.contracts.components.BackendOptions.describe`, on its
 options model: nothing is built, no key is needed): the report lists no plugin's names. A backend
 whose options model does not describe it is named by its ``model`` option, and taken for an LLM.
 A backend whose replies name the model that answered (litellm's) is named by those names when the
@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..descriptions import BackendDescription, BackendOptions, EnvironmentDescription, EnvironmentOptions
-from ..refs import ComponentRef
+from ..contracts.descriptions import BackendDescription, BackendOptions, EnvironmentDescription, EnvironmentOptions
+from ..plugin.refs import ComponentRef
 from ..scenario import Scenario
 
 
@@ -99,11 +99,11 @@ def describe_environments(scenario: Scenario, plugins: Any = None) -> dict[str, 
 
 
 def told_arms(scenario: Scenario, plugins: Any = None) -> dict[str, list[str]]:
-    """Each arm told what only the simulator knows (:func:`~safeembodai_core.world_private.arms_told`)."""
-    from ..world_private import arms_told
+    """Each arm told what only the simulator knows (:func:`~safeembodai_core.trust.world_private.arms_told`)."""
+    from ..trust.world_private import arms_told
 
     if plugins is None:
-        from ..plugins import load_plugins
+        from ..plugin.manager import load_plugins
 
         plugins = load_plugins()
     return arms_told(scenario, plugins.registry)
@@ -113,7 +113,7 @@ def _validated(kind: str, ref: ComponentRef, plugins: Any) -> Any:
     """``ref``'s options as its registered options model reads them (the installed plugins when
     ``plugins`` is None); raises :class:`SafeEmbodAIError` when its plugin is gone or they do not validate."""
     if plugins is None:
-        from ..plugins import load_plugins
+        from ..plugin.manager import load_plugins
 
         plugins = load_plugins()
     return plugins.registry.validate_options(kind, ref.use, ref.options)
@@ -122,7 +122,7 @@ def _validated(kind: str, ref: ComponentRef, plugins: Any) -> Any:
 def _undescribed(backend: ComponentRef, reason: str) -> BackendDescription:
     """A backend that cannot describe itself: named by its ``model`` option and never taken for an LLM.
     Its name and the reason come from a run folder or a plugin: one line of terminal-safe text."""
-    from ..text_safety import one_line, terminal_text
+    from ..trust.text import one_line, terminal_text
 
     model = backend.options.get("model")
     name, why = (one_line(terminal_text(str(text)))[:200] for text in (backend.use, reason.splitlines()[0]
@@ -137,7 +137,7 @@ def _undescribed(backend: ComponentRef, reason: str) -> BackendDescription:
 def _recorded_fingerprint(folder: Path | None) -> str | None:
     if folder is None:
         return None
-    from ..ablation.run_folder import RunFolder
+    from ..runs.folder import RunFolder
     from ..errors import SafeEmbodAIError
 
     try:
@@ -159,7 +159,7 @@ def run_info(scenario: Scenario, folder: str | Path | None = None, plugins: Any 
              results: Any = None) -> RunInfo:
     """The report's header facts; the fingerprint is the run folder's, else the scenario's own.
     With ``results``, a backend whose replies name the model is named by them."""
-    from ..ablation.run_folder import fingerprint
+    from ..runs.folder import fingerprint
 
     described = describe_backend(scenario, plugins)
     recorded = _recorded_fingerprint(Path(folder) if folder is not None else None)

@@ -26,8 +26,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..ablation.run_folder import RunFolder
-from ..building import ComponentBuilder
+from ..runs.folder import RunFolder
+from ..plugin.building import ComponentBuilder
 from ..models.records import ErrorKind
 from ..models import (
     ExecutedSignal,
@@ -41,11 +41,11 @@ from ..models import (
     TrialSpec,
     Turn,
 )
-from ..plugins import Plugins
-from ..refs import ComponentRef
+from ..plugin.manager import Plugins
+from ..plugin.refs import ComponentRef
 from ..scenario import Condition, Scenario
 from ..loop.defences import Defences
-from ..trial_files import bag_file, record_artefacts, trajectory_file
+from ..runs.trial_files import bag_file, record_artefacts, trajectory_file
 from .session_bag import Command, SessionBag
 
 ARM, CONDITION = "live", "rosbridge"

@@ -20,7 +20,7 @@ from urllib.parse import quote, unquote
 
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
-from ..run_files import open_inside
+from ..runs.files import open_inside
 from .html import CSP_HEADER
 from .rerun_viewer import VIEWER_PREFIX, viewer_url
 
@@ -29,7 +29,7 @@ log = get_logger(__name__)
 
 class _Handler(SimpleHTTPRequestHandler):
     """Serves the site's own files only, each opened once and served as opened: a regular file reached
-    from the site folder with no symlink anywhere (:func:`~safeembodai_core.run_files.open_inside`), never
+    from the site folder with no symlink anywhere (:func:`~safeembodai_core.runs.files.open_inside`), never
     a FIFO or a device, no folder listing, no dot-file (a page being written); only a path as the request
     target (no ``http://host/...``), and only to requests addressed to this server (a ``Host`` header
     naming another host is refused: no DNS rebinding onto it). A malformed request line is answered by

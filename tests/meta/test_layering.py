@@ -130,11 +130,11 @@ def _where(a: str, b: str) -> str:
 
 def test_the_graph_sees_imports_at_every_level():
     """Module level, relative, inside a function, under TYPE_CHECKING: all are edges."""
-    assert "safeembodai_core.models" in GRAPH["safeembodai_core.runner"]  # from .models import ...
-    assert "safeembodai_core.report.captions" in GRAPH["safeembodai_core.trial_artefacts"]  # inside a method
-    assert "safeembodai_core.api" in GRAPH["safeembodai_core"]  # under TYPE_CHECKING
+    assert "safeembodai_core.models" in GRAPH["safeembodai_core.runs.runner"]  # from .models import ...
+    assert "safeembodai_core.report.captions" in GRAPH["safeembodai_core.runs.artefacts"]  # inside a method
+    assert "safeembodai_core.guard.guard" in GRAPH["safeembodai_core"]  # under TYPE_CHECKING
     assert "safeembodai_plugins.state.review" in GRAPH["safeembodai_plugins.state.sqlite_store"]  # inside a command
-    assert "safeembodai_core.components" in GRAPH["safeembodai_plugins.state.memory_store"]  # plugin -> core
+    assert "safeembodai_core.contracts.components" in GRAPH["safeembodai_plugins.state.memory_store"]  # plugin -> core
 
 
 def test_the_cycle_finder_finds_cycles():

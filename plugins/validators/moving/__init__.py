@@ -36,9 +36,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from safeembodai_core.components import Validator
+from safeembodai_core.contracts.components import Validator
 from safeembodai_core.models import Advice, ControlSignal, Pose, Straight, Turn, Verdict
-from safeembodai_core.validation import ValidationContext
+from safeembodai_core.validation.context import ValidationContext
 
 from .futures import WanderingFutures, WanderSettings, yielding
 from .learning import LearningSettings, learn_movers

@@ -12,7 +12,7 @@ from matplotlib.colors import to_rgba
 
 from safeembodai_core.metrics import cell_metrics
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.report import write_report
 from safeembodai_core.report.figures import draw_figures, figures, metric_figure
 from safeembodai_core.report.run_info import run_info
@@ -192,7 +192,7 @@ def test_the_report_names_no_plugin_a_backend_describes_itself(repo):
 
 
 def test_a_backend_that_cannot_describe_itself_is_never_taken_for_an_llm(repo, plugins):
-    from safeembodai_core.refs import ComponentRef
+    from safeembodai_core.plugin.refs import ComponentRef
     from safeembodai_core.report.run_info import describe_ref
 
     gone = describe_ref(ComponentRef(use="a-backend-uninstalled-since", options={"model": "x"}), plugins)
@@ -203,7 +203,7 @@ def test_a_backend_that_cannot_describe_itself_is_never_taken_for_an_llm(repo, p
 
 def test_a_backend_name_from_a_run_folder_reaches_the_report_as_text(plugins, tmp_path):
     """The banner of a backend that cannot describe itself names it: escaped for Markdown and the terminal."""
-    from safeembodai_core.refs import ComponentRef
+    from safeembodai_core.plugin.refs import ComponentRef
     from safeembodai_core.report.markdown import header
     from safeembodai_core.report.run_info import RunInfo, describe_ref
 
@@ -224,9 +224,9 @@ def test_a_backend_name_from_a_run_folder_reaches_the_report_as_text(plugins, tm
 
 
 def test_a_describe_that_fails_is_a_backend_not_known_to_be_an_llm(plugins):
-    from safeembodai_core.descriptions import BackendOptions
+    from safeembodai_core.contracts.descriptions import BackendOptions
     from safeembodai_core.hookspecs import hookimpl
-    from safeembodai_core.refs import ComponentRef
+    from safeembodai_core.plugin.refs import ComponentRef
     from safeembodai_core.report.run_info import describe_ref
     from safeembodai_core.testing import inline_plugins
 
@@ -260,7 +260,7 @@ def test_an_option_value_that_is_not_a_number_prints_as_text_and_flatland_names_
 
 
 def test_an_environment_whose_describe_fails_lists_no_clock_and_the_report_goes_on():
-    from safeembodai_core.descriptions import EnvironmentOptions
+    from safeembodai_core.contracts.descriptions import EnvironmentOptions
     from safeembodai_core.hookspecs import hookimpl
     from safeembodai_core.report.run_info import describe_environments
     from safeembodai_core.scenario import parse_scenario

@@ -38,7 +38,7 @@ def test_an_answer_that_did_not_parse_draws_no_path():
 
 def test_a_trial_page_shows_each_steps_plans_picture(repo, tmp_path):
     from safeembodai_core.ablation import Ablation, RunFolder
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
     from safeembodai_core.view.site import build_site
 
