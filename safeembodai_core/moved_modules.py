@@ -38,6 +38,7 @@ MOVED: dict[str, str] = {
     "safeembodai_core.ablation.run_folder": "safeembodai_core.runs.folder",
     "safeembodai_core.rerun_export": "safeembodai_core.runs.rerun_recording",
     "safeembodai_core.trial_words": "safeembodai_core.report.words",
+    "safeembodai_core.report.captions": "safeembodai_core.runs.captions",
     "safeembodai_core.plugins": "safeembodai_core.plugin.manager",
     "safeembodai_core.registry": "safeembodai_core.plugin.registry",
     "safeembodai_core.refs": "safeembodai_core.plugin.refs",

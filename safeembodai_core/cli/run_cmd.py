@@ -36,7 +36,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     from rich.console import Console
 
     from ..ablation.plan import RunPlan
-    from ..report.run_info import describe_backend
+    from ..scenario.describe import describe_backend
     from ..runs.runner import ScenarioRunner, trial_spec
     from ..trust.text import terminal_markup
     from .trial_view import save_trial, step_table

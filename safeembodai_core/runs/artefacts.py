@@ -74,10 +74,10 @@ class TrialArtefacts:
 
     def picture(self, environment: Any, result: TrialResult) -> bytes | None:
         """The trial's picture as ``environment`` draws it, captioned with the trial's id, arm and
-        condition and, for a simulated backend, that it is one (``report/captions.py``); None when
+        condition and, for a simulated backend, that it is one (``runs/captions.py``); None when
         the environment draws none. Raises what the environment's drawing raises."""
-        from ..report.captions import caption_lines, captioned
-        from ..report.run_info import describe_backend
+        from .captions import caption_lines, captioned
+        from ..scenario.describe import describe_backend
 
         picture = environment.trajectory_png(result.trajectory, result.outcome)
         if not picture:

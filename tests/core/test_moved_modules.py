@@ -11,6 +11,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from import_statements import imported_from
 
 from safeembodai_core.moved_modules import MOVED
 
@@ -61,13 +62,7 @@ def _imported_names(path: Path) -> list[tuple[int, str]]:
         if isinstance(node, ast.Import):
             found += [(node.lineno, alias.name) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = module if is_package else module.rpartition(".")[0]
-                for _ in range(node.level - 1):
-                    base = base.rpartition(".")[0]
-                base = f"{base}.{node.module}" if node.module else base
-            else:
-                base = node.module or ""
+            base = imported_from(node, module, is_package)
             found += [(node.lineno, f"{base}.{alias.name}") for alias in node.names]
             found.append((node.lineno, base))
     return found
