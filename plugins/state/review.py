@@ -169,7 +169,7 @@ def pilot_banner(run: str | Path) -> str | None:
     ``.sqlite`` file, or a folder whose ``scenario.json`` cannot be read back); None for a real LLM."""
     from safeembodai_core.scenario.reading import recorded_scenario
     from safeembodai_core.errors import SafeEmbodAIError
-    from safeembodai_core.report.run_info import describe_backend
+    from safeembodai_core.scenario.describe import describe_backend
 
     if not Path(run).is_dir():
         return "who answered is not recorded in a bare results file: it may have been a simulated pilot, not an LLM"
