@@ -12,6 +12,11 @@ when it touches
   below ``range_min``, outside the field of view), behind a return where the next beam saw farther
   (the edge of its shadow), and past the sensor's range. A free beam (``inf``) is free only out to
   the range. Samples inside the body where the scan was taken are dropped: the robot stood there.
+  From a scanner off the centre (:class:`~safeembodai_core.ros.laser_scan.MountedScan`) these are
+  derived from its own view, from where it stood: along its beams, not along the bins round the
+  centre, whose rays do not follow the beams (at a shadow's edge a bin with no beam is unseen at every
+  range, though the scanner saw into it; another holds free a ray that crosses a shadow). A scanner
+  at the centre is its own view: judged as it always was.
 
 A return the body already holds -- on its outline (Nav2 counts it outside) or inside -- counts only
 once the motion takes the body deeper over it (:func:`~safeembodai_core.geometry.sweep.deeper_times`):
@@ -38,6 +43,7 @@ from safeembodai_core.geometry import Motion, contact_times
 from safeembodai_core.geometry.sweep import near_path
 from safeembodai_core.guard.held_motion import MotionValidator, MotionVerdict
 from safeembodai_core.models import Advice, ControlSignal, LidarScan, Straight, Verdict
+from safeembodai_core.ros.laser_scan import MountedScan
 from safeembodai_core.validation.context import ValidationContext
 
 from .rules import checked_scan
@@ -154,6 +160,15 @@ def unseen_samples(scan: LidarScan, reach_mm: float, step_mm: float,
     return np.concatenate(parts), labels
 
 
+def scanner_view(scan: LidarScan) -> tuple[LidarScan, tuple[float, float] | None]:
+    """The scan unseen space is derived from, and where it was taken (mm, robot frame): a mounted
+    scanner's own view from its mount (:class:`~safeembodai_core.ros.laser_scan.MountedScan`: what
+    its beams saw free, not rebinned round the centre), else the scan itself, from the centre (None)."""
+    if isinstance(scan, MountedScan) and scan.view is not None:
+        return scan.view, scan.origin_mm
+    return scan, None
+
+
 def _where(point: np.ndarray) -> str:
     x, y = float(point[0]), float(point[1])
     side = "on the centre line" if abs(y) < 0.5 else f"and {abs(y):.0f} mm {'left' if y > 0 else 'right'}"
@@ -178,9 +193,11 @@ class SweptBodyRule(MotionValidator):
         if not motion.centre_travel_mm <= MAX_TRAVEL_MM:  # NaN too: a motion this rule cannot place
             return [None, (0.0, f"touches nothing it can judge: the motion covers {motion.centre_travel_mm:.3g} mm, "
                                 f"more than {MAX_TRAVEL_MM:.0f}", here)]
-        if math.hypot(x, y) + body.reach_mm >= scan.max_range_mm:
+        view, origin = scanner_view(scan)
+        ox, oy = (0.0, 0.0) if origin is None else origin
+        if math.hypot(x - ox, y - oy) + body.reach_mm >= view.max_range_mm:
             return [None, (0.0, f"touches space the scan did not see (the body reaches past the sensor's range of "
-                                f"{scan.max_range_mm:g} mm)", here)]
+                                f"{view.max_range_mm:g} mm)", here)]
         reach = math.hypot(x, y) + motion.centre_travel_mm + body.reach_mm + o.unseen_step_mm
         returns = scene_returns(scan, reach)
         if scan.returns_mm is not None and len(scan.returns_mm):  # the unbinned returns as well
@@ -195,12 +212,13 @@ class SweptBodyRule(MotionValidator):
                 held = bool(body.inside(planned[order[:1]])[0])
                 what = _DEEPER if held else "touches a return of the scan"
                 touched = (float(times[order[o.min_points - 1]]), what, planned[order[0]])
-        return [touched, self._first_unseen(scan, motion, context, reach)]
+        return [touched, self._first_unseen(view, origin, motion, context)]
 
-    def _first_unseen(self, scan: LidarScan, motion: Motion, context: ValidationContext,
-                      reach: float) -> tuple[float, str, np.ndarray] | None:
-        """The first touch of unseen space within ``reach`` of the scan's origin, as (time, what,
-        point) or None. Looked for out to :data:`FIRST_LOOK_MM` along the path first, then four
+    def _first_unseen(self, scan: LidarScan, origin: tuple[float, float] | None, motion: Motion,
+                      context: ValidationContext) -> tuple[float, str, np.ndarray] | None:
+        """The first touch of unseen space within reach of the motion, as (time, what, point) or None:
+        derived from ``scan`` taken at ``origin`` (the scanner's own view, :func:`scanner_view`; None:
+        at the robot's centre). Looked for out to :data:`FIRST_LOOK_MM` along the path first, then four
         times as far each time, until a touch is found before the body could reach the samples not
         yet looked at (the centre moves ``speed * t`` by time ``t``): the work grows with how far
         the first touch is, not with how far the motion goes. Of many samples, only those on
@@ -208,20 +226,33 @@ class SweptBodyRule(MotionValidator):
         o = self.options
         body = context.robot.body(o.margin_mm)
         x, y, _ = context.offset
-        start = math.hypot(x, y) + body.reach_mm  # no point of the body lies farther from the scan's origin at t = 0
+        ox, oy = (0.0, 0.0) if origin is None else origin
+        far = math.hypot(x - ox, y - oy) + motion.centre_travel_mm  # the farthest the centre gets from the origin
+        shift = None if origin is None else np.array(origin, dtype=float)
+        if shift is not None and motion.straight_enough(0.0):  # along a straight, from a scanner ahead: its far end
+            seen_from = context.to_planned_frame(shift[None])[0]
+            end = np.array(motion.pose_at(motion.duration_s)[:2])
+            far = min(far, max(float(np.hypot(*seen_from)), float(np.hypot(*(end - seen_from)))) + 1.0)
+        reach = far + body.reach_mm + o.unseen_step_mm
+        start = math.hypot(x - ox, y - oy) + body.reach_mm  # no point of the body lies farther from the origin at t = 0
+
+        def into_scan(points: np.ndarray) -> np.ndarray:  # from the origin's frame into the scan's (the robot's)
+            return points if shift is None else points + shift
 
         def near(points: np.ndarray, slack: np.ndarray) -> np.ndarray:  # 1 mm more: the frame change's rounding
-            return near_path(context.to_planned_frame(points), motion, body.reach_mm + slack + 1.0)
+            return near_path(context.to_planned_frame(into_scan(points)), motion, body.reach_mm + slack + 1.0)
 
         look = FIRST_LOOK_MM
         while True:
             radius = min(reach, start + o.unseen_step_mm + look)
             unseen, labels = unseen_samples(scan, radius, o.unseen_step_mm, near)
+            unseen = into_scan(unseen)
             hidden = None
             if len(unseen):
                 planned = context.to_planned_frame(unseen)
                 keep = np.flatnonzero(near_path(planned, motion, body.reach_mm))
-                keep = keep[~body.inside(unseen[keep])]  # where the robot stood when it scanned
+                if keep.size:
+                    keep = keep[~body.inside(unseen[keep])]  # where the robot stood when it scanned
                 if keep.size:
                     times = contact_times(planned[keep], motion, body)
                     k = int(np.argmin(times))

@@ -14,6 +14,11 @@ empty). A bin holds the nearest return of its beams, ``inf`` when its beams saw 
 and ``nan`` when no beam of the sensor pointed into it -- **outside the field of view a direction
 is unknown, never free** -- or when its beams gave no reading. ``max_range_mm`` is the sensor's
 range less the mounting offset: the least distance from the centre out to which a free beam saw.
+From an offset sensor the result is a :class:`MountedScan`, which also keeps the sensor's own view:
+its beams binned round the sensor itself, as they would be for a sensor at the centre. Rebinned
+round the centre, a beam's free segment no longer lies along its bin (the parallax), so the bins
+cannot say what the sensor saw: a rule that derives unseen space from free space (``swept_body``)
+derives it from the view, from where the sensor stood.
 
 :meth:`LaserScan.from_ros` reads a decoded message (attributes) or a plain dict as rosbridge v2 sends
 it (JSON). JSON has no ``inf`` or ``nan``: rosbridge writes ``+inf``, ``-inf`` and ``nan`` alike as
@@ -231,39 +236,82 @@ class LaserScan:
                    ranges=ranges, range_min=_field(message, "range_min"), range_max=_field(message, "range_max"),
                    angle_max=_field(message, "angle_max"), mount=mount or SensorMount())
 
-    def beams(self) -> int:
-        """How many beams round the robot the converted scan has."""
+    def beams(self, centred: bool | None = None) -> int:
+        """How many beams round the robot the converted scan has; with ``centred``, round a scanner at
+        the centre (True: its :attr:`MountedScan.view`) or off it (False), whatever the mounting."""
         step_deg = abs(math.degrees(self.angle_increment))
-        per_turn = 360.0 / step_deg if self.mount.offset_mm == 0.0 else 180.0 / step_deg
+        centred = self.mount.offset_mm == 0.0 if centred is None else centred
+        per_turn = 360.0 / step_deg if centred else 180.0 / step_deg
         return int(min(MAX_BEAMS, max(4, math.floor(per_turn + 1e-6))))
 
     def to_lidar_scan(self) -> LidarScan:
-        """The scan as the rules read it (module docstring)."""
+        """The scan as the rules read it (module docstring): from a scanner off the centre, a
+        :class:`MountedScan`, which keeps the scanner's own view as well."""
         ranges = cast("np.ndarray", self.ranges)  # __post_init__ made it an array
         with np.errstate(invalid="ignore"):
             returned = np.isfinite(ranges) & (ranges >= self.range_min) & (ranges <= self.range_max)
             free = np.isposinf(ranges) | (np.isfinite(ranges) & (ranges > self.range_max))
         close = np.isneginf(ranges)
-        seen = returned | free | close
-        reach_m = np.where(returned, ranges, np.where(close, 0.0, self.range_max))
         angles = self.angle_min + np.arange(ranges.size) * self.angle_increment + math.radians(self.mount.yaw_deg)
-        x = self.mount.x_mm + reach_m * 1000.0 * np.cos(angles)
-        y = self.mount.y_mm + reach_m * 1000.0 * np.sin(angles)
+        beams = _Beams(returned | close, returned | free | close, close,
+                       np.where(returned, ranges, np.where(close, 0.0, self.range_max)), np.cos(angles), np.sin(angles),
+                       max(self.range_min, 1e-3))
+        x_mm, y_mm = self.mount.x_mm, self.mount.y_mm
+        out, x, y = beams.binned(x_mm, y_mm, self.beams())
+        max_range_mm = max(self.range_max * 1000.0 - self.mount.offset_mm, 1.0)
+        exact = np.column_stack((x[beams.obstacle], y[beams.obstacle]))  # where the returns are, before binning
+        if self.mount.offset_mm == 0.0:
+            return LidarScan(out, max_range_mm, returns_mm=exact)
+        view = LidarScan(beams.binned(0.0, 0.0, self.beams(centred=True))[0], self.range_max * 1000.0)
+        return MountedScan(out, max_range_mm, returns_mm=exact, view=view, origin_mm=(x_mm, y_mm))
+
+
+@dataclass(frozen=True)
+class _Beams:
+    """A scan's beams, each as the scanner saw it: ``obstacle`` (a return, or too close to measure),
+    ``seen`` (a reading: those, or no return), ``close``; ``reach_m`` (a return's range, 0 when too
+    close, ``range_max`` when free: how far it saw free), ``cos`` and ``sin`` of its direction (robot
+    frame), ``ahead_m`` (how far along its beam a too-close detection is binned)."""
+
+    obstacle: np.ndarray
+    seen: np.ndarray
+    close: np.ndarray
+    reach_m: np.ndarray
+    cos: np.ndarray
+    sin: np.ndarray
+    ahead_m: float
+
+    def binned(self, x_mm: float, y_mm: float, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The ``count`` bins round a frame's origin, of beams from a scanner at (``x_mm``, ``y_mm``)
+        in it (the robot's centre: the mounting; the scanner itself: 0, 0), each binned by the bearing
+        of its end from the origin (module docstring), and the beams' ends (x, y in mm)."""
+        reach_m, cos, sin, close = self.reach_m, self.cos, self.sin, self.close
+        x = x_mm + reach_m * 1000.0 * cos
+        y = y_mm + reach_m * 1000.0 * sin
         # a too-close detection sits at the sensor, but keeps its beam's direction for its bin
-        ahead_m = np.where(close, max(self.range_min, 1e-3), reach_m)
-        count = self.beams()
+        ahead_m = np.where(close, self.ahead_m, reach_m)
         width = 2.0 * math.pi / count
-        bearing = np.arctan2(self.mount.y_mm + ahead_m * 1000.0 * np.sin(angles),
-                             self.mount.x_mm + ahead_m * 1000.0 * np.cos(angles))
+        bearing = np.arctan2(y_mm + ahead_m * 1000.0 * sin, x_mm + ahead_m * 1000.0 * cos)
         bins = np.rint(bearing / width).astype(int) % count
         # a centred scanner's distances are its ranges (no trigonometric round trip: the same numbers)
-        distance = reach_m * 1000.0 if self.mount.offset_mm == 0.0 else np.hypot(x, y)
+        distance = reach_m * 1000.0 if x_mm == 0.0 and y_mm == 0.0 else np.hypot(x, y)
         nearest = np.full(count, np.inf)
-        obstacle = returned | close
-        np.minimum.at(nearest, bins[obstacle], distance[obstacle])
+        np.minimum.at(nearest, bins[self.obstacle], distance[self.obstacle])
         looked = np.zeros(count, dtype=bool)
-        looked[bins[seen]] = True
-        out = np.where(looked, nearest, np.nan)  # a bin no beam saw into is unknown, never free
-        max_range_mm = max(self.range_max * 1000.0 - self.mount.offset_mm, 1.0)
-        exact = np.column_stack((x[obstacle], y[obstacle]))  # where the returns are, before binning
-        return LidarScan(out, max_range_mm, returns_mm=exact)
+        looked[bins[self.seen]] = True
+        return np.where(looked, nearest, np.nan), x, y  # a bin no beam saw into is unknown, never free
+
+
+@dataclass
+class MountedScan(LidarScan):
+    """A converted scan from a scanner off the robot's centre: the bins round the centre that every
+    rule reads, and ``view``, the same beams binned round the scanner itself (as a scanner at the
+    centre would be: bins and beams coincide), whose centre is ``origin_mm`` (x, y) in the robot
+    frame. Rebinned round the centre, a beam's free segment no longer lies along its bin: at a shadow
+    edge the parallax leaves a bin no beam ends in (unknown at every range, though the scanner saw
+    into it) or one whose ray from the centre crosses a shadow the scanner did not see into. What the
+    scanner saw is what ``view`` says, from where it stood: a rule that derives unseen space
+    (``swept_body``) derives it from ``view``, shifted by ``origin_mm``."""
+
+    view: LidarScan | None = field(default=None, repr=False, compare=False)
+    origin_mm: tuple[float, float] = (0.0, 0.0)

@@ -24,6 +24,7 @@ from hypothesis import strategies as st
 from safeembodai_core import Guard
 from safeembodai_core.models import LidarScan
 from safeembodai_core.ros import LaserScan, SensorMount, Twist
+from safeembodai_core.ros.laser_scan import MountedScan
 
 DEG = math.pi / 180.0
 
@@ -322,3 +323,62 @@ def test_a_reversed_scan_checks_angle_max_too():
 def test_a_scan_reads_no_text_or_bool_as_a_number(name, value):
     with pytest.raises(ValueError, match=f"LaserScan.{name} must be a number"):
         scan_90(91, **{name: value})
+
+
+# --- a mounted scanner's own view: what it saw, from where it stood ------------------------------
+
+def _free_m(ranges: list[float], range_min: float, range_max: float) -> np.ndarray:
+    """Each beam's free segment (m from the scanner): to its return, to the range when it got none, 0
+    when too close to measure; NaN when it gave no reading."""
+    r = np.array(ranges, dtype=float)
+    with np.errstate(invalid="ignore"):
+        returned = np.isfinite(r) & (r >= range_min) & (r <= range_max)
+        free = np.isposinf(r) | (np.isfinite(r) & (r > range_max))
+    return np.where(returned, r, np.where(free, range_max, np.where(np.isneginf(r), 0.0, np.nan)))
+
+
+def test_a_mounted_scanner_keeps_its_view_from_its_mount_and_a_centred_one_needs_none():
+    """Rebinned round the centre, a scanner 120 mm ahead leaves a bin at a post's shadow edge that no
+    beam ends in (unknown at every range); its view from the mount is the scan a scanner at the centre
+    with the same beams gives, so nothing it saw is lost there and nothing it did not see is gained."""
+    ranges = [0.6 if 10 <= k <= 30 else 3.0 for k in range(360)]  # a post 10-30 deg left, 0.6 m from the scanner
+    mounted = LaserScan(angle_min=0.0, angle_increment=DEG, ranges=ranges, range_min=0.05, range_max=8.0,
+                        mount=SensorMount(120.0, 0.0, 0.0))
+    centred = LaserScan(angle_min=0.0, angle_increment=DEG, ranges=ranges, range_min=0.05, range_max=8.0)
+    converted, plain = mounted.to_lidar_scan(), centred.to_lidar_scan()
+    assert np.isnan(converted.ranges_mm).any()  # round the centre: a bin with no beam in it
+    assert isinstance(converted, MountedScan) and converted.origin_mm == (120.0, 0.0)
+    assert type(plain) is LidarScan  # a centred scanner: the bins are its view
+    np.testing.assert_array_equal(converted.view.ranges_mm, plain.ranges_mm)
+    assert converted.view.max_range_mm == plain.max_range_mm == 8000.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-400, 400), st.floats(-400, 400), st.floats(-180, 180), st.sampled_from([0.25, 0.7, 1.0, 2.5, 4.0]),
+       st.floats(-math.pi, math.pi), st.data())
+def test_a_mounted_scanners_view_holds_as_seen_only_what_a_beam_saw_free(x_mm, y_mm, yaw_deg, step_deg, angle_min,
+                                                                         data):
+    """Every bin of the view is seen out to where a beam of the scanner, from the mount and within half
+    a bin of the bin's bearing, saw free, and no farther; a bin no beam read into is unknown. A centred
+    scanner's scan is unchanged: a plain scan, its own view."""
+    count = data.draw(st.integers(1, int(360 / step_deg)))
+    ranges = data.draw(st.lists(st.one_of(st.floats(0.0, 9.0), st.just(math.inf), st.just(-math.inf),
+                                          st.just(math.nan)), min_size=count, max_size=count))
+    scan = LaserScan(angle_min=angle_min, angle_increment=step_deg * DEG, ranges=ranges, range_min=0.1,
+                     range_max=8.0, mount=SensorMount(x_mm, y_mm, yaw_deg))
+    converted = scan.to_lidar_scan()
+    if x_mm == 0.0 and y_mm == 0.0:
+        assert type(converted) is LidarScan
+        return
+    assert isinstance(converted, MountedScan) and converted.origin_mm == (x_mm, y_mm)
+    view = converted.view
+    free_mm = _free_m(ranges, 0.1, 8.0) * 1000.0
+    bearings = np.degrees(angle_min + np.arange(count) * step_deg * DEG) + yaw_deg
+    half = view.increment_deg / 2.0
+    for k, value in enumerate(view.ranges_mm):
+        off = np.abs((bearings - view.angles_deg[k] + 180.0) % 360.0 - 180.0)
+        if np.isnan(value):  # unknown: no beam that read anything points into the bin
+            assert not (~np.isnan(free_mm) & (off < half - 1e-6)).any()
+        else:
+            into = ~np.isnan(free_mm) & (off <= half + 1e-6)
+            assert (free_mm[into] >= min(value, view.max_range_mm) - 1e-6).any()

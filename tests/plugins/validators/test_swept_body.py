@@ -12,7 +12,9 @@ from hypothesis import strategies as st
 
 from safeembodai_core import Guard, RobotSpec
 from safeembodai_core.geometry import Body, Motion, contact_times
-from safeembodai_core.models import LidarScan
+from safeembodai_core.models import ControlLimits, LidarScan, Pose
+from safeembodai_core.ros import LaserScan, SensorMount
+from safeembodai_core.ros.laser_scan import MountedScan
 
 LONG = [(400.0, 150.0), (-400.0, 150.0), (-400.0, -150.0), (400.0, -150.0)]
 
@@ -306,3 +308,134 @@ def test_backing_off_a_return_still_must_not_touch_another_nor_unseen_space():
     blind.ranges_mm[170:191] = np.nan
     report = guard.check_twist((-0.5, 0.0), 1.0, lidar_mm=blind)
     assert not report.valid and report.contact == "unseen" and "space the scan did not see" in report.reasons[-1]
+
+
+# --- a scanner off the robot's centre: unseen space from where it stood --------------------------
+
+EXAMPLE = [(250.0, 170.0), (-200.0, 170.0), (-200.0, -170.0), (250.0, -170.0)]  # docs/examples/robot.yaml's
+
+
+def room_scan(mount_mm, posts_mm, half_mm=(3000.0, 3000.0), beams=360) -> LaserScan:
+    """What a 360-degree scanner at ``mount_mm`` (robot frame) sees of a room ``|x|, |y| <= half_mm``
+    about the robot's centre holding round posts ``(x, y, radius)`` (mm): exact ranges, no noise."""
+    mx, my = mount_mm
+    ranges = []
+    for k in range(beams):
+        a = -math.pi + k * 2.0 * math.pi / beams
+        c, s = math.cos(a), math.sin(a)
+        hits = [t for v, o, h in ((c, mx, half_mm[0]), (s, my, half_mm[1])) if abs(v) > 1e-12
+                for t in ((h - o) / v, (-h - o) / v) if t > 0]
+        for px, py, r in posts_mm:
+            b = (px - mx) * c + (py - my) * s
+            d2 = b * b - ((px - mx) ** 2 + (py - my) ** 2 - r * r)
+            if d2 >= 0 and b - math.sqrt(d2) > 0:
+                hits.append(b - math.sqrt(d2))
+        ranges.append(min(hits) / 1000.0)
+    return LaserScan(angle_min=-math.pi, angle_increment=2.0 * math.pi / beams, ranges=ranges, range_min=0.05,
+                     range_max=8.0, mount=SensorMount(*mount_mm))
+
+
+def _from(x_mm, y_mm, heading_deg):
+    return Pose(x_mm=x_mm, y_mm=y_mm, heading_deg=heading_deg)
+
+
+POST = (750.0, 200.0, 100.0)  # bench/live_wire.py's: 0.75 m ahead, 0.2 m left, 0.1 m across
+
+
+def test_what_a_mounted_scanner_saw_free_beside_a_post_is_seen():
+    """The example robot (scanner 120 mm ahead) by a post: the space the scanner saw free beside it
+    is seen, so the held commands that pass with a scanner at the centre pass with the mounted one
+    (rebinned round the centre, a bin at the post's shadow edge was unseen at every range, and every
+    forward command was refused), and those that reach the post are refused by both."""
+    guard = Guard([{"use": "swept_body", "options": {"margin_mm": 50.0}}],
+                  robot=RobotSpec(radius_mm=310, footprint_mm=EXAMPLE))
+    mounted, centred = room_scan((120.0, 0.0), [POST]), room_scan((0.0, 0.0), [POST])
+    for twist, passes in (((0.3, 0.0), True), ((-0.2, 0.3), True), ((0.0, 1.0), True), ((0.5, -0.4), True),
+                          ((0.45, 0.0), False), ((0.4, 0.5), False)):
+        report = guard.check_twist(twist, 1.0, lidar_mm=mounted)
+        assert report.valid == passes == guard.check_twist(twist, 1.0, lidar_mm=centred).valid, (twist, report.reasons)
+        assert passes or report.contact == "return"
+    # the point 0.31 m ahead and 0.14 m left, which the scanner saw free (a small body set down on it)
+    small = Guard(["swept_body"], robot=RobotSpec(radius_mm=20))
+    assert small.check([straight(10)], lidar_mm=mounted, since_scan=_from(310.0, 140.0, 24.0)).valid
+
+
+def test_the_shadow_behind_a_post_stays_unseen_from_a_mounted_scanner():
+    """A small body driven along a bearing that passes beside the post goes into its shadow as the
+    scanner (120 mm ahead) saw it: refused as it reaches the shadow, not before. The shadow's edge lies
+    between the last beam that met the post (26 deg from the scanner) and the first that passed it (27
+    deg); its true edge is the tangent at 26.3 deg. The body (20 mm) reaches the tangent 1.46 m out and
+    the beam at 26 deg, along which the shadow is sampled, 1.85 m out (as for a scanner at the centre:
+    between two beams, a shadow is taken to begin at the nearer one)."""
+    guard = Guard(["swept_body"], limits=ControlLimits(max_distance_mm=5000.0), robot=RobotSpec(radius_mm=20))
+    scan = room_scan((120.0, 0.0), [POST])
+    report = guard.check([turn(25), straight(3000)], lidar_mm=scan)
+    assert not report.valid and "space the scan did not see (behind a return)" in report.reasons[0]
+    safe = int(re.search(r"at most (\d+) mm is safe", report.reasons[0]).group(1))
+    assert 1460 <= safe <= 1900  # rebinned round the centre, a bin with no beam refused it from the start
+    assert guard.check([turn(25), straight(safe)], lidar_mm=scan).valid
+
+
+def test_a_ray_from_the_centre_across_a_mounted_scanners_shadow_is_unseen():
+    """Rebinned round the centre, the bins 40-48 deg left held free out to the wall (a beam from the
+    scanner, 300 mm ahead, ended there) though their rays from the centre cross the post's shadow as
+    the scanner saw it, 0.6-0.8 m out: a small body could drive into it. From the scanner's own view
+    the shadow is unseen."""
+    post = (500.0, 346.4, 50.0)  # 400 mm from the scanner, 60 deg left of it
+    guard = Guard(["swept_body"], limits=ControlLimits(max_distance_mm=5000.0), robot=RobotSpec(radius_mm=30))
+    scan = room_scan((300.0, 0.0), [post])
+    start = _from(400.0 * math.cos(math.radians(44)), 400.0 * math.sin(math.radians(44)), 44.0)
+    assert guard.check([straight(100)], lidar_mm=scan, since_scan=start).valid
+    report = guard.check([straight(400)], lidar_mm=scan, since_scan=start)
+    assert not report.valid and "space the scan did not see (behind a return)" in report.reasons[0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-300, 300), st.floats(-200, 200),
+       st.lists(st.tuples(st.floats(-2000, 2000), st.floats(-2000, 2000), st.floats(60, 250)), min_size=1, max_size=3),
+       st.integers(0, 2), st.floats(-1.0, 1.0), st.floats(0.0, 1.0), st.integers(0, 359))
+def test_a_body_driven_from_seen_space_into_a_mounted_scanners_shadow_is_refused(mx, my, posts, which, across,
+                                                                                 beyond, beam):
+    """Space that no beam's free segment covers is never driven into: a small body (40 mm) driven in a
+    straight line from a point the scanner saw (halfway along a beam's free segment) to one in a post's
+    shadow as the scanner saw it (behind the post, at least a beam's spacing inside its edges) is
+    refused, whatever the mounting."""
+    mount = np.array([mx, my])
+    assume(all(math.hypot(px - mx, py - my) > r + 250 and math.hypot(px, py) > r + 250 for px, py, r in posts))
+    px, py, r = posts[which % len(posts)]
+    to_post = np.array([px, py]) - mount
+    dist = float(np.hypot(*to_post))
+    half = math.asin(r / dist) - math.radians(1.5)  # a beam and a half inside the shadow's edges
+    assume(half > 0.0)
+    bearing = math.atan2(to_post[1], to_post[0]) + across * half
+    q = mount + (dist + r + 60.0 + beyond * 4000.0) * np.array([math.cos(bearing), math.sin(bearing)])
+    assume(abs(q[0]) < 2940.0 and abs(q[1]) < 2940.0)  # in the room
+    scan = room_scan((mx, my), posts)
+    a = -math.pi + beam * 2.0 * math.pi / 360
+    s = mount + 0.5 * _free_m(scan)[beam] * np.array([math.cos(a), math.sin(a)])
+    distance = float(np.hypot(*(q - s)))
+    assume(distance > 100.0)
+    heading = math.degrees(math.atan2(q[1] - s[1], q[0] - s[0]))
+    guard = Guard(["swept_body"], limits=ControlLimits(max_distance_mm=10_000.0), robot=RobotSpec(radius_mm=40))
+    report = guard.check([straight(distance)], lidar_mm=scan, since_scan=_from(s[0], s[1], heading))
+    assert not report.valid, (s, q)
+
+
+def _free_m(scan: LaserScan) -> np.ndarray:
+    """Each beam's free segment (mm from the scanner)."""
+    return np.minimum(np.asarray(scan.ranges, dtype=float), scan.range_max) * 1000.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.one_of(st.floats(60.0, 6000.0), st.just(math.inf), st.just(math.nan)), min_size=90, max_size=90),
+       st.floats(-0.5, 0.5), st.floats(-1.5, 1.5), st.sampled_from([None, (200.0, 0.0, 0.0)]))
+def test_a_scan_judged_from_its_own_view_at_the_centre_gets_the_same_verdicts(ranges, vx, w, moved):
+    """The view's path (unseen space from the scanner's origin, shifted) at an origin at the centre is
+    the plain scan's path: a scanner at the centre is judged as before."""
+    plain = LidarScan(np.array(ranges), 8000.0)
+    viewed = MountedScan(np.array(ranges), 8000.0, view=LidarScan(np.array(ranges), 8000.0), origin_mm=(0.0, 0.0))
+    guard = Guard(["swept_body"], robot=RobotSpec(radius_mm=310, footprint_mm=EXAMPLE))
+    since = None if moved is None else _from(*moved)
+    a, b = (guard.check_twist((vx, w), 1.0, lidar_mm=scan, since_scan=since) for scan in (plain, viewed))
+    assert (a.valid, a.collision_time_s, a.unseen_time_s, a.reasons) == (b.valid, b.collision_time_s, b.unseen_time_s,
+                                                                            b.reasons)
