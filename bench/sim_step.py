@@ -14,6 +14,17 @@ call for each part (median over ``--steps`` repetitions, same process, same room
 and the ratio of the full step to the sum of its unavoidable parts (ray cast + render +
 collision checks; target at most 1.3x), then the resident memory each extra environment adds
 (target under 150 MB). Numbers, never asserts: run it on a quiet machine.
+
+``--loop SCENARIO`` (``mo``, ``of``, any shipped scenario or a path) measures instead the core loop's
+step as an ablation runs it (issue 51): the scenario's trials with its own backend (the shipped
+ones: the mock pilot, no LLM latency) and its sqlite store in a scratch folder, one process, after a
+warm-up trial, cells taken in turn, until ``--steps`` steps are done. A step runs from its
+observation (the reset's for step 1) to the next one (or the trial's end): the think time, the
+commands, perception, prompt, the pilot, validation and the records. Printed: CPU milliseconds per
+step (``time.process_time``; median, mean, 90th percentile), the environment's share of them
+(observe, sense, execute, outcome) and the mean CPU per step of its parts timed alike (the camera,
+the LiDAR, the think time, the commands) and of the rest. ``--profile FILE`` also writes a
+cProfile of the measured trials (its overhead weighs on Python calls far more than on pybullet's).
 """
 
 from __future__ import annotations
@@ -71,13 +82,121 @@ def free_pose(env) -> None:
         angle -= step
 
 
+def loop_steps(scenario_path: str, steps: int, profile: str | None) -> None:
+    """CPU milliseconds per step of the scenario's trials, as an ablation runs them (see the module doc)."""
+    import cProfile
+    import tempfile
+    from pathlib import Path
+
+    from safeembodai_core.runner import ScenarioRunner
+    from safeembodai_core.scenario.loader import load_scenario
+
+    path = Path(scenario_path)
+    if not path.exists():
+        path = Path(__file__).resolve().parents[1] / "scenarios" / f"{scenario_path}.yaml"
+    plugins = load_plugins()
+    cells = len(load_scenario(path, [], plugins.registry).cells())
+    trials = max(2, steps // (5 * cells) + 2)  # trials per cell: enough for the steps asked, with room to spare
+    scenario = load_scenario(path, [f"trials={trials}"], plugins.registry)
+    clock = time.process_time
+    with tempfile.TemporaryDirectory(prefix="sim-step-") as folder:
+        runner = ScenarioRunner(scenario, plugins, run_dir=folder)
+        specs = sorted(runner.specs(), key=lambda spec: (spec.index, spec.trial_id))  # cells in turn
+        runner.run(specs[0])  # warm-up: imports, tokenizer, the room built
+        starts: list[float] = []
+        in_env = [0.0, 0]  # seconds in the environment's calls, calls open (reset observes inside itself)
+        env = runner.environment(specs[0].environment)
+
+        def timed(method, marks: bool):
+            def call(*args, **kwargs):
+                begin = clock()
+                if marks and not in_env[1]:
+                    starts.append(begin)
+                in_env[1] += 1
+                try:
+                    return method(*args, **kwargs)
+                finally:
+                    in_env[1] -= 1
+                    if not in_env[1]:
+                        in_env[0] += clock() - begin
+            return call
+
+        # a step starts at its observation (reset's for step 1); the environment's own calls are summed
+        env.reset, env.observe = timed(env.reset, True), timed(env.observe, True)
+        for name in ("execute", "outcome", "sense"):
+            if hasattr(env, name):
+                setattr(env, name, timed(getattr(env, name), False))
+        parts = {"camera": 0.0, "LiDAR": 0.0, "think time (Labbots while the robot stands)": 0.0,
+                 "commands (robot and Labbots)": 0.0}
+
+        def part(owner, name: str, label: str) -> None:  # the parts of the room's work, timed alike
+            method = getattr(owner, name, None)
+            if method is None:
+                return
+
+            def call(*args, **kwargs):
+                begin = clock()
+                try:
+                    return method(*args, **kwargs)
+                finally:
+                    parts[label] += clock() - begin
+            setattr(owner, name, call)
+
+        sensors = getattr(env, "sensors", None)
+        part(sensors, "camera", "camera")
+        part(sensors, "lidar", "LiDAR")
+        part(env, "_wait", "think time (Labbots while the robot stands)")
+        part(env, "_move", "commands (robot and Labbots)")
+        per_step: list[float] = []
+        env_s = total_s = 0.0
+        profiler = cProfile.Profile() if profile else None
+        shares: dict[str, float] = {}
+        ran = 0
+        for spec in specs[1:]:
+            if len(per_step) >= steps:
+                break
+            ran += 1
+            starts.clear()
+            in_env[0] = 0.0
+            before = dict(parts)
+            if profiler:
+                profiler.enable()
+            runner.run(spec)
+            end = clock()
+            if profiler:
+                profiler.disable()
+            marks = list(starts)
+            per_step += [b - a for a, b in zip(marks, marks[1:] + [end])]
+            spent = {label: parts[label] - before[label] for label in parts}
+            for label, seconds in spent.items():
+                shares[label] = shares.get(label, 0.0) + seconds
+            env_s += in_env[0]
+            total_s += end - marks[0]
+        runner.close()
+    if profiler and profile:
+        profiler.dump_stats(profile)
+    ms = sorted(1000.0 * value for value in per_step)
+    n = len(ms)
+    print(f"{path.name}: {n} steps in {ran} trials (backend as the scenario gives it), CPU ms per step: "
+          f"median {statistics.median(ms):.1f}, mean {statistics.fmean(ms):.1f}, p90 {ms[int(0.9 * (n - 1))]:.1f}; "
+          f"environment {100.0 * env_s / total_s:.0f}% of it")
+    print("  mean CPU ms per step: " + ", ".join(f"{label} {1000.0 * seconds / n:.1f}"
+                                                 for label, seconds in shares.items())
+          + f", the rest {1000.0 * (total_s - sum(shares.values())) / n:.1f} (pilot, perception, prompt, records)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--loop", metavar="SCENARIO", help="measure the core loop's step over a scenario's trials")
+    parser.add_argument("--profile", metavar="FILE", help="with --loop: write a cProfile of the measured trials")
     parser.add_argument("--kind", default="MO", choices=["OF", "SO", "DO", "MO"])
     parser.add_argument("--steps", type=int, default=40, help="repetitions per measurement")
     parser.add_argument("--envs", type=int, default=4, help="environments created for the memory figure")
     parser.add_argument("--seed", type=int, default=3)
     args = parser.parse_args()
+    if args.loop:
+        loop_steps(args.loop, args.steps, args.profile)
+        return
 
     registry = load_plugins(environ={}).registry
     perception = registry.build("perception", "images", {})
@@ -99,6 +218,9 @@ def main() -> None:
     view = p.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), (0, 0, 1), physicsClientId=client)
     increments = math.ceil(STRAIGHT.distance / o.step_mm)
 
+    flush = getattr(scene, "flush", lambda: None)  # placements reach Bullet at its next read (none before issue 51)
+    flush()  # these parts read Bullet directly
+
     def ray_cast():
         p.rayTestBatch(start, end, numThreads=1, physicsClientId=client)
 
@@ -114,6 +236,7 @@ def main() -> None:
             p.performCollisionDetection(physicsClientId=client)
             p.getContactPoints(bodyA=scene.robot, physicsClientId=client)
         scene.place_robot(env.xy, env.heading)
+        flush()
 
     observation = env.observe()
 

@@ -43,9 +43,13 @@ class TargetSighting:
 
 def find_red_target(image: np.ndarray, fov_deg: float = 60.0, min_pixels: int = 12) -> TargetSighting:
     """Locate the red can in an RGB image by colour."""
-    rgb = image.astype(np.int16)
-    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
-    mask = (r > 120) & (r - np.maximum(g, b) > 70)
+    r, g, b = image[..., 0], image[..., 1], image[..., 2]
+    if image.dtype == np.uint8:  # r - max(g, b) > 70 where r > 120 (so r - 70 cannot wrap), in uint8
+        mask = (r > 120) & (np.maximum(g, b) < r - np.uint8(70))
+    else:
+        rgb = image.astype(np.int16)
+        r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+        mask = (r > 120) & (r - np.maximum(g, b) > 70)
     count = int(mask.sum())
     if count < min_pixels:
         return TargetSighting(seen=False, pixels=count)

@@ -10,16 +10,9 @@ from safeembodai_core.contracts.components import Perception
 from safeembodai_core.models import ImagePart, LidarScan, Modalities, Observation
 
 from .describe import describe_lidar, describe_target, find_red_target, sector_clearance
+from .pngs import encode_png
 
-
-def encode_png(rgb: np.ndarray) -> bytes:
-    """PNG bytes of an RGB uint8 image."""
-    import cv2
-
-    ok, data = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
-    if not ok:
-        raise ValueError("could not encode image as PNG")
-    return data.tobytes()
+__all__ = ["ImagePerception", "TextPerception", "draw_lidar_image", "encode_png"]
 
 
 @lru_cache(maxsize=1)

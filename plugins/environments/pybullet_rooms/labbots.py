@@ -17,7 +17,8 @@ they can run into it, and that ends the trial as ``interrupted``.
 The motion is plain numpy (the sensors are a callable the world hands in); the world copies the
 positions into pybullet, where the robot's contact checks see them. Labbots move on a fixed
 clock of ``TICK_S`` ticks, and tick k draws from a generator seeded by (the swarm's seed, k)
-alone: where blind Labbots are is a function of simulated time only, never of how the robot's
+alone (``np.random.default_rng([seed, k])``, made cheaply by :class:`~.streams.TickStreams`):
+where blind Labbots are is a function of simulated time only, never of how the robot's
 commands were cut into increments, so two arms that spend the same simulated time meet the
 same blind Labbots. Sensing Labbots react to the robot, so they stay a function of the seed
 and of the robot's path: two arms whose robots went different ways meet different Labbots.
@@ -39,6 +40,8 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 from safeembodai_core.geometry.frames import wrap_deg
+
+from .streams import TickStreams
 
 if TYPE_CHECKING:
     from .movers import Range
@@ -98,6 +101,7 @@ class LabbotSwarm:
         self._cycles: list[list[tuple[int, int, float]]] = [[] for _ in range(n)]
         self._statics = [tuple(map(float, row)) for row in np.asarray(obstacles, dtype=float).reshape(-1, 3)]
         self.seed = int(seed)
+        self._streams: TickStreams | None = None  # default_rng([seed, tick]), made cheaply: built at the first tick
         self.clock_s = 0.0  # simulated time this swarm has been given
         self.ticks = 0  # ticks moved so far
         self.track: list[np.ndarray] = [self.xy.copy()]
@@ -132,16 +136,19 @@ class LabbotSwarm:
         if dt <= 0 or not len(self):
             return
         self.clock_s += dt
+        if self._streams is None:
+            self._streams = TickStreams(self.seed)
         while (self.ticks + 1) * TICK_S <= self.clock_s + 1e-9:
-            self._tick(robot_xy, np.random.default_rng([self.seed, self.ticks]))
+            self._tick(robot_xy, self._streams.generator(self.ticks))
             self.ticks += 1
 
     def _tick(self, robot_xy: np.ndarray, rng: np.random.Generator) -> None:
         o, dt = self.o, TICK_S
         n = len(self.heading)
         robot = (float(robot_xy[0]), float(robot_xy[1]))
-        # one draw of n normals, each scaled by its Labbot's wander (the same stream as one scale)
-        drift = rng.normal(0.0, self._drift_scale, size=n).tolist()
+        # one draw of n normals, each scaled by its Labbot's wander: rng.normal(0.0, scale, n) computes
+        # 0.0 + scale * z from the same standard normals, bit for bit, at a fraction of the cost
+        drift = (0.0 + self._drift_scale * rng.standard_normal(n)).tolist()
         sides = [-1.0 if u < 0.5 else 1.0 for u in rng.random(size=n).tolist()]
         xs, ys = self.xy[:, 0].tolist(), self.xy[:, 1].tolist()
         turning = self.turning.tolist()

@@ -185,10 +185,12 @@ class PybulletRoom(KinematicMotion, HeldVelocity, Environment):
         self._require_reset()
         if self.collided:
             return Outcome.INTERRUPTED
-        truth = self.truth()
-        distance = truth.target_distance_mm  # truth() always gives it
-        if truth.target_in_view and distance is not None and distance <= self.options.reach_mm:
-            return Outcome.COMPLETED
+        # the can counts only within reach: farther, whether the camera sees it is not asked (a ray cast)
+        if float(np.hypot(*(self.can_xy - self.xy))) <= self.options.reach_mm:
+            truth = self.truth()
+            distance = truth.target_distance_mm  # truth() always gives it
+            if truth.target_in_view and distance is not None and distance <= self.options.reach_mm:
+                return Outcome.COMPLETED
         if self.sim_time_s >= self.options.max_sim_time_s - 1e-9:
             return Outcome.TIMEOUT
         return None

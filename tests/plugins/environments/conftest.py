@@ -72,3 +72,26 @@ def moves():
     """``moves.go(300)``, ``moves.rotate(-30)``, ``moves.turn_by(env, 120)``, ``moves.drive(env, 900)``,
     ``moves.face(env, 90)``."""
     return SimpleNamespace(go=go, rotate=rotate, turn_by=turn_by, drive=drive, face=face)
+
+
+@pytest.fixture
+def reference_room(monkeypatch):
+    """The rooms without their shortcuts (issue 51's cost cuts), as a reference to compare them with:
+    every contact check and every Labbot sensor ray asked of Bullet, every placement sent at once,
+    every ball rendered, and each tick's stream made by ``np.random.default_rng([seed, tick])``."""
+    import numpy as np
+
+    from safeembodai_plugins.environments.pybullet_rooms import scene, sensors, streams
+
+    monkeypatch.setattr(scene, "CLEAR_MM", math.inf)
+    monkeypatch.setattr(sensors, "RAY_SLACK_MM", math.inf)
+    monkeypatch.setattr(sensors, "VIEW_SLACK_MM", math.inf)
+    monkeypatch.setattr(streams.TickStreams, "generator", lambda self, tick: np.random.default_rng([self.seed, tick]))
+    for name in ("place", "place_robot", "place_labbots", "place_statics"):
+        placed = getattr(scene.Scene, name)
+
+        def at_once(self, *args, placed=placed, **kwargs):
+            placed(self, *args, **kwargs)
+            self.flush()
+
+        monkeypatch.setattr(scene.Scene, name, at_once)
