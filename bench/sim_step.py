@@ -88,7 +88,7 @@ def loop_steps(scenario_path: str, steps: int, profile: str | None) -> None:
     import tempfile
     from pathlib import Path
 
-    from safeembodai_core.runner import ScenarioRunner
+    from safeembodai_core.runs.runner import ScenarioRunner
     from safeembodai_core.scenario.loader import load_scenario
 
     path = Path(scenario_path)
