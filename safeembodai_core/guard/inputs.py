@@ -20,6 +20,7 @@ from ..models import LidarScan, Pose, Straight, Turn
 from ..models.reply import BackendReply
 from ..plugin.refs import ComponentRef
 from ..ros import LaserScan, Twist
+from ..validation.context import Validator
 from ..ros.laser_scan import finite_number
 
 #: a scan: ROS semantics (:class:`~safeembodai_core.ros.LaserScan`), the contract's :class:`LidarScan`, or
@@ -38,7 +39,7 @@ TwistInput: TypeAlias = Union[Twist, Mapping[str, Any], Sequence[float]]
 ReplyInput: TypeAlias = Union[BackendReply, Mapping[str, Any], str]
 #: a rule: a registered validator's name, a mapping ``{use: NAME, options: {...}}``, a reference, or a
 #: :class:`~safeembodai_core.Validator` object
-RuleInput: TypeAlias = Union[str, Mapping[str, Any], ComponentRef, Any]
+RuleInput: TypeAlias = Union[str, Mapping[str, Any], ComponentRef, Validator]
 
 #: the sensor keywords every judging method of the Guard takes, with their defaults
 SENSOR_KEYWORDS: dict[str, Any] = {"lidar_mm": None, "max_range_mm": 10_000.0, "pose": None, "time_s": None,
