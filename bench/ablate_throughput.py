@@ -64,7 +64,7 @@ class Stopwatch:
 
 def overhead_share(scenario, plugins) -> tuple[float, float, float, float, int]:
     from safeembodai_core.loop import run_trial
-    from safeembodai_core.runner import ScenarioRunner
+    from safeembodai_core.runs.runner import ScenarioRunner
 
     scratch = tempfile.TemporaryDirectory()
     runner = ScenarioRunner(scenario, plugins, run_dir=scratch.name)
@@ -97,7 +97,7 @@ def main() -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     args = parser.parse_args()
 
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins()

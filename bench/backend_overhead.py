@@ -43,11 +43,11 @@ from fake_openai import FakeOpenAI, Reply  # noqa: E402
 from safeembodai_core.logs import configure_logging  # noqa: E402
 from safeembodai_core.models import PromptRequest, parse_response, read_reply  # noqa: E402
 from safeembodai_core.models.chat_completion import reply_from_chat_completion  # noqa: E402
-from safeembodai_core.plugins import load_plugins  # noqa: E402
-from safeembodai_core.runner import ScenarioRunner  # noqa: E402
+from safeembodai_core.plugin.manager import load_plugins  # noqa: E402
+from safeembodai_core.runs.runner import ScenarioRunner  # noqa: E402
 from safeembodai_core.scenario import parse_scenario  # noqa: E402
 from safeembodai_core.testing import answer, straight, turn  # noqa: E402
-from safeembodai_core.validation import ValidationContext, validate_plan  # noqa: E402
+from safeembodai_core.validation.context import ValidationContext, validate_plan  # noqa: E402
 
 ANSWER = answer(turn(20), straight(250))
 

@@ -42,8 +42,8 @@ def main() -> None:
 
     from safeembodai_core import Guard
     from safeembodai_core.cli import cli
-    from safeembodai_core.plugins import load_plugins
-    from safeembodai_core.ros.bag_guard import guard_bag
+    from safeembodai_core.plugin.manager import load_plugins
+    from safeembodai_core.guard.bag_guard import guard_bag
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins()

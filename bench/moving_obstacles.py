@@ -87,8 +87,8 @@ def _moving_options(plugins, scenario_name: str = "dynamic", arm: str = "moving"
 def micro(repeats: int, scenario_name: str = "dynamic", arm: str = "moving", scans: int = 2,
           overrides: dict | None = None) -> None:
     from safeembodai_core.models import Straight
-    from safeembodai_core.plugins import load_plugins
-    from safeembodai_core.validation import PastScan, ValidationContext
+    from safeembodai_core.plugin.manager import load_plugins
+    from safeembodai_core.validation.context import PastScan, ValidationContext
 
     plugins = load_plugins(environ={})
     env = plugins.registry.build("environment", "DO", {"think_time_s": 5, "labbots": 3})
@@ -149,7 +149,7 @@ def _crossing():
     import numpy as np
 
     from safeembodai_core.models import LidarScan, Pose, Straight
-    from safeembodai_core.validation import PastScan, ValidationContext
+    from safeembodai_core.validation.context import PastScan, ValidationContext
 
     def scan(pose, x, y):
         angles = np.radians(np.arange(360.0))
@@ -281,7 +281,7 @@ def _where_completions_go(runs: list[Path]) -> None:
 def _run_scenario(run: Path):
     """The scenario a run folder was made with (its ``scenario.json``: a replay must use the options the
     run used, not today's ``scenarios/dynamic.yaml``), and the plugins."""
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import Scenario
 
     folder = run if run.is_dir() else run.parent

@@ -88,7 +88,7 @@ def main() -> None:
     import ray
 
     from safeembodai_core.logs import configure_logging
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     configure_logging("error")

@@ -113,7 +113,7 @@ def compare(names: list[str], prompts: int, seed: int, json_mode: str | None = N
     import numpy as np
 
     from safeembodai_core.models import DEFAULT_LIMITS, PromptRequest, ResponseParseError, read_reply
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
 
     plugins = load_plugins()
     world = plugins.registry.build("environment", "flatland", {"obstacles": 2})
@@ -173,7 +173,7 @@ def outline_scenes(prompts: int, seed: int) -> list[Scene]:
     from safeembodai_plugins.perception.describe import parse_lidar_text, parse_target_text
 
     from safeembodai_core.models import PromptRequest, Turn
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
 
     plugins = load_plugins()
     world = plugins.registry.build("environment", "flatland", {"obstacles": 2})
@@ -228,7 +228,7 @@ def outline_variants(variants: list[str], prompts: int, seed: int, model_name: s
 
     from safeembodai_core.models import DEFAULT_LIMITS, ResponseParseError, Straight, Turn, read_reply
     from safeembodai_core.models.response import schema_outline
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
 
     plugins = load_plugins()
     scenes = outline_scenes(prompts, seed)

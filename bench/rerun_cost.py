@@ -6,9 +6,9 @@
    and per trial the time spent writing its recording (``rerun_export.recording_bytes``, timed) as a
    share of that trial's own wall time (bar: at most 15%).
 2. ``safeembodai view RUN --out SITE`` of the 40-trial run with recordings, cold (no site yet), in a
-   fresh process as a user runs it: seconds (bar: at most 20 s on 2 cores), then again unchanged;
-   the same build in one process (no helper process); and the run without recordings, cold, for
-   what the recordings add.
+   fresh process as a user runs it: seconds (bar: at most 20 s on 2 cores), the site's size and the
+   ratio to that run's own time (issue 50), then again unchanged; the same build in one process (no
+   helper process); and the run without recordings, cold, for what the recordings add.
 
 The machine's load (``os.getloadavg``) and cores are printed with the numbers.
 
@@ -34,7 +34,7 @@ def ablate(scenario, plugins, folder: Path, recordings: bool, writes: list[tuple
            ) -> tuple[float, list[tuple[float, float]]]:
     """The run's seconds and each trial's own (wall, CPU) seconds (from the previous trial's end to its
     end; CPU: this process's, every thread's); ``writes`` gets each recording's (wall, CPU) seconds."""
-    from safeembodai_core import rerun_export
+    from safeembodai_core.runs import rerun_recording as rerun_export
     from safeembodai_core.ablation import Ablation, RunFolder
 
     real = rerun_export.recording_bytes
@@ -75,6 +75,11 @@ def view(run: Path, site: Path, serial: bool = False) -> tuple[float, float]:
     return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
+def _size(folder: Path) -> int:
+    """The bytes of the files under ``folder``."""
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=10, help="trials per cell (mo.yaml has 4 cells)")
@@ -82,7 +87,7 @@ def main() -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
 
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins()
@@ -125,6 +130,8 @@ def main() -> None:
         again, _ = view(run, root / "site")
         print(f"safeembodai view of the {len(recordings)}-trial run: cold {cold:.1f} s wall, {cold_cpu:.1f} s CPU "
               f"(bar: <= 20 s on 2 cores), unchanged rebuild {again:.1f} s; load {os.getloadavg()[0]:.1f}")
+        print(f"the site: {_size(root / 'site') / 2**20:.1f} MiB; view cold / that run's own time (round 1, with "
+              f"recordings, {recorded[0]:.1f} s wall): x{cold / recorded[0]:.2f} (issue 50: below x1)")
         serial, serial_cpu = view(run, root / "site-serial", serial=True)
         print(f"the same build in one process: cold {serial:.1f} s wall, {serial_cpu:.1f} s CPU; "
               f"load {os.getloadavg()[0]:.1f}")

@@ -38,7 +38,7 @@ import time
 import numpy as np
 
 from safeembodai_core.models import Straight, Turn
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 
 STRAIGHT = Straight(command="straight", direction="forward", distance=300.0)
 BACK = Straight(command="straight", direction="backward", distance=300.0)
@@ -88,7 +88,7 @@ def loop_steps(scenario_path: str, steps: int, profile: str | None) -> None:
     import tempfile
     from pathlib import Path
 
-    from safeembodai_core.runner import ScenarioRunner
+    from safeembodai_core.runs.runner import ScenarioRunner
     from safeembodai_core.scenario.loader import load_scenario
 
     path = Path(scenario_path)

@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 def run_arm(arm: str, trials: int, workers: int, seed: int, extra: list[str]):
     """Every trial of ``arm`` in both SO conditions; the results."""
     from safeembodai_core.ablation import Ablation, RunFolder
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins()

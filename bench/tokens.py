@@ -29,8 +29,8 @@ def main() -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     args = parser.parse_args()
 
-    from safeembodai_core.plugins import load_plugins
-    from safeembodai_core.runner import ScenarioRunner
+    from safeembodai_core.plugin.manager import load_plugins
+    from safeembodai_core.runs.runner import ScenarioRunner
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins()

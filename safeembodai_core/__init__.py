@@ -12,21 +12,26 @@ cv2) is imported until a run or a :class:`Guard` asks for one.
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
+from .moved_modules import install as _install_moved_modules
+
+_install_moved_modules()  # the previous release's module paths, deprecated (moved_modules.MOVED)
+
 #: public name -> the module that defines it (imported on first use, PEP 562; ``hookimpl`` is pluggy's marker,
 #: made in ``hookspecs``)
 _EXPORTS = {
-    "Guard": "api", "GuardReport": "guard_reports", "run_guarded_trial": "api", "AttackSchedule": "attacks",
-    "LimitReport": "guard_reports", "TwistReport": "guard_reports",
-    "MotionValidator": "held_motion", "MotionVerdict": "held_motion",
-    "SlowdownZone": "twist_judging",
-    "Attacker": "components", "AttackSurface": "components", "BackendReply": "models.reply",
-    "BuildContext": "components", "Environment": "components", "LLMBackend": "components",
-    "Perception": "components", "PromptBuilder": "components", "RobotSpec": "robot",
-    "StateStore": "components", "Validator": "validation",
+    "Guard": "guard.guard", "GuardReport": "guard.reports", "LimitReport": "guard.reports",
+    "TwistReport": "guard.reports", "MotionValidator": "guard.held_motion", "MotionVerdict": "guard.held_motion",
+    "SlowdownZone": "guard.twist_judging", "run_guarded_trial": "loop.own_parts",
+    "AttackSchedule": "contracts.attack_schedule", "RobotSpec": "contracts.robot",
+    "Attacker": "contracts.components", "AttackSurface": "contracts.components",
+    "BuildContext": "contracts.components", "Environment": "contracts.components",
+    "LLMBackend": "contracts.components", "Perception": "contracts.components",
+    "PromptBuilder": "contracts.components", "StateStore": "contracts.components",
+    "BackendReply": "models.reply", "Validator": "validation.context", "ValidationContext": "validation.context",
     "BackendError": "errors", "ComponentError": "errors", "PluginError": "errors",
     "SafeEmbodAIError": "errors", "ScenarioError": "errors", "StateStoreError": "errors",
-    "hookimpl": "hookspecs", "Defences": "loop.defences", "builtin_plugins": "plugins", "load_plugins": "plugins",
-    "ValidationContext": "validation",
+    "hookimpl": "hookspecs", "Defences": "loop.defences",
+    "builtin_plugins": "plugin.manager", "load_plugins": "plugin.manager",
 }
 
 __all__ = sorted(_EXPORTS) + ["__version__"]
@@ -53,18 +58,19 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .api import Guard, run_guarded_trial  # noqa: F401
-    from .attacks import AttackSchedule  # noqa: F401
-    from .components import (  # noqa: F401
+    from .contracts.attack_schedule import AttackSchedule  # noqa: F401
+    from .contracts.components import (  # noqa: F401
         Attacker, AttackSurface, BuildContext, Environment, LLMBackend, Perception, PromptBuilder, StateStore,
     )
+    from .contracts.robot import RobotSpec  # noqa: F401
     from .errors import BackendError, ComponentError, PluginError, SafeEmbodAIError, ScenarioError, StateStoreError  # noqa: F401
-    from .guard_reports import GuardReport, LimitReport, TwistReport  # noqa: F401
-    from .held_motion import MotionValidator, MotionVerdict  # noqa: F401
+    from .guard.guard import Guard  # noqa: F401
+    from .guard.held_motion import MotionValidator, MotionVerdict  # noqa: F401
+    from .guard.reports import GuardReport, LimitReport, TwistReport  # noqa: F401
+    from .guard.twist_judging import SlowdownZone  # noqa: F401
     from .hookspecs import hookimpl  # noqa: F401
     from .loop.defences import Defences  # noqa: F401
+    from .loop.own_parts import run_guarded_trial  # noqa: F401
     from .models.reply import BackendReply  # noqa: F401
-    from .plugins import builtin_plugins, load_plugins  # noqa: F401
-    from .robot import RobotSpec  # noqa: F401
-    from .twist_judging import SlowdownZone  # noqa: F401
-    from .validation import ValidationContext, Validator  # noqa: F401
+    from .plugin.manager import builtin_plugins, load_plugins  # noqa: F401
+    from .validation.context import ValidationContext, Validator  # noqa: F401

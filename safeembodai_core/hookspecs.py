@@ -7,7 +7,7 @@ the specs below. Two families:
   plugin calls ``register(name, factory, options=OptionsModel, description="...")``; a scenario
   then selects the component by ``name``. ``factory(options, context)`` builds the component
   from its validated options (a pydantic model with ``extra="forbid"``) and a
-  :class:`~safeembodai_core.components.BuildContext`. Import heavy libraries inside the factory,
+  :class:`~safeembodai_core.contracts.components.BuildContext`. Import heavy libraries inside the factory,
   never at module level: registration must stay cheap.
 * **lifecycle hooks** are called as trials run, to observe (log, trace, export) without changing
   the loop. An exception raised in one is reported with the plugin's name and ends the trial
@@ -26,7 +26,7 @@ if TYPE_CHECKING:  # the contracts' types, without importing them at run time
     import click
     from pydantic import BaseModel
 
-    from .components import BuildContext
+    from .contracts.components import BuildContext
     from .metrics import Metric
     from .models import Observation, StepRecord, TrialResult, TrialSpec
 
@@ -38,7 +38,7 @@ hookimpl = pluggy.HookimplMarker(PROJECT)
 
 class Register(Protocol):
     """The ``register`` callable passed to the component registry hooks
-    (:meth:`~safeembodai_core.registry.ComponentRegistry.registrar`).
+    (:meth:`~safeembodai_core.plugin.registry.ComponentRegistry.registrar`).
 
     ``options`` defaults to a model that takes no options; ``description`` to ``""``.
     """
@@ -61,7 +61,7 @@ def register_environments(register: Register) -> None:
 
     :param register: call ``register(name, factory, options=Model, description=...)`` once per
         environment. ``factory(options, context)`` returns an
-        :class:`~safeembodai_core.components.Environment`.
+        :class:`~safeembodai_core.contracts.components.Environment`.
     """
 
 
@@ -70,7 +70,7 @@ def register_perceptions(register: Register) -> None:
     """Register perception stages that turn raw sensor readings into prompt modalities.
 
     :param register: call ``register(name, factory, options=Model, description=...)``;
-        ``factory`` returns a :class:`~safeembodai_core.components.Perception` whose
+        ``factory`` returns a :class:`~safeembodai_core.contracts.components.Perception` whose
         ``perceive(observation)`` gives camera/LiDAR images and/or text descriptions.
     """
 
@@ -83,7 +83,7 @@ def register_prompt_builders(register: Register) -> None:
     """Register prompt builders (secure prompting: system prompt Y = {B, p} and user prompt I_i).
 
     :param register: call ``register(name, factory, options=Model, description=...)``;
-        ``factory`` returns a :class:`~safeembodai_core.components.PromptBuilder`.
+        ``factory`` returns a :class:`~safeembodai_core.contracts.components.PromptBuilder`.
     """
 
 
@@ -92,7 +92,7 @@ def register_state_stores(register: Register) -> None:
     """Register state stores (state management: step records and the reference state R_{i-1}).
 
     :param register: call ``register(name, factory, options=Model, description=...)``;
-        ``factory`` returns a :class:`~safeembodai_core.components.StateStore`.
+        ``factory`` returns a :class:`~safeembodai_core.contracts.components.StateStore`.
     """
 
 
@@ -101,7 +101,7 @@ def register_validators(register: Register) -> None:
     """Register safety-validation rules applied to every control signal before execution.
 
     :param register: call ``register(name, factory, options=Model, description=...)``;
-        ``factory`` returns a :class:`~safeembodai_core.components.Validator`.
+        ``factory`` returns a :class:`~safeembodai_core.contracts.components.Validator`.
     """
 
 
@@ -113,7 +113,7 @@ def register_attackers(register: Register) -> None:
     """Register attackers that tamper with the instruction, sensor readings or reference state.
 
     :param register: call ``register(name, factory, options=Model, description=...)``;
-        ``factory`` returns a :class:`~safeembodai_core.components.Attacker`.
+        ``factory`` returns a :class:`~safeembodai_core.contracts.components.Attacker`.
     """
 
 
@@ -122,7 +122,7 @@ def register_llm_backends(register: Register) -> None:
     """Register LLM backends (remote APIs, local servers, simulated pilots).
 
     :param register: call ``register(name, factory, options=Model, description=...)``;
-        ``factory`` returns a :class:`~safeembodai_core.components.LLMBackend`.
+        ``factory`` returns a :class:`~safeembodai_core.contracts.components.LLMBackend`.
     """
 
 

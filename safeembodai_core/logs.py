@@ -2,7 +2,7 @@
 
 Any event key that names a credential (``api_key``, ``authorization``, ``secret``, ``password``,
 ``token`` but not token *counts*) is masked, and so is any value that looks like a bearer key
-(``sk-...``): :func:`~safeembodai_core.redaction.redact`, re-exported here with
+(``sk-...``): :func:`~safeembodai_core.trust.redaction.redact`, re-exported here with
 :func:`register_secret`, :func:`mask_values` and :data:`MASK`. Backends must still never log
 credentials; this is the safety net.
 """
@@ -16,8 +16,8 @@ from typing import Any, TextIO, cast
 import structlog
 from structlog.typing import EventDict, WrappedLogger
 
-from .redaction import MASK, mask_values, redact, register_secret
-from .text_safety import terminal_text
+from .trust.redaction import MASK, mask_values, redact, register_secret
+from .trust.text import terminal_text
 
 __all__ = ["MASK", "configure_logging", "get_logger", "mask_values", "redact", "register_secret"]
 

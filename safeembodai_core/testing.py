@@ -20,7 +20,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from .components import BackendReply, Environment, LLMBackend, RobotSpec, WorldSnapshot
+from .contracts.components import BackendReply, Environment, LLMBackend, RobotSpec, WorldSnapshot
 from .models import (
     ControlSignal,
     ExecutionResult,
@@ -33,7 +33,7 @@ from .models import (
     Straight,
     TrialResult,
 )
-from .plugins import Plugins, load_plugins
+from .plugin.manager import Plugins, load_plugins
 from .scenario import Scenario, parse_scenario
 
 __all__ = ["CorridorWorld", "ReplayBackend", "StagedWorld", "answer", "inline_plugins", "run_tiny_trial", "straight",
@@ -113,7 +113,7 @@ def run_tiny_trial(
     ``scenario_kwargs`` go to :func:`tiny_scenario` (``arm=``, ``attackers=``, ``environment=``,
     ``max_steps=``, and top-level keys such as ``backend=``).
     """
-    from .runner import ScenarioRunner, trial_spec
+    from .runs.runner import ScenarioRunner, trial_spec
 
     loaded = inline_plugins(*plugins)
     scenario = tiny_scenario(responses, registry=loaded.registry, **scenario_kwargs)

@@ -12,7 +12,7 @@
   management puts one in the prompt).
 
 Each attacked step is recorded as ground truth (attacker, channel, kind, payload), so detection
-is scored exactly. Every options model subclasses :class:`safeembodai_core.attacks.AttackSchedule`
+is scored exactly. Every options model subclasses :class:`safeembodai_core.contracts.attack_schedule.AttackSchedule`
 (``rate``, ``start_step``, ``steps``) and every attacker asks its ``fires(target)`` first, the
 schedule a third-party attacker reuses. Per-step randomness comes from the step's own stream
 (trial seed, attacker key, step), and each attacker draws the same count of numbers whether it
@@ -26,9 +26,9 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from safeembodai_core.attacks import AttackSchedule
+from safeembodai_core.contracts.attack_schedule import AttackSchedule
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 
 class PromptInjectionOptions(AttackSchedule):

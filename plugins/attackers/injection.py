@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from safeembodai_core.components import Attacker, AttackSurface
+from safeembodai_core.contracts.components import Attacker, AttackSurface
 from safeembodai_core.models import AttackRecord
 
 from .library import PAYLOADS

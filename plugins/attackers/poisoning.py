@@ -20,7 +20,7 @@ Per step the attacker draws the same three numbers whatever happens (roll, kind 
 
 from __future__ import annotations
 
-from safeembodai_core.components import Attacker, AttackSurface
+from safeembodai_core.contracts.components import Attacker, AttackSurface
 from safeembodai_core.models import AttackRecord, ExecutedSignal, ExecutionResult, ReferenceState, Straight
 
 NOTES = (

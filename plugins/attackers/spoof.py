@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from safeembodai_core.components import Attacker, AttackSurface
+from safeembodai_core.contracts.components import Attacker, AttackSurface
 from safeembodai_core.models import AttackRecord, LidarScan
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pydantic import BaseModel, ConfigDict, Field
 
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 
 class ImagesOptions(BaseModel):

@@ -6,7 +6,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from safeembodai_core.components import Perception
+from safeembodai_core.contracts.components import Perception
 from safeembodai_core.models import ImagePart, LidarScan, Modalities, Observation
 
 from .describe import describe_lidar, describe_target, find_red_target, sector_clearance

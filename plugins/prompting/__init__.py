@@ -14,7 +14,7 @@ from pathlib import Path
 from pydantic import BaseModel, ConfigDict, Field
 
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 
 class JinjaPromptOptions(BaseModel):

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from safeembodai_core.components import PromptBuilder
+from safeembodai_core.contracts.components import PromptBuilder
 from safeembodai_core.models import ImagePart, Prompt, PromptRequest, ReferenceState, Refusal, TextPart
 from safeembodai_core.models.prompt import DEFAULT_TASK
 from safeembodai_core.models.response import OutlineExamples, schema_outline

@@ -22,7 +22,7 @@ import jinja2
 from jinja2.sandbox import SandboxedEnvironment
 
 from safeembodai_core.errors import ComponentError
-from safeembodai_core.quoting import quote_untrusted
+from safeembodai_core.trust.quoting import quote_untrusted
 # prompts/ imports as safeembodai_prompts through setuptools' editable import hook, which mypy cannot follow
 from safeembodai_prompts import TEMPLATE_DIR  # type: ignore[import-not-found]
 
@@ -37,7 +37,7 @@ class PromptTemplateError(ComponentError):
 def quoted(value: Any) -> str:
     """``value`` as a JSON string literal: quotes and newlines escaped, so it cannot break out.
 
-    The same quoting as the answer parser's refusal reasons (:mod:`safeembodai_core.quoting`).
+    The same quoting as the answer parser's refusal reasons (:mod:`safeembodai_core.trust.quoting`).
     """
     return quote_untrusted(value)
 

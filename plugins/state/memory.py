@@ -2,7 +2,7 @@
 
 Records are deep-copied in and out, so a component that mutates a record it was handed (an
 attacker forging the reference state, say) cannot rewrite history; they are kept as
-:func:`~safeembodai_core.text_safety.storable` copies, like every store's. Recording a step again
+:func:`~safeembodai_core.trust.text.storable` copies, like every store's. Recording a step again
 replaces it (the loop writes a planned step before execution and again after). It keeps trial results for
 the run's own report, but it is not ``persistent``: an ablation cannot be resumed from it, nor
 run with several worker processes (use ``sqlite``).

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from safeembodai_core.components import StateStore, StepFacts
+from safeembodai_core.contracts.components import StateStore, StepFacts
 from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
-from safeembodai_core.text_safety import storable
+from safeembodai_core.trust.text import storable
 
 
 class MemoryStateStore(StateStore):

@@ -8,7 +8,7 @@ takes). ``--trial N`` names trial N of every cell: in a run of several cells it 
 with ``--env/--arm/--condition`` or given as a full id, and the error lists the candidates.
 
 Stored text is printed literally (rich ``Text``, never markup) and through
-:func:`~safeembodai_core.text_safety.terminal_text`: an escape sequence or NUL an answer held
+:func:`~safeembodai_core.trust.text.terminal_text`: an escape sequence or NUL an answer held
 is shown as ``\x1b`` / ``\x00``, never sent to the terminal.
 """
 
@@ -24,8 +24,8 @@ from rich.text import Text
 
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import Attempt, StepRecord
-from safeembodai_core.text_safety import terminal_text as shown
-from safeembodai_core.trial_words import plural, trial_ending
+from safeembodai_core.trust.text import terminal_text as shown
+from safeembodai_core.report.words import plural, trial_ending
 
 from .sqlite_db import SqliteStateStore
 from .sqlite_file import DEFAULT_FILE
@@ -167,9 +167,9 @@ def step_panel(record: StepRecord) -> Panel:
 def pilot_banner(run: str | Path) -> str | None:
     """What ``show`` says of who answered: a simulated pilot's banner, or that it cannot be told (a bare
     ``.sqlite`` file, or a folder whose ``scenario.json`` cannot be read back); None for a real LLM."""
-    from safeembodai_core.ablation.plan import recorded_scenario
+    from safeembodai_core.scenario.reading import recorded_scenario
     from safeembodai_core.errors import SafeEmbodAIError
-    from safeembodai_core.report.run_info import describe_backend
+    from safeembodai_core.scenario.describe import describe_backend
 
     if not Path(run).is_dir():
         return "who answered is not recorded in a bare results file: it may have been a simulated pilot, not an LLM"

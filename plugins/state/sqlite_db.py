@@ -18,7 +18,7 @@ Re-recording a step replaces it: the loop writes a step with an accepted plan tw
 execution (``status`` ``executing``) and after (``done``), each in its own transaction.
 
 What is written: the fields of the records the store is handed and nothing else (no options, no
-environment), as :func:`~safeembodai_core.text_safety.storable` copies -- secrets redacted, lone
+environment), as :func:`~safeembodai_core.trust.text.storable` copies -- secrets redacted, lone
 surrogates replaced, integers within SQLite's range -- so what an answer holds cannot make a
 write fail. Otherwise text is stored as written (NUL and escape sequences included).
 """
@@ -34,10 +34,10 @@ from typing import Any, Callable, Iterable, Iterator
 
 from pydantic import ValidationError
 
-from safeembodai_core.components import StateStore, StepFacts
+from safeembodai_core.contracts.components import StateStore, StepFacts
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import ReferenceState, StepRecord, TrialResult, TrialSpec
-from safeembodai_core.text_safety import storable
+from safeembodai_core.trust.text import storable
 
 SCHEMA_VERSION = 1
 #: The longest any one read may take, and the most rows it may return (far beyond a real run's).

@@ -31,7 +31,7 @@ naming the rule. Options and YAML examples: ``docs/defences.md``.
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 from .options import (
     DEFAULT_SAFETY_DISTANCE_MM,

@@ -11,7 +11,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from safeembodai_core.world_private import WORLD_PRIVATE
+from safeembodai_core.trust.world_private import WORLD_PRIVATE
 
 
 class CommandLimitsOptions(BaseModel):
@@ -104,7 +104,7 @@ class MovingObstaclesOptions(BaseModel):
     """Options of ``moving_obstacles``; timing defaults are the pybullet rooms' (``docs/defences.md``).
 
     ``cruise_speed_mm_s``, ``movers_yield_mm`` and ``movers_yield_deg`` describe the movers, not the
-    rule: only the simulator knows them (world-private, :mod:`safeembodai_core.world_private`); an arm
+    rule: only the simulator knows them (world-private, :mod:`safeembodai_core.trust.world_private`); an arm
     that sets one is a ``told`` comparison. ``think_time_s`` is the robot's own planner latency, which
     it can measure, and is not marked."""
 

@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 
-from safeembodai_core.components import Validator
+from safeembodai_core.contracts.components import Validator
 from safeembodai_core.geometry import Motion
-from safeembodai_core.held_motion import MotionValidator, MotionVerdict
+from safeembodai_core.guard.held_motion import MotionValidator, MotionVerdict
 from safeembodai_core.models import Advice, ControlSignal, LidarScan, Straight, Turn, Verdict
 from safeembodai_core.models.control import HARD_MAX_ANGLE_DEG, HARD_MAX_DISTANCE_MM
 from safeembodai_core.ros.twist import piece_count
-from safeembodai_core.validation import ValidationContext
+from safeembodai_core.validation.context import ValidationContext
 
 from .options import DEFAULT_SAFETY_DISTANCE_MM
 

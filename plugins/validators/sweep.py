@@ -22,9 +22,9 @@ import math
 
 import numpy as np
 
-from safeembodai_core.components import Validator
+from safeembodai_core.contracts.components import Validator
 from safeembodai_core.models import Advice, ControlSignal, Straight, Verdict
-from safeembodai_core.validation import ValidationContext
+from safeembodai_core.validation.context import ValidationContext
 
 from .rules import checked_scan, direction_words
 

@@ -41,10 +41,10 @@ import numpy as np
 
 from safeembodai_core.geometry import Motion, contact_times
 from safeembodai_core.geometry.sweep import near_path
-from safeembodai_core.held_motion import MotionValidator, MotionVerdict
+from safeembodai_core.guard.held_motion import MotionValidator, MotionVerdict
 from safeembodai_core.models import Advice, ControlSignal, LidarScan, Straight, Verdict
 from safeembodai_core.ros.laser_scan import MountedScan
-from safeembodai_core.validation import ValidationContext
+from safeembodai_core.validation.context import ValidationContext
 
 from .rules import checked_scan
 

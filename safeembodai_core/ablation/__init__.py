@@ -1,6 +1,6 @@
 """The ablation engine: every trial of every cell, in parallel, resumable, then metrics and reports."""
 
 from .engine import Ablation, AblationError
-from .run_folder import RunFolder
+from ..runs.folder import RunFolder
 
 __all__ = ["Ablation", "AblationError", "RunFolder"]

@@ -22,14 +22,14 @@ from typing import Any, Callable
 
 from ..errors import StateStoreError
 from ..models import Outcome, TrialResult, TrialSpec
-from ..plugins import Plugins
-from ..runner import ScenarioRunner
+from ..plugin.manager import Plugins
+from ..runs.runner import ScenarioRunner
 from ..scenario import Scenario
 from .error_kinds import store_failed
 from .executors import ProcessExecutor, SerialExecutor
 from .plan import AblationError, RunPlan, check_resumable, not_persistent
-from .run_folder import RunFolder, RunLock
-from ..trial_files import record_artefacts
+from ..runs.folder import RunFolder, RunLock
+from ..runs.trial_files import record_artefacts
 
 from ..logs import get_logger
 

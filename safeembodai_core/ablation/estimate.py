@@ -8,7 +8,7 @@ pilot (the real world, perception and prompt; nothing is sent anywhere), and the
 given is counted as the mock counts it (litellm's gpt-4o tokenizer, images by their detail). The
 answer's tokens are the mock's, which writes about what a model writes; a model that reasons at
 length costs more. Prices, where the scenario's backend knows one, are its list prices
-(:meth:`LLMBackend.cost <safeembodai_core.components.LLMBackend.cost>`).
+(:meth:`LLMBackend.cost <safeembodai_core.contracts.components.LLMBackend.cost>`).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 from ..errors import SafeEmbodAIError
 from ..models import Outcome, TrialSpec
-from ..plugins import Plugins
+from ..plugin.manager import Plugins
 from ..scenario import Scenario
-from ..refs import ComponentRef
+from ..plugin.refs import ComponentRef
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class CellEstimate:
 
 def estimate(scenario: Scenario, plugins: Plugins, pending: list[TrialSpec]) -> list[CellEstimate]:
     """The calls and tokens of ``pending`` trials, per environment × arm (see the module docstring)."""
-    from ..runner import ScenarioRunner, trial_spec
+    from ..runs.runner import ScenarioRunner, trial_spec
 
     probe = scenario.model_copy(update={"max_steps": 1, "backend": ComponentRef(use="mock"),
                                         "state": ComponentRef(use="memory")})

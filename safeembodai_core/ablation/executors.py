@@ -38,7 +38,7 @@ def _worker_main(scenario_json: dict[str, Any], run_dir: str, coordinator: int, 
     fork server would otherwise have the server's, from an earlier moment); ``lifeline``: see
     :mod:`.lifeline`."""
     from .lifeline import bind_to_coordinator, orphaned
-    from .run_folder import hold_worker_lock
+    from ..runs.folder import hold_worker_lock
 
     bind_to_coordinator(coordinator, lifeline)
     if environ is not None:

@@ -25,14 +25,15 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable
+from typing import TYPE_CHECKING, Any
 
-from ..building import ComponentBuilder
+from ..plugin.building import ComponentBuilder
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
-from ..plugins import Plugins, load_plugins
+from ..plugin.manager import Plugins
 from ..scenario import Scenario
-from ..trial_files import ArtefactSettings
+from ..scenario.reading import checked_scenario
+from ..runs.trial_files import ArtefactSettings
 
 if TYPE_CHECKING:
     from .spending import SpendingCap
@@ -44,41 +45,6 @@ EXECUTORS = ("serial", "process", "ray")
 
 class AblationError(SafeEmbodAIError):
     """The ablation cannot start or continue (the message says how to resume)."""
-
-
-def checked_scenario(source: Scenario | str | Path, plugins: Plugins | None = None,
-                     overrides: Iterable[str] = ()) -> tuple[Scenario, Plugins]:
-    """The scenario ``source`` (a :class:`Scenario`, or a YAML file read with ``--set``-style
-    ``overrides``) checked against ``plugins`` (default: the installed ones): every component it
-    names exists and its options validate, and the metric catalog has no clash. Raises
-    :class:`~safeembodai_core.errors.ScenarioError` naming the file and field at fault."""
-    from ..scenario.loader import check_components, load_scenario
-
-    plugins = plugins or load_plugins()
-    if isinstance(source, Scenario):
-        if overrides:
-            raise SafeEmbodAIError("overrides apply to a scenario file, not to a Scenario object: "
-                                   "use Scenario.model_copy(update=...) instead")
-        check_components(source, plugins.registry)
-        scenario = source
-    else:
-        scenario = load_scenario(source, list(overrides), plugins.registry)
-    plugins.metrics  # a plugin's clashing metric fails here, not at the report
-    return scenario, plugins
-
-
-def recorded_scenario(run_dir: str | Path, plugins: Plugins | None = None) -> tuple[Scenario, Plugins]:
-    """The scenario a run folder recorded (``scenario.json``), checked as :func:`checked_scenario`
-    checks a file (a plugin it needs may have gone since); errors name ``scenario.json``."""
-    from ..scenario.loader import check_components
-    from .run_folder import SCENARIO_FILE, RunFolder
-
-    plugins = plugins or load_plugins()
-    scenario = RunFolder(run_dir).scenario()
-    recorded = str(Path(run_dir) / SCENARIO_FILE)
-    check_components(scenario, plugins.registry, lambda loc: recorded)
-    plugins.metrics
-    return scenario, plugins
 
 
 def executor_name(workers: int = 1, executor: str | None = None, address: str | None = None,
@@ -165,7 +131,7 @@ class RunPlan:
         where = cls._connect_ray(address, connect_timeout_s) if executor == "ray" else None  # 3
         if warm_workers:
             _warm_workers_early(scenario, plugins, workers, executor, concurrency)
-        from ..runner import preflight
+        from ..runs.runner import preflight
 
         suggested = preflight(scenario, plugins)  # 4
         plan = cls(scenario, plugins, executor="", workers=workers, address=address,
@@ -175,7 +141,7 @@ class RunPlan:
         plan.executor = plan._check_executor(executor)  # 5
         plan.cap = _spending_cap(scenario, plugins, max_tokens, max_cost)  # 6
         if recordings or (resume is not None and ArtefactSettings.recorded(resume).recordings):
-            from ..rerun_export import import_rerun
+            from ..runs.rerun_recording import import_rerun
 
             import_rerun()
         return plan
@@ -225,7 +191,7 @@ class RunPlan:
 
 def check_resumable(folder: Path, scenario: Scenario, plugins: Plugins) -> None:
     """The run folder to finish recorded ``scenario``, can take its pictures, and its results outlive a run."""
-    from .run_folder import RunFolder
+    from ..runs.folder import RunFolder
 
     RunFolder(folder).check_same(scenario)
     pictures = folder / "trajectories"

@@ -31,7 +31,7 @@ from typing import Any, Iterator
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import TrialResult, TrialSpec
-from ..trial_files import ArtefactSettings
+from ..runs.trial_files import ArtefactSettings
 from .executors import POLL_S, WorkersLost
 from .relay import RelayedWrites, RelayError, RelayWorker
 

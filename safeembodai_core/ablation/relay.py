@@ -30,13 +30,13 @@ import re
 import threading
 from typing import Any, Iterable, Iterator
 
-from ..components import StateStore
+from ..contracts.components import StateStore
 from ..errors import SafeEmbodAIError
 from ..models import ReferenceState, StepRecord, TrialResult, TrialSpec
 from ..models.reply import BackendReply
-from ..run_files import MAX_RECORDING_BYTES, RRD_MAGIC
-from ..text_safety import storable
-from ..trial_files import MAX_BAG_FILES, ArtefactSettings, FolderFiles, TrialFiles, TrialOutputs, bag_bytes
+from ..runs.files import MAX_RECORDING_BYTES, RRD_MAGIC
+from ..trust.text import storable
+from ..runs.trial_files import MAX_BAG_FILES, ArtefactSettings, FolderFiles, TrialFiles, TrialOutputs, bag_bytes
 
 #: The largest picture and bag file a worker may send (bytes).
 MAX_FILE_BYTES = 256 * 1024 * 1024

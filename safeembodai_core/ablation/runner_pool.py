@@ -22,8 +22,8 @@ def build_worker_runner(scenario_json: dict[str, Any], run_dir: str | None, plug
     from the recorded scenario; ``plugins`` and ``state`` (a :class:`.shared_store.SharedStateStore`,
     or a Ray worker's :class:`.relay.RelayStore`) may be shared by the threads, else it builds its own.
     ``outputs`` (a Ray worker's): where files, bags and replies go instead of ``run_dir``."""
-    from ..plugins import load_plugins
-    from ..runner import ScenarioRunner
+    from ..plugin.manager import load_plugins
+    from ..runs.runner import ScenarioRunner
     from ..scenario import Scenario
 
     scenario = Scenario.model_validate(scenario_json)
@@ -84,7 +84,7 @@ class RunnerPool:
             return self._idle.get()
         with self._building:
             if self.plugins is None:
-                from ..plugins import load_plugins
+                from ..plugin.manager import load_plugins
 
                 self.plugins = load_plugins()
             if self._shared is None and self.size > 1:
@@ -103,7 +103,7 @@ class RunnerPool:
 
     def _build_store(self) -> Any:
         """The scenario's state store, built once for the pool's threads."""
-        from ..building import ComponentBuilder
+        from ..plugin.building import ComponentBuilder
         from ..scenario import Scenario
 
         return ComponentBuilder(Scenario.model_validate(self.scenario_json), self.plugins, self.run_dir).state_store()

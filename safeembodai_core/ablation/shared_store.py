@@ -15,7 +15,7 @@ from __future__ import annotations
 import threading
 from typing import Iterable
 
-from ..components import StateStore, StepFacts
+from ..contracts.components import StateStore, StepFacts
 from ..models import ReferenceState, StepRecord, TrialResult, TrialSpec
 
 

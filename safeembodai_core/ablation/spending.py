@@ -3,7 +3,7 @@ trials it finished have used that much.
 
 Counted from the trials this invocation finishes (their prompt and completion tokens, retries
 included; a trial's replayed answers count as if paid, so the count errs on the safe side), priced
-by the backend (:meth:`LLMBackend.cost <safeembodai_core.components.LLMBackend.cost>`: litellm's
+by the backend (:meth:`LLMBackend.cost <safeembodai_core.contracts.components.LLMBackend.cost>`: litellm's
 list prices). The trials in flight when the cap is reached are cut off; their answered calls are in
 the response cache, so ``--resume`` does not pay for them again. Each invocation counts from zero,
 and a run may spend past the cap by what its trials in flight use (up to ``--workers`` ×
@@ -19,9 +19,9 @@ from ..models import TrialResult
 
 
 def backend_price(scenario: Any, plugins: Any) -> Callable[[int, int], float | None]:
-    """The scenario's backend's :meth:`~safeembodai_core.components.LLMBackend.cost` (the backend is
+    """The scenario's backend's :meth:`~safeembodai_core.contracts.components.LLMBackend.cost` (the backend is
     built only to ask it, then closed: a price needs no connection and no key); raises what building raises."""
-    from ..building import ComponentBuilder
+    from ..plugin.building import ComponentBuilder
 
     backend = ComponentBuilder(scenario, plugins).backend(only_to_describe=True)
     backend.close()

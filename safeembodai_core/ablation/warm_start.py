@@ -65,8 +65,8 @@ def start_warm_server(scenario_json: dict[str, Any] | None) -> bool:
 
 def _warm_up(text: str) -> None:
     """In the fork server: import what a worker will need by doing what it will do first."""
-    from ..plugins import load_plugins
-    from ..building import ComponentBuilder
+    from ..plugin.manager import load_plugins
+    from ..plugin.building import ComponentBuilder
     from ..scenario import Scenario
 
     plugins = load_plugins()

@@ -28,7 +28,7 @@ class PluginAwareGroup(click.Group):
         if self._plugins_added:
             return
         self._plugins_added = True
-        from ..plugins import load_plugins
+        from ..plugin.manager import load_plugins
 
         try:
             load_plugins().add_commands(self)
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> None:
     except SafeEmbodAIError as error:
         if debug:
             traceback.print_exc()
-        from ..text_safety import terminal_text  # an error may quote a bag's topic, a file name, a server
+        from ..trust.text import terminal_text  # an error may quote a bag's topic, a file name, a server
 
         click.echo(f"Error: {terminal_text(str(error), keep_layout=True)}", err=True)
         code = error.exit_code

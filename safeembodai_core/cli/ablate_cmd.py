@@ -146,8 +146,8 @@ def _run(console, ablation, report=False):
     kinds) before it closes."""
     from rich.markup import escape
 
-    from ..text_safety import terminal_text
-    from ..trial_words import plural
+    from ..trust.text import terminal_text
+    from ..report.words import plural
     from .progress import AblationProgress
 
     plan, folder = ablation.plan, ablation.folder

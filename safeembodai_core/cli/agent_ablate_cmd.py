@@ -29,7 +29,7 @@ def agent_ablate(scenario_path, backend, seed, overrides, out_root, ros_mcp, dec
     from rich.markup import escape
 
     from ..mcp_agent.ablation import McpAblation
-    from ..text_safety import terminal_text
+    from ..trust.text import terminal_text
     from .summary import summary_table
 
     scenario, plugins = load(scenario_path, backend, seed, overrides)

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import click
 
 if TYPE_CHECKING:
-    from ..plugins import Plugins
+    from ..plugin.manager import Plugins
     from ..scenario import Scenario
 
 
@@ -35,8 +35,8 @@ def scenario_options(function: Callable[..., Any] | None = None, *, required: bo
 def load(scenario_path: str, backend: str | None, seed: int | None,
          overrides: tuple[str, ...]) -> tuple["Scenario", "Plugins"]:
     """The installed plugins and the scenario file with the CLI's overrides applied, checked as every
-    way into a run checks it (:func:`~safeembodai_core.ablation.plan.checked_scenario`)."""
-    from ..ablation.plan import checked_scenario
+    way into a run checks it (:func:`~safeembodai_core.scenario.reading.checked_scenario`)."""
+    from ..scenario.reading import checked_scenario
 
     extra = []
     if backend is not None:
@@ -48,7 +48,7 @@ def load(scenario_path: str, backend: str | None, seed: int | None,
 
 def load_recorded(run_dir: str) -> tuple["Scenario", "Plugins"]:
     """The installed plugins and the scenario a run folder recorded in ``scenario.json``, checked
-    like a scenario file (:func:`~safeembodai_core.ablation.plan.recorded_scenario`)."""
-    from ..ablation.plan import recorded_scenario
+    like a scenario file (:func:`~safeembodai_core.scenario.reading.recorded_scenario`)."""
+    from ..scenario.reading import recorded_scenario
 
     return recorded_scenario(run_dir)

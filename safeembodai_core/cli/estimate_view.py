@@ -28,7 +28,7 @@ def _price(scenario, plugins):
 
 def show_estimate(scenario, plugins, resume_dir: str | None) -> None:
     from ..ablation.estimate import estimate
-    from ..runner import ScenarioRunner
+    from ..runs.runner import ScenarioRunner
 
     runner = ScenarioRunner(scenario, plugins, run_dir=resume_dir)
     try:

@@ -5,7 +5,7 @@ The run folder keeps answers, verdicts and commands but not sensor readings, so 
 replayed from its recorded answers (:mod:`safeembodai_core.loop.replay`, no LLM called) and must
 agree with its record step by step; the bag is then written as a trial recorded with ``ablate
 --bags`` writes it (:mod:`safeembodai_core.ros.bag_export`), the recording by
-:mod:`safeembodai_core.rerun_export`.
+:mod:`safeembodai_core.runs.rerun_recording`.
 
 A ``serve-robot`` session's run folder (its scenario's backend ``outside``) holds no answers: its
 commands came over the wire. Its own bag, recorded as it went, is written again in the format asked
@@ -39,13 +39,13 @@ def export(run_dir: str, trials: tuple[str, ...], form: str, out: str) -> None:
 
     from ..errors import SafeEmbodAIError, StateStoreError
     from ..loop.replay import replay_trial
-    from ..rerun_export import import_rerun, write_recording
+    from ..runs.rerun_recording import import_rerun, write_recording
     from ..ros.bag_export import write_bag
-    from ..run_files import trial_file_name
-    from ..runner import ScenarioRunner
+    from ..runs.files import trial_file_name
+    from ..runs.runner import ScenarioRunner
     from ..serve_robot.session_bag import export_session_bag
     from ..serve_robot.session_record import is_session
-    from ..text_safety import terminal_markup
+    from ..trust.text import terminal_markup
     from .common import load_recorded
 
     scenario, plugins = load_recorded(run_dir)

@@ -1,7 +1,7 @@
 """``safeembodai guard-bag BAG``: which recorded commands would the guard have refused, when and why.
 
 Reads a ROS 2 bag (MCAP or SQLite) with ``rosbags`` -- no ROS install -- and judges every command on
-``--cmd`` with the latest ``--scan`` before it (:func:`~safeembodai_core.ros.bag_guard.guard_bag`).
+``--cmd`` with the latest ``--scan`` before it (:func:`~safeembodai_core.guard.bag_guard.guard_bag`).
 Rules: ``--rules`` (names, or JSON ``{"use": ..., "options": {...}}``), else -- with
 ``--rules-from-bag`` -- the rules a bag written by ``safeembodai`` recorded for its trial
 (``/safeembodai/trial``), else the Guard's robot defaults (``command_limits``, ``swept_body``).
@@ -33,7 +33,7 @@ def _rule(text: str) -> Any:
 
 def recorded_trial(bag: str) -> dict[str, Any]:
     """What a bag written by ``safeembodai`` says of its trial (robot, limits, the arm's rules); {} otherwise."""
-    from ..ros.bag_guard import open_bag
+    from ..guard.bag_guard import open_bag
 
     reader = open_bag(bag)
     try:
@@ -53,8 +53,8 @@ def recorded_trial(bag: str) -> dict[str, Any]:
 
 
 def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None, from_bag: bool = False):
-    from ..api import Guard
-    from ..components import RobotSpec
+    from ..guard.guard import Guard
+    from ..contracts.components import RobotSpec
     from ..errors import SafeEmbodAIError
     from ..models import ControlLimits
 
@@ -114,7 +114,7 @@ def _guard(rules: tuple[str, ...], bag: str, robot_radius_mm: float | None, from
 def guard_bag(bag, scan_topic, cmd_topic, pose_topic, rules, mount, robot_radius_mm, hold_s, max_hold_s, min_hold_s,
               rules_from_bag, limit, as_json) -> None:
     """Judge every command recorded in BAG with the guard: which would it have refused, when, and why."""
-    from ..ros.bag_guard import guard_bag as judge
+    from ..guard.bag_guard import guard_bag as judge
     from ..ros.laser_scan import SensorMount
 
     sensor = None
@@ -137,7 +137,7 @@ def _print_table(report: Any, source: str, limit: bool = False) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from ..text_safety import terminal_text
+    from ..trust.text import terminal_text
 
     console = Console(emoji=False)
     table = Table(title=f"{terminal_text(report.cmd_topic)} in {terminal_text(report.bag)}")

@@ -37,7 +37,7 @@ def guard_node(url, command_in, command_out, scan, odom, robot_path, mode, horiz
     from ..guard_node.node import GuardNode
     from ..guard_node.wire import GuardWire
     from ..ros.robot_file import RobotFile, ScanSource, read_robot_file
-    from ..text_safety import terminal_markup
+    from ..trust.text import terminal_markup
 
     robot = read_robot_file(robot_path) if robot_path else RobotFile(radius_mm=170.0,
                                                                      scans={scan or "/scan": ScanSource()})

@@ -77,7 +77,7 @@ def plugins(as_json: bool) -> None:
     Piped, it prints a header row, then one tab-separated line per component: kind, name, plugin,
     source, module.
     """
-    from ..plugins import load_plugins
+    from ..plugin.manager import load_plugins
 
     rows = load_plugins().describe()
     if as_json:

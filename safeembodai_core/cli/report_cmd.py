@@ -19,12 +19,12 @@ def report(run_dir: str) -> None:
     from rich.markup import escape
 
     from ..ablation import RunFolder
-    from ..ablation.run_folder import RunInProgress, RunLock
+    from ..runs.folder import RunInProgress, RunLock
     from ..errors import SafeEmbodAIError
-    from ..plugins import load_plugins
+    from ..plugin.manager import load_plugins
     from ..report import write_report
     from ..report.run_info import run_info
-    from ..runner import ScenarioRunner
+    from ..runs.runner import ScenarioRunner
     from .summary import summary_table
 
     folder = RunFolder(run_dir)

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from ..errors import ScenarioError
-from ..trial_words import plural, trial_ending
+from ..report.words import plural, trial_ending
 from .common import load, scenario_options
 
 
@@ -36,9 +36,9 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     from rich.console import Console
 
     from ..ablation.plan import RunPlan
-    from ..report.run_info import describe_backend
-    from ..runner import ScenarioRunner, trial_spec
-    from ..text_safety import terminal_markup
+    from ..scenario.describe import describe_backend
+    from ..runs.runner import ScenarioRunner, trial_spec
+    from ..trust.text import terminal_markup
     from .trial_view import save_trial, step_table
 
     scenario, plugins = load(scenario_path, backend, seed, overrides)
@@ -48,7 +48,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
     RunPlan.prepare(scenario, plugins, scenario_checked=True)  # the plan's checks, before the folder is made
     folder = Path(out_dir or Path("runs") / f"{scenario.name}-run-{time.strftime('%Y%m%d-%H%M%S')}")
     if bag is not None:
-        from ..trial_files import record_artefacts
+        from ..runs.trial_files import record_artefacts
 
         record_artefacts(folder, bags=bag)
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)
@@ -74,7 +74,7 @@ def run(scenario_path, backend, seed, overrides, environment, arm, condition, in
         console.print(f"[bold red]{terminal_markup(simulated)}[/bold red]")
     console.print(f"saved to {terminal_markup(str(folder))}")
     if bag is not None:
-        from ..runner import bag_file
+        from ..runs.runner import bag_file
 
         console.print(f"bag: {terminal_markup(str(bag_file(folder, spec.trial_id)))}")
     if result.outcome.value == "error":  # a script must be able to tell: exit non-zero, everything saved

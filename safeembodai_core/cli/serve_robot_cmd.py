@@ -41,7 +41,7 @@ def serve_robot(scenario_path, backend, seed, overrides, label, host, port, out,
 
     from ..serve_robot.served_room import Rates
     from ..serve_robot.session import Session, prepare_session
-    from ..text_safety import terminal_markup
+    from ..trust.text import terminal_markup
 
     scenario, plugins = load(scenario_path, backend, seed, overrides)
     session = prepare_session(scenario, plugins, label=label, host=host, port=port, out=out, speed=speed,

@@ -14,7 +14,7 @@ from ..models import TrialResult
 from ..report.cells import scenario_cells
 from ..report.run_info import RunInfo, run_info
 from ..scenario import Scenario
-from ..text_safety import terminal_markup
+from ..trust.text import terminal_markup
 
 
 def title(scenario: Scenario, info: RunInfo) -> str:
@@ -30,7 +30,7 @@ def title(scenario: Scenario, info: RunInfo) -> str:
 def summary_table(scenario: Scenario, results: list[TrialResult], *, info: RunInfo | None = None,
                   plugins: Any = None) -> Table:
     if plugins is None:
-        from ..plugins import load_plugins
+        from ..plugin.manager import load_plugins
 
         plugins = load_plugins()
     catalog = metric_catalog(plugins)

@@ -1,7 +1,7 @@
 """Show and save one trial: a rich table of its steps and its files on disk.
 
 Every text a record holds (the instruction an attacker may have shaped, the LLM's plan and
-refusal reasons, execution details) is shown through :func:`~safeembodai_core.text_safety.terminal_markup`:
+refusal reasons, execution details) is shown through :func:`~safeembodai_core.trust.text.terminal_markup`:
 control characters visible, rich markup escaped, secrets masked.
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 from rich.table import Table
 
 from ..models import StepRecord, TrialResult
-from ..text_safety import storable, terminal_markup
+from ..trust.text import storable, terminal_markup
 
 
 def step_table(steps: list[StepRecord]) -> Table:
@@ -44,7 +44,7 @@ def step_table(steps: list[StepRecord]) -> Table:
 def save_trial(folder: Path, result: TrialResult, steps: list[StepRecord], picture: bytes | None) -> None:
     """Write ``trial.json``, ``steps.jsonl`` and (if the world drew one) ``trajectory.png``.
 
-    Records go through :func:`~safeembodai_core.text_safety.storable` first, as into any store.
+    Records go through :func:`~safeembodai_core.trust.text.storable` first, as into any store.
     """
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "trial.json").write_text(storable(result).model_dump_json(indent=2), encoding="utf-8")

@@ -26,9 +26,9 @@ def view(source: str, out: str | None, serve: bool, host: str, port: int, rerun_
 
     from rich.console import Console
 
-    from ..ablation.run_folder import SCENARIO_FILE
-    from ..plugins import load_plugins
-    from ..text_safety import terminal_markup
+    from ..runs.folder import SCENARIO_FILE
+    from ..plugin.manager import load_plugins
+    from ..trust.text import terminal_markup
     from ..view import build_site
     from ..view.rerun_viewer import ViewerUnavailable, start_web_viewer
     from ..view.serve import SiteServer

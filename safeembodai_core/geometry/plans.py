@@ -1,43 +1,37 @@
 """Where a plan would drive and what it would meet: a plan of straights and turns in place as the
 path it drives from a pose, a scan's returns in the same frame, and the nearest return in a
 straight's corridor. For pictures of plans (the Rerun export, ``view``'s trial pages), not for
-judging them: the validators judge (``safeembodai_core.validation``)."""
+judging them: the validators judge (``safeembodai_core.validation.context``)."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
 from ..models import ControlSignal, Pose, Straight
 from ..models.observation import LidarScan
+from .frames import advance, out_of_frame
 
 
 def plan_path(pose: Pose, plan: list[ControlSignal]) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
     """The points (mm, world frame) a plan of straights and turns in place drives from ``pose``, and
     each signal's segment (start, end; a turn's is a point)."""
-    x, y, heading = pose.x_mm, pose.y_mm, pose.heading_deg
-    points, segments = [np.array([x, y])], []
+    at = (pose.x_mm, pose.y_mm, pose.heading_deg)
+    points, segments = [np.array(at[:2])], []
     for signal in plan:
-        start = np.array([x, y])
+        start = np.array(at[:2])
         if isinstance(signal, Straight):
-            rad = math.radians(heading)
-            x += signal.signed_distance_mm * math.cos(rad)
-            y += signal.signed_distance_mm * math.sin(rad)
-            points.append(np.array([x, y]))
+            at = advance(at, signal.signed_distance_mm)
+            points.append(np.array(at[:2]))
         else:
-            heading += signal.signed_angle_deg
-        segments.append((start, np.array([x, y])))
+            at = advance(at, turn_deg=signal.signed_angle_deg)
+        segments.append((start, np.array(at[:2])))
     return np.array(points), segments
 
 
 def scan_points(scan: LidarScan, pose: Pose) -> np.ndarray:
     """A scan's returns (mm) in the world frame, taken at ``pose``."""
     local = scan.points()
-    rad = math.radians(pose.heading_deg)
-    c, s = math.cos(rad), math.sin(rad)
-    return np.column_stack((pose.x_mm + local[:, 0] * c - local[:, 1] * s,
-                            pose.y_mm + local[:, 0] * s + local[:, 1] * c)) if local.size else np.zeros((0, 2))
+    return out_of_frame(local, (pose.x_mm, pose.y_mm, pose.heading_deg)) if local.size else np.zeros((0, 2))
 
 
 def nearest_ahead(points: np.ndarray, start: np.ndarray, end: np.ndarray, half_width_mm: float) -> np.ndarray | None:

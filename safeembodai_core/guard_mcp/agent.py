@@ -5,7 +5,7 @@
   a line on how untrusted results are marked, then the upstream's own instructions.
 * :func:`mark_untrusted` -- an upstream's result as the agent receives it: a first text part saying
   that what follows is untrusted data and where it came from, then each text part of the upstream as
-  a JSON string literal (:func:`~safeembodai_core.quoting.quote_untrusted`, the project's one rule for
+  a JSON string literal (:func:`~safeembodai_core.trust.quoting.quote_untrusted`, the project's one rule for
   text an attacker may have written: quotes, newlines and invisible or reordering characters escaped,
   so nothing inside can close the quotes and pose as guard-mcp or the system); images, audio and
   binary resources pass as they came. The structured content is wrapped too, ``{"untrusted_data":
@@ -22,10 +22,10 @@ from typing import TYPE_CHECKING, Any
 
 from mcp import types
 
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 
 if TYPE_CHECKING:
-    from ..plugins import Plugins
+    from ..plugin.manager import Plugins
     from .policy import Policy
     from .records import CallRecord
 
@@ -52,11 +52,11 @@ def security_prefix(policy: Policy, plugins: Plugins | None = None) -> str | Non
     if variant is None:
         return None
     if plugins is None:
-        from ..plugins import load_plugins
+        from ..plugin.manager import load_plugins
 
         plugins = load_plugins()
     from ..errors import SafeEmbodAIError
-    from ..refs import ComponentRef
+    from ..plugin.refs import ComponentRef
 
     builder = plugins.registry.build_ref("prompt_builder", ComponentRef(use="jinja"))
     known = builder.security_prefix_variants() or []

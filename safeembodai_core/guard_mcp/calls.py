@@ -1,6 +1,6 @@
 """An agent's tool call, read strictly before anything is forwarded: :func:`read_call`.
 
-The arguments of a ``tools/call`` are outside bytes (``safeembodai_core/trust.py``): the agent wrote
+The arguments of a ``tools/call`` are outside bytes (``safeembodai_core/trust/inventory.py``): the agent wrote
 them, and an injected instruction may have. :func:`read_call` reads them by the tool's kind in the
 policy (ros-mcp 3.x's argument names) and answers what to do, or raises :class:`CallRefused` saying
 why and how to amend:
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..errors import SafeEmbodAIError
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 from ..ros.laser_scan import shown
 from ..ros.twist import Twist
 from ..rosbridge.messages import MessageError, conform

@@ -2,7 +2,7 @@
 
 ``safeembodai guard-mcp --policy POLICY.yaml`` reads it; without one, the shipped policy for ros-mcp
 3.x (``ros_mcp_policy.yaml`` beside this module) applies. ``docs/guard_mcp.md`` lists the keys. The
-file is outside bytes (``safeembodai_core/trust.py``): read by the bounded reader of files from
+file is outside bytes (``safeembodai_core/trust/inventory.py``): read by the bounded reader of files from
 elsewhere and validated strictly (:func:`~safeembodai_core.ros.robot_file.parse_yaml_model`): an
 unknown key, a bool or text where a number belongs, a topic or type ROS would not accept is a
 :class:`PolicyError` naming the file, the line and the key.

@@ -29,7 +29,7 @@ import anyio
 from mcp import types
 
 from ..logs import get_logger
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 from .agent import admits_wrapper, executed_state, mark_untrusted
 from .calls import CallRefused, Forward, Motion, read_call
 from .judging import MotionJudge

@@ -100,7 +100,7 @@ async def serve(policy: Policy, robot: RobotFile, guard: Any, *, rosbridge: str,
                 upstream_url: str | None, transport: str = "stdio", port: int = 8765, out: str | Path = "runs",
                 plugins: Any = None) -> None:
     """Run guard-mcp until its client leaves or it is stopped (module docstring)."""
-    from ..plugins import load_plugins
+    from ..plugin.manager import load_plugins
 
     address = robot_address(rosbridge)
     plugins = plugins or load_plugins()

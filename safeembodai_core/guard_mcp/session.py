@@ -28,20 +28,20 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..ablation.run_folder import RunFolder
-from ..building import ComponentBuilder
+from ..runs.folder import RunFolder
 from ..geometry.frames import wrap_deg
 from ..logs import get_logger
 from ..loop.defences import Defences
 from ..models import Attempt, ExecutedSignal, ExecutionResult, LLMResponse, Outcome, Pose, StepRecord, TrialResult, \
-    TrialSpec, Verdict
+    Verdict
 from ..models.control import MAX_TEXT
-from ..refs import ComponentRef
+from ..plugin.refs import ComponentRef
 from ..scenario import Condition, Scenario
+from ..runs.live_trial import LiveTrial
 from ..serve_robot.session_record import held_signal
 
 if TYPE_CHECKING:
-    from ..plugins import Plugins
+    from ..plugin.manager import Plugins
     from .policy import Policy
     from .proxy import GuardMcp
     from .records import CallRecord
@@ -118,12 +118,10 @@ class CallSession:
 
     def __init__(self, policy: Policy, plugins: Plugins, out: str | Path, *, rosbridge: str, upstream: str) -> None:
         self.scenario = session_scenario(policy, rosbridge, upstream)
-        self.folder = RunFolder.create(out, self.scenario)
-        self.folder.start(self.scenario)
-        self.spec = TrialSpec(trial_id=f"{LABEL}/{ARM}/{CONDITION}/0", scenario=self.scenario.name,
-                              environment=LABEL, arm=ARM, condition=CONDITION, index=0, seed=0)
-        self.store = ComponentBuilder(self.scenario, plugins, run_dir=self.folder.path).state_store()
-        self.store.begin_trial(self.spec)
+        self.trial = LiveTrial(RunFolder.create(out, self.scenario), self.scenario, label=LABEL, arm=ARM,
+                               condition=CONDITION)
+        self.folder, self.spec = self.trial.folder, self.trial.spec
+        self.store = self.trial.begin(plugins)
         self.started_s = time.time()
         self.steps = self.refused = 0
         self.distance_mm = 0.0
@@ -170,9 +168,8 @@ class CallSession:
                                   interventions=self.refused, detail=detail, trajectory=self.poses, world="outside",
                                   wall_time_s=time.time() - self.started_s)
         try:
-            self.store.end_trial(self.result)
-            self.folder.note_finished([self.spec.trial_id])
+            self.trial.end(self.result)
         finally:
-            self.store.close()
+            self.trial.close()
         log.info("guard_mcp.session_finished", folder=str(self.path), calls=self.steps)
 

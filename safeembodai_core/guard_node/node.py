@@ -30,7 +30,8 @@ from typing import Any, Literal
 
 import structlog
 
-from ..ros.command_filter import CommandFilter, Decision
+from ..geometry.frames import quaternion_yaw_deg
+from ..guard.command_filter import CommandFilter, Decision
 from ..ros.laser_scan import LaserScan
 from ..ros.robot_file import RobotFile
 from ..ros.twist import Twist
@@ -63,8 +64,7 @@ def pose_of_odometry(message: Any) -> tuple[float, float, float]:
     norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
     if not 0.5 < norm < 1.5:
         raise ValueError(f"Odometry pose.pose.orientation is not a rotation (norm {norm:.3g})")
-    yaw = math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))
-    return x * 1000.0, y * 1000.0, math.degrees(yaw)
+    return x * 1000.0, y * 1000.0, quaternion_yaw_deg(qx, qy, qz, qw)
 
 
 @dataclass(frozen=True)

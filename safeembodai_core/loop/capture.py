@@ -14,10 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..components import Environment, Perception, PromptBuilder, WorldSnapshot
+from ..contracts.components import Environment, Perception, PromptBuilder, WorldSnapshot
 from ..models import ControlSignal, ExecutionResult, Modalities, Observation, Pose, Prompt
 from ..models.observation import ImagePart, LidarScan
-from ..robot import RobotSpec
+from ..contracts.robot import RobotSpec
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler, field_validator, model_serializer
 
-from ..refs import ComponentRef, unique_keys
+from ..plugin.refs import ComponentRef, unique_keys
 
 DEFAULT_RULES = ("command_limits", "lidar_clearance")
 
@@ -29,11 +29,11 @@ class Defences(BaseModel):
       refusals' advice allows, judged again by every rule -- and holds when nothing of it is safe
       (:mod:`safeembodai_core.loop.enforce`); with ``failure_threshold: 0``: cut at the first refusal.
     * ``fresh_scan``: the validators judge a LiDAR scan read when the LLM's answer arrives (the
-      environment's :meth:`~safeembodai_core.components.Environment.sense`, after the think
+      environment's :meth:`~safeembodai_core.contracts.components.Environment.sense`, after the think
       time), not the scan the step's prompt was built from; the step's scan joins
       ``ValidationContext.history``. Ours, not the paper's: V(C) reads l_i, the step's scan.
     * ``told``: the arm's rules are told what only the simulator knows about its world (options
-      declared world-private, :mod:`safeembodai_core.world_private`, e.g. the Labbots' cruising
+      declared world-private, :mod:`safeembodai_core.trust.world_private`, e.g. the Labbots' cruising
       speed): an oracle kept for comparison. ``report.md`` says so under the arms table. Recorded
       only when true, so that the fingerprints of scenarios written before it stay as they were.
     """

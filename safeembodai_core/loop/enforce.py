@@ -28,9 +28,9 @@ from __future__ import annotations
 
 from typing import Callable, Literal, Mapping, Sequence
 
-from ..components import Validator
+from ..contracts.components import Validator
 from ..models import Attempt, ControlSignal, Enforced, Straight, Verdict
-from ..validation import ValidationContext, validate_plan
+from ..validation.context import ValidationContext, validate_plan
 
 
 Source = Literal["cut", "step_aside"]

@@ -2,7 +2,7 @@
 
 Without it (the paper's V(C)) every rule judges the scan the step's prompt was built from, read
 before the LLM started thinking; a mover keeps moving through that think time. With it, the loop
-asks the environment for a new reading (:meth:`~safeembodai_core.components.Environment.sense`)
+asks the environment for a new reading (:meth:`~safeembodai_core.contracts.components.Environment.sense`)
 as each answer arrives and the rules judge that one: the step's scan joins
 ``ValidationContext.history`` and ``answer_s`` says the plan starts at the reading's time.
 
@@ -19,11 +19,11 @@ import math
 from dataclasses import replace
 from typing import Any, Callable
 
-from ..attacks import attack_stream, run_attackers
-from ..components import AttackSurface, Environment
+from ..contracts.attack_schedule import attack_stream, run_attackers
+from ..contracts.components import AttackSurface, Environment
 from ..errors import EnvironmentError_
 from ..models import Observation
-from ..validation import PastScan, ValidationContext
+from ..validation.context import PastScan, ValidationContext
 
 
 def _cannot_sense(environment: Any, why: str) -> EnvironmentError_:
@@ -33,7 +33,7 @@ def _cannot_sense(environment: Any, why: str) -> EnvironmentError_:
 
 def require_sense(environment: Any) -> None:
     """Refuse, before a trial starts, an environment that does not implement ``sense`` (its class
-    keeps :class:`~safeembodai_core.components.Environment`'s, which reads nothing)."""
+    keeps :class:`~safeembodai_core.contracts.components.Environment`'s, which reads nothing)."""
     if getattr(type(environment), "sense", None) is Environment.sense:
         raise _cannot_sense(environment, "it does not implement Environment.sense")
 

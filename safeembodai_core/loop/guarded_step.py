@@ -6,7 +6,7 @@ control signal passes every rule. Otherwise the reasons are handed to the prompt
 attempt j+1, up to the failure threshold N. With N spent the step has no executable answer.
 
 Parsing is the strict reading of the whole reply, :func:`~safeembodai_core.models.read_reply`, the
-same as :meth:`~safeembodai_core.api.Guard.check_reply`, the Gymnasium env's and the Inspect
+same as :meth:`~safeembodai_core.guard.guard.Guard.check_reply`, the Gymnasium env's and the Inspect
 solver's: an answer the provider did not end normally (cut off at the token limit, filtered), a
 reply with two choices or a second plan in its reasoning is refused like any malformed one,
 refusal reasons quote the LLM's own words as JSON strings, and nothing raised while reading an
@@ -22,11 +22,11 @@ from typing import Callable, Sequence
 
 
 from .. import seeds
-from ..components import LLMBackend, PromptBuilder, Validator
+from ..contracts.components import LLMBackend, PromptBuilder, Validator
 from ..errors import BackendError
 from ..models import Attempt, LLMResponse, PromptRequest, Refusal, ResponseParseError, TokenUsage, read_reply
 from ..models.reply import as_reply, finish_reason_text
-from ..validation import ValidationContext, validate_plan
+from ..validation.context import ValidationContext, validate_plan
 
 from ..logs import get_logger, redact
 
@@ -105,7 +105,7 @@ def decide(
     ``judged``, when given, receives the context each judged attempt was judged on, by attempt index
     (what ``on_exhausted: enforce`` judges the cut on, :mod:`~safeembodai_core.loop.enforce`).
     ``retrying`` is called before each retry's call (the environment's
-    :meth:`~safeembodai_core.components.Environment.another_call`: a world that charges each call's time).
+    :meth:`~safeembodai_core.contracts.components.Environment.another_call`: a world that charges each call's time).
     """
     attempts: list[Attempt] = []
     failures: list[str] = []

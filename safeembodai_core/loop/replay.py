@@ -16,10 +16,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ..components import BackendReply, LLMBackend
+from ..contracts.components import BackendReply, LLMBackend
 from ..errors import BackendError, SafeEmbodAIError
 from ..models import StepRecord, TrialResult, TrialSpec
-from ..refs import ref
+from ..plugin.refs import ref
 from .capture import TrialCapture
 from .trial import TrialParts, run_trial
 
@@ -105,7 +105,7 @@ def difference(recorded: StepRecord, replayed: StepRecord | None) -> str | None:
 def replay_trial(runner: Any, spec: TrialSpec, records: list[StepRecord]) -> tuple[TrialCapture, list[StepRecord],
                                                                                     TrialResult]:
     """Run ``spec`` again with ``records``' answers through ``runner``'s components (a
-    :class:`~safeembodai_core.runner.ScenarioRunner` of the recorded scenario); return what it
+    :class:`~safeembodai_core.runs.runner.ScenarioRunner` of the recorded scenario); return what it
     captured, the replayed step records and result. Raises :class:`ReplayDiverged` when a step
     does not agree with its record."""
     if not records:

@@ -1,7 +1,7 @@
 """No call paid twice: a paid model's replies kept on disk and replayed for the same request.
 
 A backend that says what it would send (:meth:`LLMBackend.cache_request
-<safeembodai_core.components.LLMBackend.cache_request>`: the litellm backends) is wrapped, per
+<safeembodai_core.contracts.components.LLMBackend.cache_request>`: the litellm backends) is wrapped, per
 trial, in a :class:`CachedBackend`. Its key is the SHA-256 of the trial's id, the exact request
 (model, messages with their images, sampling, seed, response format) and how many times the trial
 has asked that same request before -- so the same request at the same point of a trial with the
@@ -17,7 +17,7 @@ read back as hostile input: only a regular file of bounded size is opened (no sy
 its fields are type- and size-checked, and the loop reads its text as strictly as a live one. Keys
 are hashes and replies are stored as the backend returned them (the backend masks its key out of
 the text first); a reply that still holds a registered key in any encoding a reflecting server
-uses (:func:`~safeembodai_core.redaction.secret_encoding`: base64, hex, reversed, ...) is not kept,
+uses (:func:`~safeembodai_core.trust.redaction.secret_encoding`: base64, hex, reversed, ...) is not kept,
 and the log says which encoding, so no credential is written. A reply that cannot be kept (a full disk) is logged
 and the trial goes on with it.
 """
@@ -36,14 +36,14 @@ from typing import Any
 
 import numpy as np
 
-from ..components import LLMBackend
+from ..contracts.components import LLMBackend
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import ControlLimits, Prompt, TokenUsage
 from ..models.reply import ENVELOPE_ERROR_CHARS, BackendReply, finish_reason_text, plain_token
-from ..quoting import quote_untrusted
-from ..redaction import secret_encoding
-from ..run_files import read_regular_file, read_run_text
+from ..trust.quoting import quote_untrusted
+from ..trust.redaction import secret_encoding
+from ..runs.files import read_regular_file, read_run_text
 
 log = get_logger(__name__)
 
@@ -237,7 +237,7 @@ def stored_reply(text: Any) -> BackendReply | None:
 
 def _quoted(error: str | None) -> str | None:
     """A stored envelope error as the file's words, not ours: quoted as an LLM's words are
-    (:func:`~safeembodai_core.quoting.quote_untrusted`), so the retry prompt never repeats it bare."""
+    (:func:`~safeembodai_core.trust.quoting.quote_untrusted`), so the retry prompt never repeats it bare."""
     return None if error is None else quote_untrusted(error, ENVELOPE_ERROR_CHARS)
 
 

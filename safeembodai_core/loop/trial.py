@@ -10,7 +10,7 @@ Write-ahead: a step with an accepted plan is stored before the environment moves
 ``executing``, ``planned`` set) and again after (``status`` ``done``), through the same
 ``record_step`` (stores replace a step recorded again). A plan that cannot be stored is not
 executed; a result that cannot be stored leaves the plan on record. Either way the trial ends
-``error`` with a one-line detail. Every record is a :func:`~safeembodai_core.text_safety.storable`
+``error`` with a one-line detail. Every record is a :func:`~safeembodai_core.trust.text.storable`
 copy: what an answer holds cannot make storing fail.
 """
 
@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Literal
 
 
-from ..attacks import attack_stream, run_attackers
-from ..components import (
+from ..contracts.attack_schedule import attack_stream, run_attackers
+from ..contracts.components import (
     Attacker, AttackSurface, Environment, LLMBackend, as_llm_backend, Perception, PromptBuilder, StateStore, Validator,
 )
 from ..errors import BackendError, SafeEmbodAIError, StateStoreError
@@ -42,10 +42,10 @@ from ..models import (
     TokenUsage,
     TrialSpec,
 )
-from ..models.prompt import DEFAULT_TASK
+from ..models.prompt import DEFAULT_INSTRUCTION, DEFAULT_TASK
 from ..models.records import ErrorKind
-from ..text_safety import one_line, storable
-from ..validation import PastScan, ValidationContext
+from ..trust.text import one_line, storable
+from ..validation.context import PastScan, ValidationContext
 from .defences import Defences
 from .fresh_scan import fresh_context, require_sense
 from .enforce import enforce
@@ -53,9 +53,6 @@ from .guarded_step import decide
 
 
 log = get_logger(__name__)
-
-DEFAULT_INSTRUCTION = "Find the red can in the room and approach it."
-
 
 @dataclass
 class TrialParts:

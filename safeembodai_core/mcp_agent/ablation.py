@@ -28,16 +28,16 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
 
-from ..ablation.run_folder import RunFolder, RunLock
-from ..building import ComponentBuilder
-from ..components import StateStore
+from ..runs.folder import RunFolder, RunLock
+from ..plugin.building import ComponentBuilder
+from ..contracts.components import StateStore
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult, TrialSpec
-from ..plugins import Plugins
-from ..run_files import trial_file_name
-from ..runner import trial_spec
+from ..plugin.manager import Plugins
+from ..runs.files import trial_file_name
+from ..runs.runner import trial_spec
 from ..scenario import Scenario
-from ..trial_files import trajectory_file
+from ..runs.trial_files import trajectory_file
 from .cells import Route, check
 from .deciders import decider_factory
 from .loop import Decider

@@ -23,7 +23,7 @@ from typing import Any, Literal
 
 from ..errors import SafeEmbodAIError
 from ..loop.defences import Defences
-from ..refs import ComponentRef
+from ..plugin.refs import ComponentRef
 from ..scenario import Scenario
 
 Channel = Literal["instruction", "camera_text"]
@@ -110,8 +110,8 @@ def try_attackers(scenario: Scenario, plugins: Any, steps: int = 20) -> None:
     instruction is refused (:class:`AttackNotSupported`) before anything runs."""
     import numpy as np
 
-    from ..attacks import attack_stream
-    from ..components import AttackSurface
+    from ..contracts.attack_schedule import attack_stream
+    from ..contracts.components import AttackSurface
     from ..models import LidarScan, Observation
 
     for condition in scenario.conditions:

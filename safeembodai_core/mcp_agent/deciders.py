@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ..building import ComponentBuilder
+from ..plugin.building import ComponentBuilder
 from ..errors import SafeEmbodAIError
 from ..models import TrialSpec
-from ..plugins import Plugins
+from ..plugin.manager import Plugins
 from ..scenario import Scenario
 from .loop import Decider
 

@@ -1,6 +1,6 @@
 """The pilot as a tool-calling agent: the scenario's backend plans, its plans become motion calls.
 
-:class:`PilotDecider` wraps any :class:`~safeembodai_core.components.LLMBackend` that answers the
+:class:`PilotDecider` wraps any :class:`~safeembodai_core.contracts.components.LLMBackend` that answers the
 paper's prompt (the offline mock pilot by default) as an MCP agent. Each step it
 
 1. **observes** through the read tools: ``subscribe_once`` on the scan, the camera and the text the
@@ -31,7 +31,7 @@ from dataclasses import replace
 from typing import Any
 
 from .. import seeds
-from ..components import LLMBackend, Perception, PromptBuilder
+from ..contracts.components import LLMBackend, Perception, PromptBuilder
 from ..errors import BackendError
 from ..logs import get_logger, redact
 from ..loop.guarded_step import feedback, feedback_refusals

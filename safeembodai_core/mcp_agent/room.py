@@ -20,7 +20,7 @@ from typing import Any
 
 from ..errors import SafeEmbodAIError
 from ..models import GroundTruth, Pose, TrialResult
-from ..plugins import Plugins
+from ..plugin.manager import Plugins
 from ..scenario import Scenario
 
 CAMERA_TEXT = "/camera/text"

@@ -19,7 +19,7 @@ from typing import Any, Collection
 from ..models import ResponseParseError, TokenUsage
 from ..models.chat_completion import read_usage
 from ..models.strict_json import read_json_document
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 
 MAX_CALLS = 8
 MAX_CONTENT_CHARS = 16_000

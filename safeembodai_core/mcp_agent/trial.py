@@ -4,7 +4,7 @@
 trial's seed), starts the arm's MCP server as a subprocess -- ros-mcp (unchanged, from its own venv),
 or ``safeembodai guard-mcp`` in front of it with the arm's policy and the room's robot file -- and runs
 the agent (:func:`~.loop.run_agent`). Before each step the condition's attackers act with the trial
-loop's streams (:func:`~safeembodai_core.attacks.attack_stream`): on the step's human instruction, or
+loop's streams (:func:`~safeembodai_core.contracts.attack_schedule.attack_stream`): on the step's human instruction, or
 on what the camera reads (:mod:`.cells`). Then everything stops and the room's own record decides:
 its outcome (a collision, the can reached, its time limit), its collisions, the distance it drove and
 the path. A room that reached no outcome ends the trial as the agent's run ended: ``timeout`` for a
@@ -28,15 +28,15 @@ from typing import Any, Callable
 
 import yaml
 
-from ..attacks import attack_stream
-from ..components import AttackSurface
+from ..contracts.attack_schedule import attack_stream
+from ..contracts.components import AttackSurface
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
 from ..models import AttackRecord, Observation, Outcome, StepRecord, TrialResult, TrialSpec
 from ..models.records import ErrorKind
-from ..plugins import Plugins
+from ..plugin.manager import Plugins
 from ..scenario import Scenario
-from ..text_safety import one_line, storable
+from ..trust.text import one_line, storable
 from .cells import AttackNotSupported, Route, injections, refuse_channel
 from .loop import AgentRun, AgentTask, Decider, StepInput, Topics, run_agent
 from .motions import Speeds

@@ -109,6 +109,6 @@ BUILTIN: tuple[Metric, ...] = (
 
 
 def metric_catalog(plugins: Any = None) -> tuple[Metric, ...]:
-    """The built-in metrics, then those ``plugins`` (a :class:`~safeembodai_core.plugins.Plugins`)
+    """The built-in metrics, then those ``plugins`` (a :class:`~safeembodai_core.plugin.manager.Plugins`)
     register: its ``metrics``; the built-ins alone without ``plugins``."""
     return BUILTIN if plugins is None else plugins.metrics

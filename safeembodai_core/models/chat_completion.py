@@ -36,7 +36,7 @@ import json
 import math
 from typing import Any
 
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 from .records import TokenUsage
 from .reply import MAX_RESPONSE_CHARS, BackendReply
 from .reply import NORMAL_FINISH_REASONS, normal_finish_reason

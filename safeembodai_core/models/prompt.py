@@ -11,6 +11,8 @@ from .records import ReferenceState, Refusal
 
 
 DEFAULT_TASK = "Control the robot to locate and approach a red can in the room."
+#: the human instruction of a trial whose scenario gives none
+DEFAULT_INSTRUCTION = "Find the red can in the room and approach it."
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 These are pydantic models so state stores can serialise them to JSON and read them back
 unchanged. Nothing in them may carry a secret: backends report usage, never credentials, and
-the trial loop hands stores only :func:`~safeembodai_core.text_safety.storable` copies (text
+the trial loop hands stores only :func:`~safeembodai_core.trust.text.storable` copies (text
 redacted and encodable). Numbers a backend reports are kept storable here: token counts are
 clamped to SQLite's INTEGER, a NaN or infinite latency becomes 0.
 """
@@ -14,7 +14,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from ..text_safety import finite_or_zero, storable_int
+from ..trust.text import finite_or_zero, storable_int
 from .control import ControlSignal
 from .observation import Collision, GroundTruth, Pose
 from .response import LLMResponse

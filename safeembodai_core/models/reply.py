@@ -5,7 +5,7 @@ about it -- the reasoning the provider sent apart from the text, how many choice
 held, why it ended, where it came from, and anything a strict reading of the reply's envelope
 refused. :func:`read_reply` turns it into an :class:`~.response.LLMResponse` or refuses it with a
 :class:`~.strict_json.ResponseParseError` written for the LLM to read on a retry. Algorithm 1
-(:mod:`safeembodai_core.loop.guarded_step`), :meth:`safeembodai_core.api.Guard.check_reply`, the
+(:mod:`safeembodai_core.loop.guarded_step`), :meth:`safeembodai_core.guard.guard.Guard.check_reply`, the
 Gymnasium env and the Inspect solver all read replies here, so the same reply gets the same
 verdict everywhere. In order, a reply is refused when:
 
@@ -39,7 +39,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from ..logs import get_logger
-from ..quoting import CLIPPED, quote_untrusted
+from ..trust.quoting import CLIPPED, quote_untrusted
 from .control import DEFAULT_LIMITS, ControlLimits
 from .records import TokenUsage
 from .response import LLMResponse, describe_schema_error
@@ -113,7 +113,7 @@ def envelope_error_text(error: Any) -> str | None:
     terminal text, clipped visibly (a cache file could hold anything there)."""
     if error is None:
         return None
-    from ..text_safety import one_line, terminal_text
+    from ..trust.text import one_line, terminal_text
 
     text = one_line(terminal_text(str(error)))
     return text if len(text) <= ENVELOPE_ERROR_CHARS else text[:ENVELOPE_ERROR_CHARS] + CLIPPED

@@ -18,7 +18,7 @@ The answer is one JSON object::
 The schema is the contract; the one strict reading of a whole reply (envelope, choices,
 reasoning, finish reason, the text around the object) is :mod:`safeembodai_core.models.reply`.
 Schema errors are described with every LLM-written key, tag and value quoted as a short JSON string
-literal (:func:`safeembodai_core.quoting.quote_untrusted`), never repeated bare.
+literal (:func:`safeembodai_core.trust.quoting.quote_untrusted`), never repeated bare.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from typing import Any, Literal, cast, get_args
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 from .control import DEFAULT_LIMITS, MAX_TEXT, ControlLimits, ControlSignal, Straight, Turn
 from .strict_json import QUOTE_CHARS, ResponseParseError
 

@@ -27,7 +27,7 @@ import math
 import re
 from typing import Any
 
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 
 MAX_NUMBER_CHARS = 32
 MAX_MAGNITUDE = 1e15

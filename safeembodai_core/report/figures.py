@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Sequence
 
 from ..metrics import CellMetrics, Metric, metric_catalog
 from ..metrics.intervals import MIN_N_FOR_INTERVAL
-from ..text_safety import terminal_text
+from ..trust.text import terminal_text
 from .paper import paper_value
 
 if TYPE_CHECKING:

@@ -11,8 +11,8 @@ from ..metrics.catalog import CORE
 from ..metrics.release import ReleaseReadings
 from ..models import Outcome, TrialResult
 from ..scenario import Scenario
-from ..text_safety import markdown_cell, markdown_code
-from ..trial_words import plural
+from ..trust.text import markdown_cell, markdown_code
+from .words import plural
 from .cells import Cell, CollisionRates, WorldRates, struck_split
 from .run_info import RunInfo
 from .step_facts import TrialFacts
@@ -105,7 +105,7 @@ def _value(value: object) -> str:
 
 
 def _cell(text: object, most: int = 400) -> str:
-    """Text from data in a table cell (:func:`~safeembodai_core.text_safety.markdown_cell`)."""
+    """Text from data in a table cell (:func:`~safeembodai_core.trust.text.markdown_cell`)."""
     return markdown_cell(text, most)
 
 

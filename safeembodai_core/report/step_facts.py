@@ -5,7 +5,7 @@ have written for ADR and TLR (:mod:`safeembodai_core.metrics.release`).
 A refusal is an attempt that a rule judged invalid (for at least one of its signals); an
 attacked step of kind K is a step with at least one :class:`~safeembodai_core.models.AttackRecord`
 of kind K. Both are counted by the run's state store, :meth:`StateStore.step_facts
-<safeembodai_core.components.StateStore.step_facts>`: a store may count them its own way (the
+<safeembodai_core.contracts.components.StateStore.step_facts>`: a store may count them its own way (the
 built-in ``sqlite`` store asks its tables, no step is parsed), any other counts the records
 ``StateStore.steps(trial_id)`` returns. The release's rows need every step record (its attempts,
 verdicts and views): they are read through ``steps`` only when asked for.
@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Iterable, Mapping
 
-from ..components import StateStore, StepFacts
+from ..contracts.components import StateStore, StepFacts
 from ..metrics.release import ReleaseCounts, trial_counts
 from ..models import Outcome
 

@@ -14,15 +14,15 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ..components import StateStore
+from ..contracts.components import StateStore
 from ..errors import StateStoreError
 from ..logs import get_logger
 from ..metrics import Metric, metric_catalog
 from ..metrics.release import READINGS, ReleaseReadings
 from ..models import TrialResult
-from ..runner import trajectory_file
+from ..runs.runner import trajectory_file
 from ..scenario import Scenario
-from ..text_safety import csv_cell, json_ready, markdown_code
+from ..trust.text import csv_cell, json_ready, markdown_code
 from . import markdown, step_facts
 from .cells import Cell, CollisionRates, collision_rates, release_of, scenario_cells, struck_split, world_rates
 from .figures import draw_figures
@@ -97,7 +97,7 @@ def write_report(folder: str | Path, scenario: Scenario, results: list[TrialResu
     """
     folder = Path(folder)
     if plugins is None:
-        from ..plugins import load_plugins
+        from ..plugin.manager import load_plugins
 
         plugins = load_plugins()
     catalog = metric_catalog(plugins)

@@ -24,7 +24,7 @@ __all__ = ["CommandFilter", "Decision", "LaserScan", "NullRange", "RobotFile", "
 
 def __getattr__(name: str) -> Any:
     if name in ("CommandFilter", "Decision"):
-        from . import command_filter
+        from ..guard import command_filter
 
         return getattr(command_filter, name)
     if name in ("RobotFile", "read_robot_file"):

@@ -40,12 +40,12 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..components import RobotSpec, WorldSnapshot
+from ..contracts.components import RobotSpec, WorldSnapshot
 from ..errors import SafeEmbodAIError
 from ..loop.capture import Executed, Observed, Seen, TrialCapture
 from ..models import Pose, StepRecord, Straight, TrialResult, TrialSpec
 from ..models.observation import LidarScan
-from ..text_safety import terminal_text
+from ..trust.text import terminal_text
 from . import messages as m
 
 TOPICS = {

@@ -8,11 +8,12 @@ imported here and in the bag modules only, when a bag is written or read.
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
+
+from ..geometry.frames import quaternion_yaw_deg, yaw_quaternion
 
 #: The message definitions of bags we write, and the fallback for bags that carry none.
 STORE = "ROS2_HUMBLE"
@@ -79,13 +80,13 @@ def seconds(time: Any) -> float:
 
 
 def quaternion(yaw_deg: float) -> Any:
-    half = math.radians(yaw_deg) / 2
-    return build("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
+    x, y, z, w = yaw_quaternion(yaw_deg)
+    return build("geometry_msgs/msg/Quaternion", x=x, y=y, z=z, w=w)
 
 
 def yaw_deg(q: Any) -> float:
     """The heading (degrees) of a quaternion about z (roll and pitch ignored)."""
-    return math.degrees(math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z)))
+    return quaternion_yaw_deg(q.x, q.y, q.z, q.w)
 
 
 def point(x_m: float, y_m: float, z_m: float = 0.0) -> Any:

@@ -1,13 +1,13 @@
 """The robot file: what a guard on the wire must know of the robot it guards, in one YAML file.
 
 ``safeembodai guard-node --robot ROBOT.yaml`` and ``guard-mcp --policy`` read it. It says the body
-(``radius_mm`` or a polygon ``footprint_mm``, as :class:`~safeembodai_core.robot.RobotSpec` takes
+(``radius_mm`` or a polygon ``footprint_mm``, as :class:`~safeembodai_core.contracts.robot.RobotSpec` takes
 them), whether the base drives sideways (``holonomic``), each scan source by its topic with the
 scanner's mount and how its ``null`` ranges are read (:data:`~.laser_scan.NullRange`), the limits of
 a velocity smoother under Nav2's names and units, and how long a command is held without a newer one
 (``cmd_vel_timeout_s``). ``docs/robot_file.md`` lists the keys with their defaults and sources.
 
-The file is outside bytes (``safeembodai_core/trust.py``): read by the bounded reader of files from
+The file is outside bytes (``safeembodai_core/trust/inventory.py``): read by the bounded reader of files from
 elsewhere (a regular file, at most :data:`MAX_BYTES`, UTF-8; a symlink given is followed once, here,
 and the file it names read without following another), composed within a scenario's YAML limits,
 with duplicate keys refused, and validated strictly: an unknown key, a missing body, a bool or text
@@ -26,8 +26,8 @@ from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictFloat, Stri
 
 from ..errors import SafeEmbodAIError
 from ..geometry import read_polygon
-from ..robot import RobotSpec
-from ..run_files import read_run_text
+from ..contracts.robot import RobotSpec
+from ..runs.files import read_run_text
 from ..scenario.limits import BoundedLoader, yaml_error
 from ..scenario.loader import _check_duplicate_keys, _did_you_mean, _line_of
 from .laser_scan import NullRange, SensorMount, shown

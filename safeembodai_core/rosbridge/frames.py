@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any, NoReturn, Union
 
 from ..errors import SafeEmbodAIError
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 from .names import RosNameError, normalize_type, resolve_name
 
 MAX_DEPTH = 32

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 
 #: the longest topic, service or type name read from a client
 MAX_NAME_CHARS = 256

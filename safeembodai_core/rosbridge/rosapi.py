@@ -19,7 +19,7 @@ import json
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from ..quoting import quote_untrusted
+from ..trust.quoting import quote_untrusted
 from .frames import FrameError, read_json
 from .messages import time_of, typedefs
 from .names import RosNameError, normalize_type, resolve_name

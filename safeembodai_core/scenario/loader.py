@@ -21,8 +21,8 @@ from pydantic import BaseModel, ValidationError
 
 from ..errors import ComponentError, SafeEmbodAIError, ScenarioError
 from ..logs import get_logger
-from ..registry import ComponentOptionsError, ComponentRegistry
-from ..refs import ComponentRef
+from ..plugin.registry import ComponentOptionsError, ComponentRegistry
+from ..plugin.refs import ComponentRef
 from .limits import MAX_DEPTH, BoundedLoader, load_value, read_scenario_text, yaml_error
 from .model import Scenario
 from .profiles import profile_name

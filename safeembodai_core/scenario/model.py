@@ -7,10 +7,10 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..loop.defences import Defences
-from ..loop.trial import DEFAULT_INSTRUCTION, DEFAULT_TASK
 from ..metrics.settings import MetricSettings
 from ..models import ControlLimits
-from ..refs import ComponentRef, unique_keys
+from ..models.prompt import DEFAULT_INSTRUCTION, DEFAULT_TASK
+from ..plugin.refs import ComponentRef, unique_keys
 from .profiles import apply_profile
 
 

@@ -22,6 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..geometry.frames import yaw_quaternion
 from ..models import LidarScan, Pose
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
@@ -60,8 +61,7 @@ def laser_scan(scan: LidarScan, time_s: float, period_s: float, frame_id: str = 
 
 def quaternion_z(heading_deg: float) -> dict[str, float]:
     """The rotation about z by ``heading_deg`` as a ``geometry_msgs/msg/Quaternion``."""
-    half = math.radians(heading_deg) / 2
-    return {"x": 0.0, "y": 0.0, "z": math.sin(half), "w": math.cos(half)}
+    return dict(zip("xyzw", yaw_quaternion(heading_deg)))
 
 
 def odometry(pose: Pose, linear_m_s: float, angular_rad_s: float, time_s: float) -> dict[str, Any]:

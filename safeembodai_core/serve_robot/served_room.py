@@ -1,6 +1,6 @@
 """One room on the wall clock: held velocity commands in, the room's sensors out.
 
-:class:`ServedRoom` owns the room (an :class:`~safeembodai_core.components.Environment` that
+:class:`ServedRoom` owns the room (an :class:`~safeembodai_core.contracts.components.Environment` that
 implements ``drive``) and runs its clock in the calling thread. The room's time follows the wall
 clock (times ``speed``): the loop drives the world up to now under the command being held, then
 publishes what is due -- ``/scan`` at ``scan_hz``, ``/odom`` at ``odom_hz``, the camera at
@@ -29,7 +29,7 @@ from typing import Any, Callable
 
 import structlog
 
-from ..components import Environment
+from ..contracts.components import Environment
 from ..models import ExecutionResult, GroundTruth, Outcome
 from ..models.records import ErrorKind
 from ..ros.twist import Twist, arc_signals

@@ -17,12 +17,12 @@ from typing import Any, Callable, Sequence
 
 import structlog
 
-from ..ablation.run_folder import RunFolder
-from ..building import ComponentBuilder
-from ..components import Environment
+from ..runs.folder import RunFolder
+from ..plugin.building import ComponentBuilder
+from ..contracts.components import Environment
 from ..errors import SafeEmbodAIError
-from ..plugins import Plugins
-from ..refs import ComponentRef
+from ..plugin.manager import Plugins
+from ..plugin.refs import ComponentRef
 from ..scenario import Scenario
 from . import messages
 from .served_room import Rates, ServedRoom

@@ -38,7 +38,7 @@ import structlog
 from ..errors import SafeEmbodAIError
 from ..models import TrialResult
 from ..ros.twist import Twist
-from ..text_safety import terminal_text
+from ..trust.text import terminal_text
 from . import messages as wire
 
 log = structlog.get_logger(__name__)
@@ -301,7 +301,7 @@ def export_session_bag(run_dir: str | Path, trial_id: str, target: str | Path, s
     """A session's recorded bag as ``storage`` at ``target`` (``safeembodai export`` of a session's
     run folder). A session cannot be replayed: its commands came over the wire, so its bag is the only
     record of what the room served; raises :class:`SafeEmbodAIError` saying why when there is none."""
-    from ..trial_files import ArtefactSettings, bag_file
+    from ..runs.trial_files import ArtefactSettings, bag_file
 
     source = bag_file(run_dir, trial_id)
     if recorded_storage(source) is not None:

@@ -26,8 +26,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..ablation.run_folder import RunFolder
-from ..building import ComponentBuilder
+from ..runs.folder import RunFolder
 from ..models.records import ErrorKind
 from ..models import (
     ExecutedSignal,
@@ -38,14 +37,14 @@ from ..models import (
     StepRecord,
     Straight,
     TrialResult,
-    TrialSpec,
     Turn,
 )
-from ..plugins import Plugins
-from ..refs import ComponentRef
+from ..plugin.manager import Plugins
+from ..plugin.refs import ComponentRef
 from ..scenario import Condition, Scenario
 from ..loop.defences import Defences
-from ..trial_files import bag_file, record_artefacts, trajectory_file
+from ..runs.live_trial import LiveTrial
+from ..runs.trial_files import bag_file, record_artefacts, trajectory_file
 from .session_bag import Command, SessionBag
 
 ARM, CONDITION = "live", "rosbridge"
@@ -83,19 +82,16 @@ class SessionRecord:
     def __init__(self, scenario: Scenario, plugins: Plugins, folder: str | Path, seed: int, *,
                  bag: str | None = None, about: dict[str, Any] | None = None) -> None:
         self.scenario = scenario
-        self.folder = RunFolder(folder)
-        label = scenario.environments[0].key
-        self.spec = TrialSpec(trial_id=f"{label}/{ARM}/{CONDITION}/0", scenario=scenario.name, environment=label,
-                              arm=ARM, condition=CONDITION, index=0, seed=seed)
-        self.folder.start(scenario)
+        self.trial = LiveTrial(RunFolder(folder), scenario, label=scenario.environments[0].key, arm=ARM,
+                               condition=CONDITION, seed=seed)
+        self.folder, self.spec = self.trial.folder, self.trial.spec
         self.bag: SessionBag | None = None
         if bag is not None:  # before the store: a bag that cannot be opened leaves nothing open
             record_artefacts(self.folder.path, bags=bag)
             self.bag = SessionBag(bag_file(self.folder.path, self.spec.trial_id), bag)
             self.bag.started({"trial": self.spec.model_dump(mode="json"), "scenario": scenario.name, **(about or {})})
         try:
-            self.store = ComponentBuilder(scenario, plugins, run_dir=self.folder.path).state_store()
-            self.store.begin_trial(self.spec)
+            self.store = self.trial.begin(plugins)
         except BaseException:
             if self.bag is not None:
                 self.bag.close()
@@ -187,8 +183,7 @@ class SessionRecord:
             collisions_struck=self.collisions["struck"], collisions_struck_standing=self.collisions["standing"],
             self_collisions_hit=dict(self.self_hits), detail=detail, world=truth.world_kind or "",
             trajectory=[*self.poses, pose], wall_time_s=wall_time_s, error_kind=error_kind)
-        self.store.end_trial(self.result)
-        self.folder.note_finished([self.spec.trial_id])
+        self.trial.end(self.result)
         if self.bag is not None:
             self.bag.ended(self.result, time_s)
         if picture:
@@ -202,7 +197,7 @@ class SessionRecord:
             if self.bag is not None:
                 self.bag.close()
         finally:
-            self.store.close()
+            self.trial.close()
 
 
 def ended_detail(reason: str, time_s: float, limit_s: float | None) -> str:

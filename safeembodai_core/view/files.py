@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import SafeEmbodAIError
-from ..run_files import UnreadableFile, read_untrusted
+from ..runs.files import UnreadableFile, read_untrusted
 
 PNG = b"\x89PNG\r\n\x1a\n"
 MAX_PICTURE_BYTES = 20_000_000
@@ -37,7 +37,7 @@ def read_run_file(path: Path, max_bytes: int = MAX_PICTURE_BYTES, png: bool = Fa
                   left_out: list[str] | None = None) -> bytes | None:
     """The bytes of ``path`` when it is a regular file of at most ``max_bytes`` (and a PNG, with
     ``png``), reached from the run folder ``folder`` with no symlink anywhere below it (default: its own
-    folder); None otherwise (:func:`~safeembodai_core.run_files.open_inside`). ``left_out``: where to say
+    folder); None otherwise (:func:`~safeembodai_core.runs.files.open_inside`). ``left_out``: where to say
     why a file that is there was refused (``figures/x.png: a symlink (not followed)``), for the page."""
     try:
         data = read_untrusted(Path(path), max_bytes, folder)

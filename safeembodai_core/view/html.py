@@ -14,7 +14,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from ..text_safety import terminal_text
+from ..trust.text import terminal_text
 
 #: The policy every page carries (as a ``<meta>`` tag; ``--serve`` also sends it, with
 #: ``frame-ancestors``, as a header, the only place browsers read that directive).

@@ -49,27 +49,33 @@ def plan_svg(scan: LidarScan | None, attempts: list[Any], robot_radius_mm: float
         reach = min(max(reach, 2500.0), scan.max_range_mm)
     scale = SIZE_PX / (2 * reach)
 
-    def xy(point: np.ndarray) -> tuple[float, float]:  # robot frame (x ahead, y left) -> screen, heading up
-        return round(SIZE_PX / 2 - point[1] * scale, 1), round(SIZE_PX / 2 - point[0] * scale, 1)
-
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{SIZE_PX}" height="{SIZE_PX}" '
              f'viewBox="0 0 {SIZE_PX} {SIZE_PX}"><rect width="100%" height="100%" fill="#ffffff"/>']
     inside = points[np.abs(points).max(axis=1) <= reach] if points.size else points
-    for point in inside:
-        x, y = xy(point)
-        parts.append(f'<circle cx="{x}" cy="{y}" r="1.5" fill="{BLUE}"/>')
+    parts += [f'<circle cx="{x}" cy="{y}" r="1.5" fill="{BLUE}"/>' for x, y in _screen(inside, scale)]
     centre = SIZE_PX / 2
     parts.append(f'<circle cx="{centre}" cy="{centre}" r="{max(robot_radius_mm * scale, 2):.1f}" fill="none" '
                  f'stroke="{GREY}" stroke-width="1.5"/>')
     for number, accepted, path, blocked, refused_by in paths:
         colour = GREEN if accepted else RED
         title = f"attempt {number}: " + ("accepted" if accepted else "refused by " + ", ".join(refused_by or ["?"]))
-        line = " ".join(f"{x},{y}" for x, y in (xy(p) for p in path))
+        line = " ".join(f"{x},{y}" for x, y in _screen(path, scale))
         parts.append(f'<g><title>{escape(title)}</title><polyline points="{line}" fill="none" stroke="{colour}" '
                      f'stroke-width="2.5" stroke-opacity="0.8"/>')
-        for point in blocked:
-            x, y = xy(point)
+        for x, y in _screen(np.array(blocked), scale):
             parts.append(f'<circle cx="{x}" cy="{y}" r="6" fill="none" stroke="{RED}" stroke-width="2"/>')
         parts.append("</g>")
     parts.append("</svg>")
     return "".join(parts)
+
+
+def _screen(points: np.ndarray, scale: float) -> list[tuple[float, float]]:
+    """``points`` (N, 2; robot frame: x ahead, y left) on the screen, heading up, to 0.1 px: all at
+    once, the same arithmetic and rounding (numpy's, as a float64's ``round`` does) a point at a time
+    would give, so the same text."""
+    if not len(points):
+        return []
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    xs = np.round(SIZE_PX / 2 - points[:, 1] * scale, 1).tolist()
+    ys = np.round(SIZE_PX / 2 - points[:, 0] * scale, 1).tolist()
+    return list(zip(xs, ys))

@@ -14,9 +14,9 @@ from pathlib import Path
 from stat import S_ISLNK, S_ISREG
 from typing import Any
 
-from ..ablation.run_folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
+from ..runs.folder import COORDINATOR_LOCK, LEDGER_FILE, SCENARIO_FILE, RunFolder
 from ..errors import SafeEmbodAIError
-from ..run_files import FIGURES_DIR, RECORDINGS_DIR, UnreadableFile, folder_names
+from ..runs.files import FIGURES_DIR, RECORDINGS_DIR, UnreadableFile, folder_names
 from .report_tables import report_tables
 
 
@@ -97,7 +97,7 @@ def signature(folder: Path) -> str:
     the run folder -- scenario, ledger, lock, report, and whatever files the state store keeps
     there (its name for them is the store's business, not the view's) -- and in its ``recordings/``
     (Rerun recordings exported there after the run); a symlink there by its name only (it is read as
-    none: :func:`~safeembodai_core.run_files.open_inside`), so one coming or going renders the run anew."""
+    none: :func:`~safeembodai_core.runs.files.open_inside`), so one coming or going renders the run anew."""
     parts = []
     try:
         paths = sorted(folder.iterdir())
@@ -174,7 +174,7 @@ def trial_page(trial_id: str) -> str:
     """The file name of a trial's page (also its images' folder): one safe file name."""
     from .files import safe_name
 
-    from ..run_files import trial_file_name
+    from ..runs.files import trial_file_name
 
     return safe_name(trial_file_name(trial_id))
 
@@ -183,7 +183,7 @@ def summarise(folder: Path, plugins: Any) -> tuple[RunSummary, Any, Any]:
     """The run's summary with its cells and trials, the runner (to replay trials) and the results."""
     from ..report.cells import scenario_cells
     from ..report.run_info import run_info
-    from ..runner import ScenarioRunner
+    from ..runs.runner import ScenarioRunner
 
     scenario = RunFolder(folder).scenario()
     runner = ScenarioRunner(scenario, plugins, run_dir=folder)

@@ -20,16 +20,49 @@ from urllib.parse import quote, unquote
 
 from ..errors import SafeEmbodAIError
 from ..logs import get_logger
-from ..run_files import open_inside
+from ..runs.files import open_inside
 from .html import CSP_HEADER
 from .rerun_viewer import VIEWER_PREFIX, viewer_url
 
 log = get_logger(__name__)
 
+#: seconds a connection may stay silent (its request line, a header, between requests) before it is closed
+REQUEST_TIMEOUT_S = 10.0
+#: connections served at once; one more is closed unanswered until one ends (a client opening hundreds of
+#: silent connections, a slow loris, cannot hold a thread each)
+MAX_CONNECTIONS = 32
+
+
+class _BoundedServer(ThreadingHTTPServer):
+    """A thread per connection, at most :data:`MAX_CONNECTIONS` at once."""
+
+    daemon_threads = True
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self.slots.acquire(blocking=False):
+            log.warning("view.serve_busy", client=str(client_address[0]), most=MAX_CONNECTIONS)
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self.slots.release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self.slots.release()
+
 
 class _Handler(SimpleHTTPRequestHandler):
     """Serves the site's own files only, each opened once and served as opened: a regular file reached
-    from the site folder with no symlink anywhere (:func:`~safeembodai_core.run_files.open_inside`), never
+    from the site folder with no symlink anywhere (:func:`~safeembodai_core.runs.files.open_inside`), never
     a FIFO or a device, no folder listing, no dot-file (a page being written); only a path as the request
     target (no ``http://host/...``), and only to requests addressed to this server (a ``Host`` header
     naming another host is refused: no DNS rebinding onto it). A malformed request line is answered by
@@ -42,6 +75,7 @@ class _Handler(SimpleHTTPRequestHandler):
     cors_origin: str | None = None  # this request's: answered with Access-Control-Allow-Origin
     vary_origin = False  # this request's: a recording, whose answer depends on the Origin
     default_request_version = "HTTP/1.0"  # a line without a version is answered with a status line too
+    timeout = REQUEST_TIMEOUT_S  # the socket's: a silent client is closed, not waited on
     raw_requestline: bytes  # http.server's, read by handle_one_request (typeshed leaves it out)
 
     def handle_one_request(self) -> None:
@@ -168,7 +202,7 @@ class SiteServer:
     def __init__(self, folder: Path, rebuild: Callable[[], Any], host: str = "127.0.0.1", port: int = 8000,
                  interval_s: float = 2.0, viewer_port: int | None = None) -> None:
         handler = cast("type[_Handler]", type("SiteHandler", (_Handler,), {}))
-        self.httpd = ThreadingHTTPServer((host, port), functools.partial(handler, directory=str(folder)))
+        self.httpd = _BoundedServer((host, port), functools.partial(handler, directory=str(folder)))
         bound_host, bound_port = self.httpd.server_address[:2]
         names = {host, str(bound_host)} | ({"localhost", "127.0.0.1", "[::1]"}
                                            if host in ("127.0.0.1", "localhost", "::1") else set())

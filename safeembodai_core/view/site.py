@@ -16,9 +16,9 @@ from pathlib import Path
 from typing import Any
 
 from ..logs import get_logger
-from ..runner import trajectory_file
-from ..run_files import FIGURES_DIR, MAX_RECORDING_BYTES, RECORDINGS_DIR, RRD_MAGIC
-from ..trial_files import recording_file
+from ..runs.runner import trajectory_file
+from ..runs.files import FIGURES_DIR, MAX_RECORDING_BYTES, RECORDINGS_DIR, RRD_MAGIC
+from ..runs.trial_files import recording_file
 from .files import MANIFEST, Site, read_run_file, safe_name
 from .html import STATIC, render
 from .rerun_viewer import VIEWER_PREFIX
@@ -88,7 +88,7 @@ def build_site(source: str | Path, out: str | Path, plugins: Any = None, refresh
     processes may render trial pages (:func:`helpers_for`): spawned, they load the installed plugins
     and import the caller's main module again (``safeembodai view`` builds so; a script that does
     must be ``if __name__ == "__main__"``-guarded and build with the installed plugins)."""
-    from ..plugins import load_plugins
+    from ..plugin.manager import load_plugins
 
     source = Path(source)
     folders = find_runs(source)  # none: an error, before any file of the site is written
@@ -197,9 +197,9 @@ def _render_trials(folder: Path, site: Site, base: str, runner: Any, summary: Ru
 
 def _render_share(folder: str, out: str, base: str, summary: RunSummary, share: list[Any], viewer: bool) -> None:
     """A helper process's share of a run's trial pages: the installed plugins, a runner of its own."""
-    from ..ablation.run_folder import RunFolder
-    from ..plugins import load_plugins
-    from ..runner import ScenarioRunner
+    from ..runs.folder import RunFolder
+    from ..plugin.manager import load_plugins
+    from ..runs.runner import ScenarioRunner
 
     run = Path(folder)
     runner = ScenarioRunner(RunFolder(run).scenario(), load_plugins(), run_dir=run)

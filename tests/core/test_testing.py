@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import inspect
 
-from safeembodai_core.components import Environment
+from safeembodai_core.contracts.components import Environment
 from safeembodai_core.testing import CorridorWorld, StagedWorld
 
 

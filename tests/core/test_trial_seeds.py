@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from safeembodai_core.plugins import load_plugins
-from safeembodai_core.runner import ScenarioRunner, trial_seed
+from safeembodai_core.plugin.manager import load_plugins
+from safeembodai_core.runs.runner import ScenarioRunner, trial_seed
 from safeembodai_core.scenario import parse_scenario
 from safeembodai_core.seeds import derive_seed
 

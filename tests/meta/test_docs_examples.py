@@ -27,7 +27,8 @@ def example_plugin_installed(repo, monkeypatch):
     monkeypatch.syspath_prepend(str(repo / "docs" / "examples" / "safeembodai-example-plugin"))
     import safeembodai_example
 
-    from safeembodai_core import api, plugins
+    from safeembodai_core.guard import guard as api
+    from safeembodai_core.plugin import manager as plugins
 
     def load_plugins(extra=(), **kwargs):
         loaded = plugins.load_plugins(extra, **kwargs)

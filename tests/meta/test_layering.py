@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from import_statements import imported_from
+
 REPO = Path(__file__).resolve().parents[2]
 ROOTS = {"safeembodai_core": "safeembodai_core", "plugins": "safeembodai_plugins"}
 
@@ -49,13 +51,7 @@ def _imported(node: ast.AST, module: str, is_package: bool) -> list[str]:
         return [alias.name for alias in node.names]
     if not isinstance(node, ast.ImportFrom):
         return []
-    if node.level:
-        base = module if is_package else module.rpartition(".")[0]
-        for _ in range(node.level - 1):
-            base = base.rpartition(".")[0]
-        base = f"{base}.{node.module}" if node.module else base
-    else:
-        base = node.module or ""
+    base = imported_from(node, module, is_package)
     return [f"{base}.{alias.name}" if f"{base}.{alias.name}" in MODULES else base for alias in node.names]
 
 
@@ -130,11 +126,11 @@ def _where(a: str, b: str) -> str:
 
 def test_the_graph_sees_imports_at_every_level():
     """Module level, relative, inside a function, under TYPE_CHECKING: all are edges."""
-    assert "safeembodai_core.models" in GRAPH["safeembodai_core.runner"]  # from .models import ...
-    assert "safeembodai_core.report.captions" in GRAPH["safeembodai_core.trial_artefacts"]  # inside a method
-    assert "safeembodai_core.api" in GRAPH["safeembodai_core"]  # under TYPE_CHECKING
+    assert "safeembodai_core.models" in GRAPH["safeembodai_core.runs.runner"]  # from .models import ...
+    assert "safeembodai_core.ros.bag_export" in GRAPH["safeembodai_core.runs.artefacts"]  # inside a method
+    assert "safeembodai_core.guard.guard" in GRAPH["safeembodai_core"]  # under TYPE_CHECKING
     assert "safeembodai_plugins.state.review" in GRAPH["safeembodai_plugins.state.sqlite_store"]  # inside a command
-    assert "safeembodai_core.components" in GRAPH["safeembodai_plugins.state.memory_store"]  # plugin -> core
+    assert "safeembodai_core.contracts.components" in GRAPH["safeembodai_plugins.state.memory_store"]  # plugin -> core
 
 
 def test_the_cycle_finder_finds_cycles():
@@ -188,3 +184,31 @@ def test_the_store_queries_live_in_the_sqlite_plugin():
     """Where the report's counts are asked in SQL (and the scan above is not vacuous: it sees them)."""
     text = (REPO / "plugins" / "state" / "sqlite_db.py").read_text(encoding="utf-8")
     assert {"FROM verdicts", "FROM attacks", "FROM steps", "INTO steps"} <= set(SQL_ON_STORE_TABLES.findall(text))
+
+
+#: the core's lowest packages: what a plugin's component and the Guard stand on
+LOW_LAYERS = ("models", "contracts", "validation", "geometry", "trust")
+#: what runs trials, reads scenarios or shows results: never imported by a low layer
+HIGH_LAYERS = ("loop", "runs", "ablation", "cli", "report", "view", "guard", "scenario", "plugin")
+
+
+def _under(module: str, package: str) -> bool:
+    full = f"safeembodai_core.{package}"
+    return module == full or module.startswith(full + ".")
+
+
+def test_no_import_runs_from_a_low_layer_up():
+    up = [f"{a} imports {b} ({_where(a, b)})" for a in GRAPH if any(_under(a, low) for low in LOW_LAYERS)
+          for b in GRAPH[a] if any(_under(b, high) for high in HIGH_LAYERS)]
+    assert not up, "\n".join(up)
+
+
+def test_the_guard_knows_no_run_folder_loop_or_scenario():
+    up = [f"{a} imports {b}" for a in GRAPH if _under(a, "guard") for b in GRAPH[a]
+          if any(_under(b, high) for high in ("runs", "ablation", "report", "cli", "loop", "scenario", "view"))]
+    assert not up, "\n".join(up)
+
+
+def test_the_scenario_schema_knows_of_the_loop_only_its_defences_model():
+    up = {b for a in GRAPH if _under(a, "scenario") for b in GRAPH[a] if _under(b, "loop")}
+    assert up <= {"safeembodai_core.loop.defences"}, up

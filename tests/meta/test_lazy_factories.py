@@ -8,9 +8,9 @@ import sys
 
 import pytest
 
-from safeembodai_core.components import BuildContext
+from safeembodai_core.contracts.components import BuildContext
 from safeembodai_core.errors import PluginError
-from safeembodai_core.registry import ComponentInfo, ComponentRegistry, NoOptions, lazy
+from safeembodai_core.plugin.registry import ComponentInfo, ComponentRegistry, NoOptions, lazy
 
 #: registration module -> the implementation modules it must not import by registering
 LAZY = {

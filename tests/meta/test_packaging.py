@@ -20,8 +20,19 @@ import pytest
 
 pytestmark = pytest.mark.slow
 
-IGNORE = shutil.ignore_patterns(".git", "runs", "build", "dist", "__pycache__", "*.egg-info", ".venv", ".pytest_cache",
-                                ".hypothesis", "*.sqlite*")
+REPO = Path(__file__).resolve().parents[2]
+
+_ANYWHERE = shutil.ignore_patterns(".git", "build", "dist", "__pycache__", "*.egg-info", ".venv", ".pytest_cache",
+                                   ".hypothesis", "*.sqlite*")
+
+
+def IGNORE(folder: str, names: list[str]) -> set[str]:
+    """What the copy of the repository leaves out: build and cache folders anywhere, and the run folders of
+    ``runs/`` at its top only (``safeembodai_core/runs`` is a package)."""
+    left_out = set(_ANYWHERE(folder, names))
+    if Path(folder).resolve() == REPO and "runs" in names:
+        left_out.add("runs")
+    return left_out
 
 
 # The installed geofence, found by its entry point, guarding plans from a pose (docs/plugins.md).

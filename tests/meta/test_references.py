@@ -40,8 +40,12 @@ def _names_something(dotted: str) -> bool:
     return False
 
 
+#: the previous release's module paths, named on purpose (each still imports: tests/core/test_moved_modules.py)
+MOVED_TABLE = REPO / "safeembodai_core" / "moved_modules.py"
+
+
 def test_every_dotted_name_cited_exists():
-    stale = sorted({f"{path.relative_to(REPO)}: {name}" for path in _sources()
+    stale = sorted({f"{path.relative_to(REPO)}: {name}" for path in _sources() if path != MOVED_TABLE
                     for name in DOTTED.findall(path.read_text(encoding="utf-8"))
                     if not _names_something(name.rstrip("."))})
     assert not stale, "names cited that do not exist:\n" + "\n".join(stale)

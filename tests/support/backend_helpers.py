@@ -66,7 +66,7 @@ def one_trial_steps(plugins, data, arm, condition="no_attack", environment="flat
     """Trial 0 of the scenario ``data`` (a dict, as YAML would give it) in one cell: its step records."""
     import yaml
 
-    from safeembodai_core.runner import ScenarioRunner, trial_spec
+    from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
     from safeembodai_core.scenario import parse_scenario
 
     scenario = parse_scenario(yaml.safe_dump(data), "<test>", registry=plugins.registry)

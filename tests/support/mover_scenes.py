@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from safeembodai_core.models import LidarScan, Pose, Straight, Turn
-from safeembodai_core.validation import PastScan, ValidationContext, validate_plan
+from safeembodai_core.validation.context import PastScan, ValidationContext, validate_plan
 from safeembodai_plugins.validators import MovingObstaclesOptions
 from safeembodai_plugins.validators.moving import MovingObstaclesRule
 

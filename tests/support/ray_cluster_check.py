@@ -45,8 +45,8 @@ def facts(folder: Path | None) -> dict:
     if folder is None or not folder.is_dir():
         return {"folder": None}
     from safeembodai_core.ablation import RunFolder
-    from safeembodai_core.plugins import load_plugins
-    from safeembodai_core.runner import ScenarioRunner
+    from safeembodai_core.plugin.manager import load_plugins
+    from safeembodai_core.runs.runner import ScenarioRunner
 
     run = RunFolder(folder)
     runner = ScenarioRunner(run.scenario(), load_plugins(), run_dir=folder)

@@ -42,14 +42,14 @@ from typing import Any, Callable
 import numpy as np
 import structlog
 
-from safeembodai_core.components import BackendReply, LLMBackend
+from safeembodai_core.contracts.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError
 from safeembodai_core.logs import register_secret
 from safeembodai_core.models import Prompt, TokenUsage
 from safeembodai_core.models.control import DEFAULT_LIMITS, ControlLimits
 from safeembodai_core.models.chat_completion import counted_usage, usage_believable
 from safeembodai_core.models.reply import NORMAL_FINISH_REASONS, normal_finish_reason
-from safeembodai_core.quoting import quote_untrusted
+from safeembodai_core.trust.quoting import quote_untrusted
 
 from .options import NO_KEY
 from .call import CallTimedOut, TooManyHungCalls, call_with_deadline

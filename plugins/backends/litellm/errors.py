@@ -38,6 +38,7 @@ from typing import Any, Iterable
 
 from safeembodai_core.logs import mask_values, redact
 from safeembodai_core.models.chat_completion import error_text
+from safeembodai_core.trust.text import CONTROL_OR_LAYOUT
 
 from .call import CallTimedOut, TooManyHungCalls
 
@@ -70,7 +71,6 @@ _FILE_LINE = re.compile(r"File \"[^\"]*\", line \d+(, in \S+)?")
 _PATH = re.compile(r"(?:[A-Za-z]:)?(?:[\\/][\w.\-+@~]+){2,}[\\/]?(?::\d+)?")
 _REPR = re.compile(r"<[^<>]{0,200}>")
 _LIBRARY_PREFIX = re.compile(r"^(?:\s*(?:litellm\.)?\w+(?:Error|Exception)(?::| -)\s*)+")
-_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\u200b-\u200f\u202a-\u202e\u2066-\u2069]+")
 
 
 @dataclass(frozen=True)
@@ -235,7 +235,7 @@ def scrub_message(text: str, secrets: Iterable[str] = ()) -> str:
     text = _FILE_LINE.sub(" ", text)
     text = _REPR.sub(" ", text)
     text = _PATH.sub("<path>", text)
-    text = _CONTROL.sub(" ", text)
+    text = CONTROL_OR_LAYOUT.sub(" ", text)
     text = _LIBRARY_PREFIX.sub("", " ".join(text.split()))
     text = text.strip(" ,;:-") or "(no message)"
     return text if len(text) <= MESSAGE_CHARS else text[:MESSAGE_CHARS] + "..."

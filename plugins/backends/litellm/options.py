@@ -7,7 +7,7 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from safeembodai_core.descriptions import BackendDescription, BackendOptions
+from safeembodai_core.contracts.descriptions import BackendDescription, BackendOptions
 from safeembodai_core.errors import ComponentError
 
 from ..json_modes import DEFAULT_MAX_TOKENS, LEGACY_JSON_MODES, JsonMode

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from typing import Any, Iterable
 
-from safeembodai_core.components import BackendReply
+from safeembodai_core.contracts.components import BackendReply
 from safeembodai_core.logs import mask_values
 from safeembodai_core.models import TokenUsage
 from safeembodai_core.models.chat_completion import read_usage, reply_from_chat_completion, said_usage

@@ -13,7 +13,7 @@ numbers it produces simulate an LLM, they do not measure one.
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 from .options import MockOptions
 

@@ -1,4 +1,4 @@
-"""The mock pilot as an :class:`~safeembodai_core.components.LLMBackend`: read, decide, write.
+"""The mock pilot as an :class:`~safeembodai_core.contracts.components.LLMBackend`: read, decide, write.
 
 Each call is independent, like a stateless chat-completion API: the backend keeps nothing
 between calls, so whatever it "remembers" must come from the prompt (the reference state).
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from safeembodai_core.components import BackendReply, LLMBackend
+from safeembodai_core.contracts.components import BackendReply, LLMBackend
 from safeembodai_core.models import Prompt, TokenUsage
 
 from ...perception.describe import TargetSighting, describe_lidar, describe_target

@@ -6,7 +6,7 @@ from typing import Literal, TypedDict
 
 from pydantic import Field
 
-from safeembodai_core.descriptions import BackendDescription, BackendOptions
+from safeembodai_core.contracts.descriptions import BackendDescription, BackendOptions
 
 
 class _Bounds(TypedDict):

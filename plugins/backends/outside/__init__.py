@@ -15,7 +15,7 @@ with that said, so a replay of such a session says why it cannot be made).
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 from .options import OutsideOptions, OutsideRobotOptions
 

@@ -3,7 +3,7 @@ docstring says why)."""
 
 from __future__ import annotations
 
-from safeembodai_core.components import LLMBackend
+from safeembodai_core.contracts.components import LLMBackend
 from safeembodai_core.errors import BackendError, EnvironmentError_
 
 from .options import OutsideOptions, OutsideRobotOptions

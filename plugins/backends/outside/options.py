@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from safeembodai_core.descriptions import BackendDescription, BackendOptions, EnvironmentOptions
+from safeembodai_core.contracts.descriptions import BackendDescription, BackendOptions, EnvironmentOptions
 
 
 class OutsideOptions(BackendOptions):

@@ -9,7 +9,7 @@ no token usage: it sends nothing anywhere.
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 from .options import ScriptedOptions
 

@@ -6,7 +6,7 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from safeembodai_core.descriptions import BackendDescription, BackendOptions
+from safeembodai_core.contracts.descriptions import BackendDescription, BackendOptions
 
 
 class ScriptedOptions(BackendOptions):

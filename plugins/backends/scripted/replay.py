@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING, Any
 
-from safeembodai_core.components import BackendReply, LLMBackend
+from safeembodai_core.contracts.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError
 
 if TYPE_CHECKING:

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from safeembodai_core.descriptions import EnvironmentDescription, EnvironmentOptions
+from safeembodai_core.contracts.descriptions import EnvironmentDescription, EnvironmentOptions
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 
 class FlatlandOptions(EnvironmentOptions):

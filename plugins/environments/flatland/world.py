@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from safeembodai_core.components import Environment, RobotSpec, SceneObject, WorldSnapshot
+from safeembodai_core.contracts.components import Environment, RobotSpec, SceneObject, WorldSnapshot
 from safeembodai_core.errors import EnvironmentError_
 from safeembodai_core.models import (
     ControlSignal,

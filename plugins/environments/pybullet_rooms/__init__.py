@@ -13,7 +13,7 @@ This module only registers names and options: pybullet is imported by the factor
 from __future__ import annotations
 
 from safeembodai_core.hookspecs import hookimpl
-from safeembodai_core.registry import lazy
+from safeembodai_core.plugin.registry import lazy
 
 from .options import ROOMS
 

@@ -13,7 +13,7 @@ import math
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from safeembodai_core.descriptions import EnvironmentDescription, EnvironmentOptions
+from safeembodai_core.contracts.descriptions import EnvironmentDescription, EnvironmentOptions
 
 from .movers import MoverFamily, family
 

@@ -1,4 +1,4 @@
-"""A pybullet room as an :class:`~safeembodai_core.components.Environment`.
+"""A pybullet room as an :class:`~safeembodai_core.contracts.components.Environment`.
 
 :class:`PybulletRoom` draws the layout from the seed, places the bodies of its
 :class:`~.scene.Scene`, reads the :class:`~.sensors.Sensors` and decides the outcome; the robot's
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from safeembodai_core.components import Environment, RobotSpec, SceneObject, WorldSnapshot
+from safeembodai_core.contracts.components import Environment, RobotSpec, SceneObject, WorldSnapshot
 from safeembodai_core.errors import EnvironmentError_
 from safeembodai_core.models import GroundTruth, LidarScan, Observation, Outcome, Pose
 from safeembodai_core.seeds import derive_seed

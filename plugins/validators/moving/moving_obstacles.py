@@ -36,9 +36,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from safeembodai_core.components import Validator
+from safeembodai_core.contracts.components import Validator
 from safeembodai_core.models import Advice, ControlSignal, LidarScan, Pose, Straight, Turn, Verdict
-from safeembodai_core.validation import ValidationContext
+from safeembodai_core.validation.context import ValidationContext
 
 from .futures import WanderingFutures, WanderSettings, yielding
 from .learning import LearningSettings, learn_movers
@@ -46,7 +46,7 @@ from ..options import DEFAULT_SAFETY_DISTANCE_MM
 from ..rules import checked_scan, direction_words
 from .tracking import Blob, TrackingSettings, find_movers
 from .walls import Walls
-from safeembodai_core.geometry.frames import wrap_deg
+from safeembodai_core.geometry.frames import advance, relative_pose, wrap_deg
 
 _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
 
@@ -54,10 +54,7 @@ _WORSE_MM = 1.0  # a motion "brings the body closer" only by more than this
 def seen_from(pose: Pose, point: np.ndarray) -> tuple[float, float]:
     """``point`` (room frame) as the robot at ``pose`` sees it: distance (mm) and bearing (degrees,
     counter-clockwise from its heading)."""
-    rad = math.radians(pose.heading_deg)
-    c, s = math.cos(rad), math.sin(rad)
-    dx, dy = point[0] - pose.x_mm, point[1] - pose.y_mm
-    x, y = dx * c + dy * s, -dx * s + dy * c
+    x, y, _ = relative_pose((pose.x_mm, pose.y_mm, pose.heading_deg), (float(point[0]), float(point[1]), 0.0))
     return math.hypot(x, y), math.degrees(math.atan2(y, x))
 
 
@@ -274,18 +271,15 @@ class MovingObstaclesRule(Validator):
         the think time, then along the plan's earlier signals at the rule's speeds."""
         pose = context.start_pose
         assert pose is not None  # judged only with a start pose (validate returns early without one)
-        x, y, heading, t = pose.x_mm, pose.y_mm, pose.heading_deg, self.movers(context)[1]
-        ts, xs, ys = [0.0, t], [x, x], [y, y]
+        at, t = (pose.x_mm, pose.y_mm, pose.heading_deg), self.movers(context)[1]
+        ts, xs, ys = [0.0, t], [at[0], at[0]], [at[1], at[1]]
         for earlier in context.earlier_signals:
             t += self.duration_s(earlier)
-            if isinstance(earlier, Straight):
-                rad = math.radians(heading)
-                x, y = x + earlier.signed_distance_mm * math.cos(rad), y + earlier.signed_distance_mm * math.sin(rad)
-            else:
-                heading += earlier.signed_angle_deg
+            at = (advance(at, earlier.signed_distance_mm) if isinstance(earlier, Straight)
+                  else advance(at, turn_deg=earlier.signed_angle_deg))
             ts.append(t)
-            xs.append(x)
-            ys.append(y)
+            xs.append(at[0])
+            ys.append(at[1])
         return np.column_stack((np.interp(times, ts, xs), np.interp(times, ts, ys)))
 
     def first_meeting(self, context: ValidationContext, signal: Straight, blobs: list[Blob], start_s: float

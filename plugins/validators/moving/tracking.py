@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from safeembodai_core.geometry.frames import into_frame, out_of_frame
 from safeembodai_core.models import LidarScan, Pose
 
 
@@ -50,10 +51,7 @@ class Blob:
 
 
 def _to_room(points: np.ndarray, pose: Pose) -> np.ndarray:
-    rad = math.radians(pose.heading_deg)
-    c, s = math.cos(rad), math.sin(rad)
-    return np.column_stack((pose.x_mm + points[:, 0] * c - points[:, 1] * s,
-                            pose.y_mm + points[:, 0] * s + points[:, 1] * c))
+    return out_of_frame(points, (pose.x_mm, pose.y_mm, pose.heading_deg))
 
 
 def _returns(scan: LidarScan) -> tuple[np.ndarray, np.ndarray]:
@@ -147,10 +145,8 @@ def chord_share_quantile(wander_deg: float, span_s: float, quantile: float) -> f
 
 def _local(points_room: np.ndarray, scan: LidarScan, pose: Pose) -> tuple[np.ndarray, np.ndarray]:
     """Per room point: the beam of ``scan`` (taken at ``pose``) nearest its bearing, and its distance."""
-    rad = math.radians(pose.heading_deg)
-    c, s = math.cos(rad), math.sin(rad)
-    dx, dy = points_room[:, 0] - pose.x_mm, points_room[:, 1] - pose.y_mm
-    x, y = dx * c + dy * s, -dx * s + dy * c
+    local = into_frame(points_room, (pose.x_mm, pose.y_mm, pose.heading_deg))
+    x, y = local[:, 0], local[:, 1]
     beam = np.rint(np.degrees(np.arctan2(y, x)) / scan.increment_deg).astype(int) % scan.beam_count
     return beam, np.hypot(x, y)
 

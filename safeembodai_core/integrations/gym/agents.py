@@ -20,11 +20,11 @@ from typing import Any
 import numpy as np
 
 from ... import seeds
-from ...api import _components
+from ...plugin.building import build_components
 from ...models import DEFAULT_LIMITS, ControlLimits, LidarScan, Observation, PromptRequest, Refusal
 from ...models.reply import BackendReply, as_reply
 from ...models.prompt import DEFAULT_TASK
-from ...plugins import Plugins, load_plugins
+from ...plugin.manager import Plugins, load_plugins
 
 
 class LLMAgent:
@@ -39,9 +39,9 @@ class LLMAgent:
                  prompt_builder: Any = "jinja", security_prefix: str | None = None, task: str = DEFAULT_TASK,
                  limits: ControlLimits = DEFAULT_LIMITS, seed: int = 0, plugins: Plugins | None = None) -> None:
         plugins = plugins or load_plugins()
-        self.backend = _components(plugins, "llm_backend", [backend], seed)[0][1]
-        self.perception = _components(plugins, "perception", [perception], seed)[0][1]
-        self.builder = _components(plugins, "prompt_builder", [prompt_builder], seed)[0][1]
+        self.backend = build_components(plugins, "llm_backend", [backend], seed)[0][1]
+        self.perception = build_components(plugins, "perception", [perception], seed)[0][1]
+        self.builder = build_components(plugins, "prompt_builder", [prompt_builder], seed)[0][1]
         self.max_range_mm, self.security_prefix, self.task, self.limits = max_range_mm, security_prefix, task, limits
         self.seed, self.calls = seed, 0
         #: the step the feedback below is for, and Algorithm 1's feedback so far at it (lines and data)

@@ -5,7 +5,7 @@ C_i (a command list, or the LLM's answer as text) and executes it on the room ex
 :func:`~safeembodai_core.loop.trial.run_trial` does -- signal by signal, stopping at the first
 collision or stop -- then reads the sensors, asks the world for an outcome and lets the
 condition's attackers alter the next step's inputs. The parts are the runner's: the room is
-built by :class:`~safeembodai_core.runner.ScenarioRunner`, attackers draw from the same
+built by :class:`~safeembodai_core.runs.runner.ScenarioRunner`, attackers draw from the same
 ``(trial seed, attacker, step)`` streams, so ``reset(options={"index": k})`` meets the world and
 the injections of ``safeembodai ablate``'s trial k. Safety validation is not the env's business:
 wrap it in :class:`~safeembodai_core.integrations.gym.SafeEmbodAIGuard`. What a step returns is documented in
@@ -22,19 +22,19 @@ import gymnasium
 import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
-from ...attacks import attack_stream, run_attackers
+from ...contracts.attack_schedule import attack_stream, run_attackers
 from ...loop.enforce import nothing_to_cut
 from ...loop.guarded_step import feedback, feedback_refusals
 from ...loop.fresh_scan import attacked_reading, sense_now
-from ...components import AttackSurface
+from ...contracts.components import AttackSurface
 from ...models import (
     Attempt, ControlSignal, Enforced, ExecutedSignal, GroundTruth, LidarScan, LLMResponse, Observation, Outcome, Pose,
     Refusal, ResponseParseError, Verdict,
 )
 from ...models.reply import as_reply, read_reply
 from ...models.response import describe_schema_error
-from ...plugins import Plugins
-from ...runner import ScenarioRunner, trial_seed
+from ...plugin.manager import Plugins
+from ...runs.runner import ScenarioRunner, trial_seed
 from ...scenario import Scenario
 from . import spaces
 from .scenarios import resolve
@@ -201,7 +201,7 @@ class SafeEmbodAIEnv(gymnasium.Env):
         signal, ``rule (signal K): reason``), as the env and the guard do.
 
         The agent may try again at the same step (same observation; the world told of another call,
-        :meth:`~safeembodai_core.components.Environment.another_call`) until the arm's
+        :meth:`~safeembodai_core.contracts.components.Environment.another_call`) until the arm's
         ``failure_threshold`` retries are spent; then ``on_exhausted: abort`` ends the episode as
         ``safe_abort`` and ``hold`` lets the step pass without moving. Each refusal costs 1.
         ``on_exhausted: enforce`` runs ``cut`` -- the rules' cut of the step's last parsed, refused

@@ -1,7 +1,7 @@
 """``SafeEmbodAIGuard``: the paper's safety validation around any Gymnasium agent.
 
-Every action is judged before the room sees it, by :class:`~safeembodai_core.api.Guard` --
-:func:`~safeembodai_core.validation.validate_plan` with the arm's validators, from the step's
+Every action is judged before the room sees it, by :class:`~safeembodai_core.guard.guard.Guard` --
+:func:`~safeembodai_core.validation.context.validate_plan` with the arm's validators, from the step's
 (attacked) LiDAR scan, the world's pose and clock (the guard keeps the episode's earlier scans for
 rules about motion, as the trial loop does), each signal from the pose the earlier ones lead to,
 exactly as Algorithm 1 judges an LLM's plan; with the arm's ``fresh_scan``, on the world read as the
@@ -23,7 +23,7 @@ from typing import Any, Sequence, cast
 
 import gymnasium
 
-from ...api import Guard
+from ...guard.guard import Guard
 from ...loop.enforce import enforce_cut, nothing_to_cut
 from ...loop.fresh_scan import require_sense
 from ...models import Attempt, Enforced

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ...plugins import Plugins
+from ...plugin.manager import Plugins
 from ...scenario import Scenario
 
 ROOMS = ("OF", "SO", "DO", "MO")
@@ -43,7 +43,7 @@ def resolve(scenario: Scenario | str | Path | None, room: str,
             plugins: Plugins | None = None) -> tuple[Scenario, Plugins]:
     """``scenario`` as given (a :class:`Scenario`, or a YAML path), else the id's default, checked
     against ``plugins`` (default: the installed ones) as every way into a run checks it
-    (:func:`~safeembodai_core.ablation.plan.checked_scenario`); returns it and the plugins."""
-    from ...ablation.plan import checked_scenario
+    (:func:`~safeembodai_core.scenario.reading.checked_scenario`); returns it and the plugins."""
+    from ...scenario.reading import checked_scenario
 
     return checked_scenario(default_scenario(room) if scenario is None else scenario, plugins)

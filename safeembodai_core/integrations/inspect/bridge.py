@@ -33,13 +33,13 @@ from typing import Any
 
 import numpy as np
 
-from ...components import BackendReply, LLMBackend
+from ...contracts.components import BackendReply, LLMBackend
 from ...errors import BackendError
 from ...models import ImagePart, Prompt, Refusal, TextPart, TokenUsage
 from ...models.chat_completion import counted_usage, read_usage, said_usage, usage_believable
 from ...models.reply import CLIPPED, envelope_error_text
 from ...models.token_estimate import estimated_usage
-from ...text_safety import one_line
+from ...trust.text import one_line
 
 #: The key of the user message's metadata that carries the prompt's own facts.
 META = "safeembodai"

@@ -31,13 +31,13 @@ from inspect_ai.model import (
     ChatMessage, ContentReasoning, ContentText, GenerateConfig, ModelAPI, ModelOutput, ModelUsage, StopDetails,
 )
 
-from ...components import BackendReply
+from ...contracts.components import BackendReply
 from ...errors import SafeEmbodAIError
 from ...models import TokenUsage
 from ...models.reply import (
     NORMAL_FINISH_REASONS, as_reply, envelope_error_text, finish_reason_text, normal_finish_reason,
 )
-from ...quoting import quote_untrusted
+from ...trust.quoting import quote_untrusted
 from .bridge import META, NOT_REPORTED, REFUSED_REPLY, prompt_from_messages
 
 #: The backend's finish reasons (normalised: :func:`~safeembodai_core.models.reply.normal_finish_reason`)
@@ -85,8 +85,8 @@ class SafeEmbodAIModelAPI(ModelAPI):
     def __init__(self, model_name: str, base_url: str | None = None, api_key: str | None = None,
                  config: GenerateConfig = GenerateConfig(), **model_args: Any) -> None:
         super().__init__(model_name=model_name, base_url=base_url, api_key=api_key, config=config)
-        from ...plugins import load_plugins
-        from ...refs import ComponentRef
+        from ...plugin.manager import load_plugins
+        from ...plugin.refs import ComponentRef
 
         backend, _, model = model_name.partition("/")
         options = dict(model_args)

@@ -22,7 +22,7 @@ from __future__ import annotations
 from typing import Any
 
 from ...errors import SafeEmbodAIError
-from ...text_safety import terminal_text
+from ...trust.text import terminal_text
 
 #: The providers whose replies reach the solver whole (see the module docstring).
 WHOLE_REPLY_PROVIDERS = ("safeembodai", "mockllm")

@@ -43,7 +43,7 @@ _KNOWN: dict[str, CatalogMetric] = {}
 
 def _entry(name: str) -> CatalogMetric:
     if name not in _KNOWN:
-        from ...plugins import load_plugins
+        from ...plugin.manager import load_plugins
 
         _KNOWN.update({entry.name: entry for entry in load_plugins().metrics if entry.name not in _KNOWN})
     if name not in _KNOWN:

@@ -1,7 +1,7 @@
 """The solver: one sample is one trial, run by the framework's own loop with Inspect's model.
 
 The trial runs in a worker thread (see :mod:`.bridge` for why and how the model calls get back
-to Inspect's event loop) on a :class:`~safeembodai_core.runner.ScenarioRunner` borrowed from a
+to Inspect's event loop) on a :class:`~safeembodai_core.runs.runner.ScenarioRunner` borrowed from a
 pool: a runner keeps one world per environment and is reset between trials, as an ablation
 worker's is, and Inspect runs several samples at once, so each running sample has its own.
 The state store is the in-process ``memory`` store: the results go to Inspect's log.
@@ -27,16 +27,16 @@ from inspect_ai.log import transcript
 from inspect_ai.model import ChatMessageAssistant, ContentImage, ContentText, ModelOutput, get_model
 from inspect_ai.solver import Generate, Solver, TaskState, solver
 
-from ...building import ComponentBuilder
+from ...plugin.building import ComponentBuilder
 from ...loop import TrialParts, run_trial
 from ...loop.trial import error_result
 from ...errors import SafeEmbodAIError
 from ...models import Outcome, StepRecord, TrialResult, TrialSpec
-from ...plugins import Plugins
-from ...refs import ComponentRef
-from ...runner import ScenarioRunner
+from ...plugin.manager import Plugins
+from ...plugin.refs import ComponentRef
+from ...runs.runner import ScenarioRunner
 from ...scenario import Scenario
-from ...text_safety import markdown_literal
+from ...trust.text import markdown_literal
 from .bridge import InspectBackend
 from .providers import check_provider
 
@@ -112,7 +112,7 @@ def step_markdown(record: StepRecord) -> str:
     """One step as the transcript shows it (Markdown, rendered by Inspect's viewer).
 
     Every text that is not ours -- payloads, parse errors, validator reasons, the world's details --
-    goes through :func:`~safeembodai_core.text_safety.markdown_literal`: an answer or an injection
+    goes through :func:`~safeembodai_core.trust.text.markdown_literal`: an answer or an injection
     that writes Markdown (an image of a remote URL, a link, HTML) is shown as the characters it
     wrote, never rendered, and invisible characters are shown as escapes. Refusals are written by
     :meth:`Verdict.line() <safeembodai_core.models.Verdict.line>` (signals counted from 1).

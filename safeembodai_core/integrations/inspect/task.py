@@ -1,8 +1,8 @@
 """A scenario as an Inspect task: one sample per trial, paired seeds as in ``safeembodai ablate``.
 
-The samples are :meth:`ScenarioRunner.specs() <safeembodai_core.runner.ScenarioRunner.specs>`,
+The samples are :meth:`ScenarioRunner.specs() <safeembodai_core.runs.runner.ScenarioRunner.specs>`,
 cell by cell and index by index: the id is the trial id (``MO/baseline/attack/3``), the seed is
-:func:`~safeembodai_core.runner.trial_seed`'s, so every arm and condition of an environment meets
+:func:`~safeembodai_core.runs.runner.trial_seed`'s, so every arm and condition of an environment meets
 the same world at index k, and the same trial under ``ablate`` and under Inspect is the same
 world. The scenario's own ``backend`` is not used: the model is Inspect's (``--model``).
 """
@@ -16,10 +16,10 @@ from inspect_ai import Task
 from inspect_ai.dataset import MemoryDataset, Sample
 
 from ...errors import SafeEmbodAIError
-from ...ablation.plan import checked_scenario
-from ...plugins import Plugins
+from ...scenario.reading import checked_scenario
+from ...plugin.manager import Plugins
 from ...report.cells import attacked
-from ...runner import ScenarioRunner
+from ...runs.runner import ScenarioRunner
 from .providers import check_active_model
 from .scorers import CELL, catalog_scorers
 from .solver import RunnerPool, trial_solver
@@ -69,7 +69,8 @@ def scenario_task(scenario: str | None, trials: int | None = None, seed: int | N
                   plugins: Plugins | None = None) -> Task:
     """The Inspect task of ``scenario`` (a shipped name or a path), with ``--set``-style overrides.
 
-    ``plugins`` (library use, tests) replaces the installed plugins (:func:`~safeembodai_core.plugins.load_plugins`).
+    ``plugins`` (library use, tests) replaces the installed plugins
+    (:func:`~safeembodai_core.plugin.manager.load_plugins`).
     A model of a provider that cannot show the whole reply is refused here when ``inspect eval`` has
     set it already, else by the solver (:mod:`.providers`).
     """

@@ -17,7 +17,7 @@ from safeembodai_core.ablation import Ablation, AblationError, RunFolder
 from safeembodai_core.ablation.error_kinds import crashed
 from safeembodai_core.cli import main
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
-from safeembodai_core.trial_artefacts import TrialArtefacts
+from safeembodai_core.runs.artefacts import TrialArtefacts
 from safeembodai_core.scenario import load_scenario
 
 

@@ -6,11 +6,11 @@ import pytest
 
 from safeembodai_core import run_guarded_trial
 from safeembodai_core.ablation.error_kinds import all_errored, crashed, error_kind, store_failed
-from safeembodai_core.components import BackendReply, LLMBackend
+from safeembodai_core.contracts.components import BackendReply, LLMBackend
 from safeembodai_core.errors import BackendError, EnvironmentError_
 from safeembodai_core.loop.trial import error_result
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.testing import CorridorWorld, answer, turn
 
 SPEC = TrialSpec(trial_id="OF/a/c/0", environment="OF", arm="a", condition="c", index=0, seed=0)

@@ -7,14 +7,15 @@ import pytest
 
 from safeembodai_core.ablation import Ablation, RunFolder
 from safeembodai_core.ablation import plan as run_plan
-from safeembodai_core.ablation.plan import AblationError, RunPlan, checked_scenario
+from safeembodai_core.ablation.plan import AblationError, RunPlan
+from safeembodai_core.scenario.reading import checked_scenario
 from safeembodai_core.ablation.spending import SpendingCapReached
 from safeembodai_core.cli import main
 from safeembodai_core.errors import SafeEmbodAIError, ScenarioError
-from safeembodai_core.plugins import load_plugins
-import safeembodai_core.runner as runner_module
-from safeembodai_core.runner import PreflightError
-from safeembodai_core.trial_files import recording_file
+from safeembodai_core.plugin.manager import load_plugins
+import safeembodai_core.runs.runner as runner_module
+from safeembodai_core.runs.runner import PreflightError
+from safeembodai_core.runs.trial_files import recording_file
 
 
 @pytest.fixture
@@ -37,7 +38,7 @@ def counted(monkeypatch):
         return real_preflight(*args, **kwargs)
 
     monkeypatch.setattr(run_plan, "store_is_persistent", store)
-    monkeypatch.setattr("safeembodai_core.runner.preflight", preflight)
+    monkeypatch.setattr("safeembodai_core.runs.runner.preflight", preflight)
     return calls
 
 
@@ -147,7 +148,7 @@ def test_ablate_rerun_writes_a_recording_per_trial_as_it_ends(repo, tmp_path, ca
 
 
 def test_ablate_rerun_without_the_extra_fails_before_any_folder(repo, tmp_path, capsys, monkeypatch):
-    from safeembodai_core import rerun_export
+    from safeembodai_core.runs import rerun_recording as rerun_export
     from safeembodai_core.errors import SafeEmbodAIError
 
     def missing():
@@ -162,9 +163,9 @@ def test_ablate_rerun_without_the_extra_fails_before_any_folder(repo, tmp_path, 
 
 
 def test_resuming_a_run_that_writes_recordings_needs_the_extra_before_anything_runs(repo, tmp_path, monkeypatch):
-    from safeembodai_core import rerun_export
+    from safeembodai_core.runs import rerun_recording as rerun_export
     from safeembodai_core.errors import SafeEmbodAIError
-    from safeembodai_core.trial_files import record_artefacts
+    from safeembodai_core.runs.trial_files import record_artefacts
 
     scenario, plugins = checked_scenario(repo / "scenarios" / "quickstart.yaml", load_plugins(), ["trials=1"])
     folder = RunFolder(tmp_path / "run")

@@ -13,10 +13,10 @@ from safeembodai_core.ablation.runner_pool import RunnerPool
 from safeembodai_core.loop.response_cache import ResponseCache, stored_text
 from safeembodai_core.models import TokenUsage
 from safeembodai_core.models.reply import BackendReply
-from safeembodai_core.plugins import load_plugins
-from safeembodai_core.runner import ScenarioRunner
+from safeembodai_core.plugin.manager import load_plugins
+from safeembodai_core.runs.runner import ScenarioRunner
 from safeembodai_core.scenario import load_scenario
-from safeembodai_core.trial_files import ArtefactSettings, recording_file
+from safeembodai_core.runs.trial_files import ArtefactSettings, recording_file
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from safeembodai_core.ablation import Ablation, RunFolder
-from safeembodai_core.ablation.run_folder import RunLock
+from safeembodai_core.runs.folder import RunLock
 from safeembodai_core.scenario import load_scenario
 
 DEADLINE_S = 10.0
@@ -149,7 +149,7 @@ def test_killed_coordinator_leaves_no_process_and_resume_completes_the_run(repo,
 WORKER = textwrap.dedent("""
     import os, sys, threading
     from safeembodai_core.ablation import lifeline
-    from safeembodai_core.ablation.run_folder import hold_worker_lock
+    from safeembodai_core.runs.folder import hold_worker_lock
     if sys.argv[2] == "watchdog-only":
         lifeline._die_with_parent = lambda: None
     lifeline.bind_to_coordinator(os.getppid())
@@ -192,7 +192,7 @@ def test_a_blocked_worker_exits_when_its_coordinator_is_killed(tmp_path, how):
 
 FORKING_WORKER = textwrap.dedent("""
     import os, sys, time
-    from safeembodai_core.ablation.run_folder import hold_worker_lock
+    from safeembodai_core.runs.folder import hold_worker_lock
     hold_worker_lock(sys.argv[1])
     child = os.fork()
     if child == 0:  # the child says so itself: its at-fork handlers have run by then

@@ -53,7 +53,7 @@ def test_the_warm_up_imports_what_the_backend_needs(tmp_path, fake_server):
 @pytest.mark.slow
 def test_a_forked_worker_takes_the_coordinators_environment_when_the_run_starts(tmp_path, fake_server, monkeypatch):
     from safeembodai_core.ablation import Ablation, RunFolder
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     monkeypatch.delenv(LATE_KEY, raising=False)

@@ -13,7 +13,8 @@ from safeembodai_core.cli import cli
 
 HEAVY = ("litellm", "pybullet", "cv2", "matplotlib", "ray")
 #: not heavy, but `--help` needs none of them either (--help within 0.3 s of CPU)
-HELP_FREE = HEAVY + ("numpy", "structlog", "rich", "jinja2", "safeembodai_core.components", "safeembodai_core.models")
+HELP_FREE = HEAVY + ("numpy", "structlog", "rich", "jinja2", "safeembodai_core.contracts.components",
+                     "safeembodai_core.models")
 
 
 def test_help_imports_no_heavy_library():
@@ -113,7 +114,7 @@ def test_plugins_can_add_commands():
     import click
 
     from safeembodai_core import hookimpl
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
 
     def register_commands(cli):
         @cli.command("hello")
@@ -150,7 +151,7 @@ def test_plugins_at_a_terminal_never_breaks_an_identifier():
     from rich.console import Console
 
     from safeembodai_core.cli.plugins_cmd import render
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
 
     rows = load_plugins(environ={}).describe()
     for width in (80, 30):
@@ -167,7 +168,7 @@ def test_plugins_at_a_terminal_never_breaks_an_identifier():
 def test_run_summary_says_what_ended_an_interrupted_trial(cli_runner, repo, tmp_path, monkeypatch):
     """Even from a result without a detail (an older store, an environment that gave none): the
     collision on record in the trial's last executed step."""
-    from safeembodai_core.runner import ScenarioRunner
+    from safeembodai_core.runs.runner import ScenarioRunner
 
     run = ScenarioRunner.run
     monkeypatch.setattr(ScenarioRunner, "run", lambda self, spec: run(self, spec).model_copy(update={"detail": ""}))
@@ -187,7 +188,7 @@ def test_run_summary_says_what_ended_an_interrupted_trial(cli_runner, repo, tmp_
 
 
 def test_trial_ending_and_plural():
-    from safeembodai_core.trial_words import plural, trial_ending
+    from safeembodai_core.report.words import plural, trial_ending
     from safeembodai_core.models import Outcome, StepRecord, TrialResult, TrialSpec
     from safeembodai_core.models.observation import GroundTruth
 

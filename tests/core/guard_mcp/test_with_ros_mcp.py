@@ -116,7 +116,7 @@ class Room:
     """A served SO room, its balls parked under the floor; ``put_ball_ahead(mm)`` once the robot has driven."""
 
     def __init__(self, repo, folder):
-        from safeembodai_core.ablation.plan import checked_scenario
+        from safeembodai_core.scenario.reading import checked_scenario
         from safeembodai_core.serve_robot.session import prepare_session
 
         loaded, plugins = checked_scenario(repo / "scenarios/so.yaml")

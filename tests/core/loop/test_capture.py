@@ -6,7 +6,7 @@ import inspect
 
 import pytest
 
-from safeembodai_core.components import Environment
+from safeembodai_core.contracts.components import Environment
 from safeembodai_core.loop.capture import TrialCapture
 from safeembodai_core.testing import CorridorWorld
 
@@ -34,8 +34,8 @@ def test_a_retry_reaches_the_captured_world():
 def test_a_trial_with_every_retry_charged_replays_on_the_same_clock(repo):
     """A room with think_time_per_call, replayed for export: each retry is charged there too."""
     from safeembodai_core.loop.replay import replay_trial
-    from safeembodai_core.plugins import load_plugins
-    from safeembodai_core.runner import ScenarioRunner, trial_spec
+    from safeembodai_core.plugin.manager import load_plugins
+    from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins(environ={})

@@ -7,11 +7,11 @@ import types
 from pydantic import BaseModel, ConfigDict
 
 from safeembodai_core import hookimpl, run_guarded_trial
-from safeembodai_core.components import BackendReply, LLMBackend, Validator
+from safeembodai_core.contracts.components import BackendReply, LLMBackend, Validator
 from safeembodai_core.loop import Defences
 from safeembodai_core.loop.enforce import cut_plan
 from safeembodai_core.models import Advice, Outcome, Straight, Turn, Verdict
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.testing import CorridorWorld, answer, straight, turn
 
 ENFORCE = Defences(security_prefix=True, state_management=True, safety_validation=True,
@@ -171,7 +171,7 @@ def test_a_trial_with_enforced_steps_replays_identically():
     import pytest
 
     from safeembodai_core.loop.replay import ReplayDiverged, replay_trial
-    from safeembodai_core.runner import ScenarioRunner, trial_spec
+    from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
     from safeembodai_core.testing import inline_plugins, tiny_scenario
 
     plugins = inline_plugins()

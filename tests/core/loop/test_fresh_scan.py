@@ -15,12 +15,12 @@ import pytest
 from pydantic import BaseModel, ConfigDict
 
 from safeembodai_core import hookimpl, run_guarded_trial
-from safeembodai_core.components import Validator
+from safeembodai_core.contracts.components import Validator
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import LidarScan, Outcome, Pose, Verdict
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.testing import CorridorWorld, ReplayBackend, StagedWorld, answer, straight, turn
-from safeembodai_core.validation import PastScan, ValidationContext
+from safeembodai_core.validation.context import PastScan, ValidationContext
 
 THINK_S = 5.0
 

@@ -7,10 +7,10 @@ import types
 import pytest
 
 from safeembodai_core import BackendError, hookimpl, run_guarded_trial
-from safeembodai_core.components import BackendReply, LLMBackend
+from safeembodai_core.contracts.components import BackendReply, LLMBackend
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import ExecutionResult, Outcome, Straight, TokenUsage, Turn, Verdict
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.testing import CorridorWorld, answer, straight, turn
 
 SAFE = Defences(security_prefix=True, state_management=True, safety_validation=True)
@@ -148,7 +148,7 @@ def test_backend_failure_ends_the_trial_with_error_and_keeps_earlier_steps():
 def test_inline_third_party_validator_and_attacker_are_called_by_the_loop():
     from pydantic import BaseModel, ConfigDict
 
-    from safeembodai_core.components import Attacker, Validator
+    from safeembodai_core.contracts.components import Attacker, Validator
     from safeembodai_core.models import AttackRecord
 
     class NoOptions(BaseModel):

@@ -257,7 +257,7 @@ def _reflections() -> dict[str, str]:
 def test_a_reply_holding_the_key_in_any_encoding_is_not_kept(tmp_path, monkeypatch, how):
     from structlog.testing import capture_logs
 
-    from safeembodai_core import redaction
+    from safeembodai_core.trust import redaction
 
     monkeypatch.setattr(redaction, "_secrets", set())
     redaction.register_secret(KEY)

@@ -7,10 +7,10 @@ import types
 import pytest
 
 from safeembodai_core import BackendError, hookimpl, run_guarded_trial
-from safeembodai_core.components import Attacker, BackendReply, LLMBackend, Validator
+from safeembodai_core.contracts.components import Attacker, BackendReply, LLMBackend, Validator
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import GroundTruth, Outcome, ResponseParseError, parse_response
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.testing import CorridorWorld, ReplayBackend, answer, straight, turn
 
 GUARDED = Defences(security_prefix=True, state_management=True, safety_validation=True)
@@ -35,7 +35,7 @@ def test_a_validator_that_raises_refuses_instead_of_ending_the_trial():
             return True
 
     from safeembodai_core.models import Straight
-    from safeembodai_core.validation import ValidationContext, validate_plan
+    from safeembodai_core.validation.context import ValidationContext, validate_plan
 
     signal = Straight(command="straight", direction="forward", distance=100)
     verdicts = validate_plan([signal], ValidationContext(None), [("broken", Broken()), ("odd", NotAVerdict())])

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from safeembodai_core import run_guarded_trial
-from safeembodai_core.components import StateStore
+from safeembodai_core.contracts.components import StateStore
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import Outcome

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from safeembodai_core.ablation.plan import checked_scenario
+from safeembodai_core.scenario.reading import checked_scenario
 from safeembodai_core.errors import SafeEmbodAIError
 from safeembodai_core.loop.defences import Defences
 from safeembodai_core.mcp_agent.cells import AttackNotSupported, check, injections, route

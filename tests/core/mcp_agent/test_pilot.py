@@ -13,7 +13,7 @@ pytest.importorskip("mcp", reason="the MCP agent needs the MCP SDK: pip install 
 
 from fake_mcp_robot import FakeRobot, tools_of  # noqa: E402
 
-from safeembodai_core.building import ComponentBuilder  # noqa: E402
+from safeembodai_core.plugin.building import ComponentBuilder  # noqa: E402
 from safeembodai_core.mcp_agent.loop import AgentTask, StepInput, run_agent  # noqa: E402
 from safeembodai_core.mcp_agent.motions import Speeds  # noqa: E402
 from safeembodai_core.mcp_agent.pilot import PilotDecider, pilot_instruction, prefix_variant  # noqa: E402

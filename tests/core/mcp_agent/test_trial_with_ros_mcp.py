@@ -17,12 +17,12 @@ pytestmark = pytest.mark.slow
 
 pytest.importorskip("mcp", reason="the MCP agent needs the MCP SDK: pip install -e '.[mcp]'")
 
-from safeembodai_core.ablation.plan import checked_scenario  # noqa: E402
-from safeembodai_core.building import ComponentBuilder  # noqa: E402
+from safeembodai_core.scenario.reading import checked_scenario  # noqa: E402
+from safeembodai_core.plugin.building import ComponentBuilder  # noqa: E402
 from safeembodai_core.mcp_agent.ablation import McpAblation  # noqa: E402
 from safeembodai_core.mcp_agent.trial import run_mcp_trial  # noqa: E402
 from safeembodai_core.models import Outcome  # noqa: E402
-from safeembodai_core.runner import trial_spec  # noqa: E402
+from safeembodai_core.runs.runner import trial_spec  # noqa: E402
 from safeembodai_core.scenario import Scenario  # noqa: E402
 
 ROS_MCP = os.environ.get("SAFEEMBODAI_ROS_MCP") or shutil.which("ros-mcp")

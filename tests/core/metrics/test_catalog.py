@@ -15,7 +15,7 @@ from safeembodai_core.errors import PluginError
 from safeembodai_core.hookspecs import hookimpl
 from safeembodai_core.metrics import CellTrials, Estimate, Metric, cell_metrics, metric_catalog, wilson
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.report import write_report
 from safeembodai_core.scenario import parse_scenario
 

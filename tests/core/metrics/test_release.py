@@ -28,7 +28,7 @@ from safeembodai_core.models import (
     Turn,
     Verdict,
 )
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.report import write_report
 from safeembodai_core.report.step_facts import from_store
 from safeembodai_core.scenario import parse_scenario

@@ -25,11 +25,11 @@ from hypothesis import HealthCheck, given, settings
 from reply_strategies import bodies
 
 from safeembodai_core import Guard, run_guarded_trial
-from safeembodai_core.components import LLMBackend
+from safeembodai_core.contracts.components import LLMBackend
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import ResponseParseError, read_reply
 from safeembodai_core.models.chat_completion import reply_from_chat_completion
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.testing import CorridorWorld, answer, straight, turn
 
 PLUGINS = load_plugins(environ={})

@@ -11,9 +11,9 @@ from rich.console import Console
 from safeembodai_core.cli.summary import summary_table
 from safeembodai_core.metrics import cell_metrics
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.report import write_report
-from safeembodai_core.components import StateStore
+from safeembodai_core.contracts.components import StateStore
 from safeembodai_core.report.step_facts import from_store
 from safeembodai_core.scenario import parse_scenario
 

@@ -10,7 +10,7 @@ import math
 from safeembodai_core.ablation import Ablation, RunFolder
 from safeembodai_core.report import write_report
 from safeembodai_core.scenario import load_scenario
-from safeembodai_core.text_safety import csv_cell, json_ready
+from safeembodai_core.trust.text import csv_cell, json_ready
 
 
 def test_csv_cells_that_start_like_a_formula_are_text_numbers_stay_numbers():

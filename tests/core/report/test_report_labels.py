@@ -12,7 +12,7 @@ from matplotlib.colors import to_rgba
 
 from safeembodai_core.metrics import cell_metrics
 from safeembodai_core.models import Outcome, TrialResult, TrialSpec
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.report import write_report
 from safeembodai_core.report.figures import draw_figures, figures, metric_figure
 from safeembodai_core.report.run_info import run_info
@@ -185,15 +185,16 @@ def test_an_empty_panel_says_there_is_nothing_to_estimate():
 
 def test_the_report_names_no_plugin_a_backend_describes_itself(repo):
     """The report's words on a backend come from the backend (its options' ``describe``): the report's
-    module lists no backend's name, option or route."""
-    source = (repo / "safeembodai_core" / "report" / "run_info.py").read_text(encoding="utf-8")
+    module and the scenario's describing module list no backend's name, option or route."""
+    source = "\n".join((repo / "safeembodai_core" / folder / name).read_text(encoding="utf-8")
+                        for folder, name in (("report", "run_info.py"), ("scenario", "describe.py")))
     for plugin_word in ('"mock"', '"scripted"', '"gpt-4o"', '"litellm"', "flag_injection_p", '"openai"'):
         assert plugin_word not in source, plugin_word
 
 
 def test_a_backend_that_cannot_describe_itself_is_never_taken_for_an_llm(repo, plugins):
-    from safeembodai_core.refs import ComponentRef
-    from safeembodai_core.report.run_info import describe_ref
+    from safeembodai_core.plugin.refs import ComponentRef
+    from safeembodai_core.scenario.describe import describe_ref
 
     gone = describe_ref(ComponentRef(use="a-backend-uninstalled-since", options={"model": "x"}), plugins)
     assert gone.model == "x" and "not known to be an LLM" in gone.simulated
@@ -203,9 +204,10 @@ def test_a_backend_that_cannot_describe_itself_is_never_taken_for_an_llm(repo, p
 
 def test_a_backend_name_from_a_run_folder_reaches_the_report_as_text(plugins, tmp_path):
     """The banner of a backend that cannot describe itself names it: escaped for Markdown and the terminal."""
-    from safeembodai_core.refs import ComponentRef
+    from safeembodai_core.plugin.refs import ComponentRef
     from safeembodai_core.report.markdown import header
-    from safeembodai_core.report.run_info import RunInfo, describe_ref
+    from safeembodai_core.report.run_info import RunInfo
+    from safeembodai_core.scenario.describe import describe_ref
 
     hostile = ComponentRef(use="x<img src=x onerror=alert(1)>![p](http://evil/p.png)\x1b[2J\u202e",
                            options={"model": "m\x1b]8;;"})
@@ -224,10 +226,10 @@ def test_a_backend_name_from_a_run_folder_reaches_the_report_as_text(plugins, tm
 
 
 def test_a_describe_that_fails_is_a_backend_not_known_to_be_an_llm(plugins):
-    from safeembodai_core.descriptions import BackendOptions
+    from safeembodai_core.contracts.descriptions import BackendOptions
     from safeembodai_core.hookspecs import hookimpl
-    from safeembodai_core.refs import ComponentRef
-    from safeembodai_core.report.run_info import describe_ref
+    from safeembodai_core.plugin.refs import ComponentRef
+    from safeembodai_core.scenario.describe import describe_ref
     from safeembodai_core.testing import inline_plugins
 
     class Broken(BackendOptions):
@@ -260,9 +262,9 @@ def test_an_option_value_that_is_not_a_number_prints_as_text_and_flatland_names_
 
 
 def test_an_environment_whose_describe_fails_lists_no_clock_and_the_report_goes_on():
-    from safeembodai_core.descriptions import EnvironmentOptions
+    from safeembodai_core.contracts.descriptions import EnvironmentOptions
     from safeembodai_core.hookspecs import hookimpl
-    from safeembodai_core.report.run_info import describe_environments
+    from safeembodai_core.scenario.describe import describe_environments
     from safeembodai_core.scenario import parse_scenario
     from safeembodai_core.testing import CorridorWorld, inline_plugins
 

@@ -13,7 +13,7 @@ import pytest
 
 from safeembodai_core.cli import cli
 from safeembodai_core.ros.bag_export import TOPICS
-from safeembodai_core.runner import bag_file
+from safeembodai_core.runs.runner import bag_file
 
 pytest.importorskip("mcap_ros2", reason="the dev extra's independent MCAP reader (pip install -e '.[dev]')")
 

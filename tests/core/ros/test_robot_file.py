@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from safeembodai_core import Guard
-from safeembodai_core.robot import RobotSpec
+from safeembodai_core.contracts.robot import RobotSpec
 from safeembodai_core.ros import LaserScan, SensorMount, Twist, read_robot_file
 from safeembodai_core.ros.robot_file import RobotFileError, parse_robot_file
 

@@ -71,7 +71,7 @@ def test_the_cli_prints_the_suggestion(repo):
 def test_names_that_would_give_two_trials_one_file_name_are_refused(tmp_path, plugins, arms, conditions):
     """A trial's picture and bag are named by its cell's names joined with '__'
     (run_files.trial_file_name): names that could join into another cell's are refused, naming it."""
-    from safeembodai_core.run_files import trial_file_name
+    from safeembodai_core.runs.files import trial_file_name
 
     path = tmp_path / "clash.yaml"
     path.write_text(f"name: clash\nenvironments: [MO]\narms: {arms}\nconditions: {conditions}\n")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from safeembodai_core.errors import ScenarioError
-from safeembodai_core.runner import ScenarioRunner, trial_seed
+from safeembodai_core.runs.runner import ScenarioRunner, trial_seed
 from safeembodai_core.scenario import load_scenario, parse_scenario
 
 GOOD = """\

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from safeembodai_core.ablation.run_folder import RunFolder
+from safeembodai_core.runs.folder import RunFolder
 from safeembodai_core.errors import ScenarioError
 from safeembodai_core.metrics import MetricSettings
 from safeembodai_core.scenario import load_scenario, parse_scenario

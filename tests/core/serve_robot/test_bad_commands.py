@@ -90,7 +90,7 @@ def test_a_bad_command_gets_a_status_error_and_the_robot_stops(serve_robot, kind
     assert result.distance_mm <= 0.1 * 1000 * (0.5 + 0.1)  # at most the good command's hold
 
 
-def test_an_absurd_but_finite_command_is_driven_at_the_bases_limits_and_said_so(serve_robot):
+def test_an_absurd_but_finite_command_is_driven_at_the_bases_limits_and_said_so(serve_robot, run_store, plugins):
     session = serve_robot("scenarios/of.yaml")
     url = f"ws://127.0.0.1:{session.port}"
     replies = asyncio.run(exchange(url, [twist_frame(1.7e308, -1e308)], 0.8))
@@ -99,7 +99,9 @@ def test_an_absurd_but_finite_command_is_driven_at_the_bases_limits_and_said_so(
     deadline = time.monotonic() + 10
     while session.room.record.result is None and time.monotonic() < deadline:
         time.sleep(0.02)
-    [step] = session.room.record.store.steps(session.room.record.spec.trial_id)
+    record = session.room.record
+    with run_store(record.scenario, plugins, record.path) as store:  # the session closes its own once it ends
+        [step] = store.steps(record.spec.trial_id)
     assert step.accepted and "linear.x 1.7e+308 m/s, angular.z -1e+308 rad/s" in step.instruction
     [executed] = step.executed
     assert "base's limits" in executed.result.detail or executed.result.collided

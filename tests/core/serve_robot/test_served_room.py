@@ -11,7 +11,7 @@ from collections import Counter
 
 import pytest
 
-from safeembodai_core.ablation.plan import checked_scenario
+from safeembodai_core.scenario.reading import checked_scenario
 from safeembodai_core.cli import cli
 from safeembodai_core.serve_robot.served_room import Rates, ServedRoom
 from safeembodai_core.serve_robot.session import prepare_session

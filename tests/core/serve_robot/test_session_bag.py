@@ -16,7 +16,7 @@ import pytest
 
 from safeembodai_core.cli import cli
 from safeembodai_core.serve_robot.session_bag import TOPICS
-from safeembodai_core.trial_files import bag_file
+from safeembodai_core.runs.trial_files import bag_file
 
 pytest.importorskip("mcap_ros2", reason="the dev extra's independent MCAP reader (pip install -e '.[dev]')")
 
@@ -30,7 +30,7 @@ def twist(x, z):
 
 def serve(repo, out, bag="mcap"):
     """A session of the obstacle-free room in its own thread (as ``serve-robot`` runs it): (session, thread)."""
-    from safeembodai_core.ablation.plan import checked_scenario
+    from safeembodai_core.scenario.reading import checked_scenario
     from safeembodai_core.serve_robot.session import prepare_session
 
     scenario, plugins = checked_scenario(repo / "scenarios/of.yaml")

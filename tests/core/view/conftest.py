@@ -17,7 +17,7 @@ HOSTILE = ("<script>window.__pwned = 1</script><img src=x onerror=\"window.__pwn
 
 def run_into(path: Path, scenario_file: Path, overrides: list[str]) -> Path:
     from safeembodai_core.ablation import Ablation, RunFolder
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins(environ={})

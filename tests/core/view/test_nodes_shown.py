@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from safeembodai_core.ablation import Ablation, RunFolder
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.report import write_report
 from safeembodai_core.report.markdown import nodes
 from safeembodai_core.scenario import load_scenario

@@ -38,7 +38,7 @@ def test_an_answer_that_did_not_parse_draws_no_path():
 
 def test_a_trial_page_shows_each_steps_plans_picture(repo, tmp_path):
     from safeembodai_core.ablation import Ablation, RunFolder
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
     from safeembodai_core.view.site import build_site
 
@@ -56,3 +56,20 @@ def test_a_trial_page_shows_each_steps_plans_picture(repo, tmp_path):
     assert pages and pictures
     assert all('class="plans"' in page.read_text(encoding="utf-8") for page in pages)
     assert all(p.read_text(encoding="utf-8").startswith("<svg") for p in pictures)
+
+
+def test_the_points_drawn_at_once_read_as_one_at_a_time_would():
+    """The SVG's coordinates, computed all at once (issue 50: the dots were most of view's own time),
+    are the same text a float64's ``round`` of each point gave: halves, negative zero, far points."""
+    import numpy as np
+
+    from safeembodai_core.view.plan_picture import SIZE_PX, _screen
+
+    rng = np.random.default_rng(50)
+    points = np.concatenate([rng.uniform(-6000, 6000, (4000, 2)), np.arange(-800, 800).reshape(-1, 2) / 40,
+                             [[0.0, -0.0], [1e-9, -1e-9], [1800.0, -1800.0]]])
+    for scale in (SIZE_PX / 3000, SIZE_PX / 5000, SIZE_PX / (2 * 1733.3)):
+        one_at_a_time = [f"{round(SIZE_PX / 2 - p[1] * scale, 1)},{round(SIZE_PX / 2 - p[0] * scale, 1)}"
+                         for p in points]
+        assert [f"{x},{y}" for x, y in _screen(points, scale)] == one_at_a_time
+    assert _screen(np.zeros((0, 2)), 0.1) == [] and _screen(np.array([]), 0.1) == []

@@ -39,7 +39,7 @@ def make_run(folder: Path, steps: int = 3, scenario: Path = REPO / "scenarios" /
 
     from safeembodai_core.ablation import Ablation, RunFolder
     from safeembodai_core.cli import cli
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     plugins = load_plugins(environ={})

@@ -22,9 +22,9 @@ import pytest
 from safeembodai_core.ablation import Ablation, RunFolder
 from safeembodai_core.cli import cli
 from safeembodai_core.errors import SafeEmbodAIError
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.scenario import load_scenario
-from safeembodai_core.trial_files import recording_file
+from safeembodai_core.runs.trial_files import recording_file
 from safeembodai_core.view import rerun_viewer
 from safeembodai_core.view.files import safe_name
 from safeembodai_core.view.serve import SiteServer

@@ -8,7 +8,7 @@ import threading
 
 import pytest
 
-from safeembodai_core.ablation.run_folder import COORDINATOR_LOCK
+from safeembodai_core.runs.folder import COORDINATOR_LOCK
 from safeembodai_core.view.runs import running
 
 

@@ -144,3 +144,41 @@ def test_a_malformed_request_line_gets_its_status(site, capsys, request_line, ex
     finally:
         server.stop()
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_silent_connection_is_closed_after_the_request_timeout(site, monkeypatch):
+    from safeembodai_core.view import serve
+
+    monkeypatch.setattr(serve._Handler, "timeout", 0.5)
+    server = served(site)
+    try:
+        port = server.httpd.server_address[1]
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as silent:
+            silent.sendall(b"GET /index.html HTTP/1.1\r\n")  # and never the end of the headers
+            assert silent.recv(1024) == b""  # closed by the server, not by this test's timeout
+    finally:
+        server.stop()
+
+
+def test_connections_beyond_the_cap_are_closed_and_the_server_serves_on(site, monkeypatch):
+    from safeembodai_core.view import serve
+
+    monkeypatch.setattr(serve, "MAX_CONNECTIONS", 4)
+    server = served(site)
+    port = server.httpd.server_address[1]
+    held = [socket.create_connection(("127.0.0.1", port), timeout=10) for _ in range(4)]
+    try:
+        for sock in held:
+            sock.sendall(b"GET /index.html HTTP/1.1\r\n")  # held open, each by a thread of the server
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as extra:
+            extra.sendall(b"GET /index.html HTTP/1.0\r\nHost: 127.0.0.1:%d\r\n\r\n" % port)
+            assert extra.recv(1024) == b""  # no thread for it: closed unanswered
+    finally:
+        for sock in held:
+            sock.close()
+    for _ in range(50):  # the held threads see their clients gone and give their slots back
+        answer = exchange(server, b"GET /index.html HTTP/1.0\r\nHost: 127.0.0.1:%d\r\n\r\n" % port)
+        if answer.startswith(b"HTTP/1.0 200"):
+            break
+    server.stop()
+    assert answer.startswith(b"HTTP/1.0 200"), answer[:80]

@@ -176,7 +176,7 @@ def test_a_broken_run_folder_gets_a_row_with_its_error_and_hides_nothing(runs_di
 
 
 def test_status_says_running_interrupted_or_finished(runs_dir, tmp_path):
-    from safeembodai_core.ablation.run_folder import RunLock
+    from safeembodai_core.runs.folder import RunLock
     from safeembodai_core.view.runs import running
 
     folder = tmp_path / "hostile"
@@ -203,7 +203,7 @@ def test_pages_shared_with_a_helper_process_are_the_pages_rendered_here(repo, tm
     """``view`` builds with ``parallel``: a spawned helper renders a share of a run's trial pages
     with the installed plugins and a runner of its own; the site is the same, byte for byte."""
     from safeembodai_core.ablation import Ablation, RunFolder
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
     from safeembodai_core.view import site as site_module
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from safeembodai_core.ablation import Ablation, RunFolder
 from safeembodai_core.cli import cli
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.scenario import load_scenario
 from safeembodai_core.view.site import build_site
 

@@ -63,8 +63,9 @@ def test_the_attacker_streams_are_drawn_in_one_place(repo):
                for folder in ("safeembodai_core", "plugins") for path in (repo / folder).rglob("*.py")
                if re.search(r"""^\s*[^#\s`].*\brng\([^)]*["']attacker["']""", path.read_text(encoding="utf-8"), re.M)
                and path.name != "seeds.py"]  # seeds.py's docstring shows the call as an example
-    assert written == ["safeembodai_core/attacks.py"]
+    assert written == ["safeembodai_core/contracts/attack_schedule.py"]
     users = [path.relative_to(repo).as_posix() for path in (repo / "safeembodai_core").rglob("*.py")
              if "run_attackers(" in path.read_text(encoding="utf-8")]
-    assert sorted(users) == ["safeembodai_core/attacks.py", "safeembodai_core/integrations/gym/env.py",
-                             "safeembodai_core/loop/fresh_scan.py", "safeembodai_core/loop/trial.py"]
+    assert sorted(users) == ["safeembodai_core/contracts/attack_schedule.py",
+                             "safeembodai_core/integrations/gym/env.py", "safeembodai_core/loop/fresh_scan.py",
+                             "safeembodai_core/loop/trial.py"]

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from safeembodai_core import seeds
-from safeembodai_core.components import AttackSurface
+from safeembodai_core.contracts.components import AttackSurface
 from safeembodai_core.models import GroundTruth, LidarScan, Observation, Outcome, Straight
-from safeembodai_core.registry import ComponentOptionsError
+from safeembodai_core.plugin.registry import ComponentOptionsError
 from safeembodai_core.testing import answer, run_tiny_trial, straight
-from safeembodai_core.validation import ValidationContext
+from safeembodai_core.validation.context import ValidationContext
 
 
 def wall_scan(distance: float = 500.0) -> LidarScan:

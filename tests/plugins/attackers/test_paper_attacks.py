@@ -8,8 +8,8 @@ from collections import Counter
 
 import pytest
 
-from safeembodai_core.registry import ComponentOptionsError
-from safeembodai_core.runner import ScenarioRunner
+from safeembodai_core.plugin.registry import ComponentOptionsError
+from safeembodai_core.runs.runner import ScenarioRunner
 from safeembodai_core.scenario import load_scenario
 from safeembodai_plugins.attackers.library import KIND_GROUPS, PAPER_KINDS, PAPER_SOURCES, PAYLOADS
 from safeembodai_plugins.attackers.poisoning import KINDS as FORGERIES

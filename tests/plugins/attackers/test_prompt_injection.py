@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from safeembodai_core import seeds
-from safeembodai_core.components import AttackSurface
+from safeembodai_core.contracts.components import AttackSurface
 from safeembodai_core.models import GroundTruth, Observation
-from safeembodai_core.registry import ComponentOptionsError
+from safeembodai_core.plugin.registry import ComponentOptionsError
 from safeembodai_core.testing import answer, run_tiny_trial, tiny_scenario, turn
 from safeembodai_plugins.attackers.library import PAPER_KINDS, PAYLOADS
 

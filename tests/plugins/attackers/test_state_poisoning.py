@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from safeembodai_core import seeds
-from safeembodai_core.components import AttackSurface
+from safeembodai_core.contracts.components import AttackSurface
 from safeembodai_core.models import ExecutedSignal, ExecutionResult, Observation, ReferenceState, Straight, Turn
-from safeembodai_core.registry import ComponentOptionsError
+from safeembodai_core.plugin.registry import ComponentOptionsError
 from safeembodai_core.testing import answer, straight, tiny_scenario, turn
 
 

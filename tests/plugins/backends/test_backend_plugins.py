@@ -20,7 +20,7 @@ def test_registering_and_running_the_mock_with_estimated_tokens_never_imports_li
     out = _run("""
         import sys
         import numpy as np
-        from safeembodai_core.plugins import load_plugins
+        from safeembodai_core.plugin.manager import load_plugins
         from safeembodai_core.models import Prompt, TextPart
         plugins = load_plugins(environ={})
         names = plugins.registry.names("llm_backend")
@@ -37,7 +37,7 @@ def test_building_a_litellm_backend_imports_it_configured_for_offline_use():
     out = _run("""
         import os, sys, logging
         os.environ["K"] = "sk-x"
-        from safeembodai_core.plugins import load_plugins
+        from safeembodai_core.plugin.manager import load_plugins
         plugins = load_plugins(environ={})
         assert "litellm" not in sys.modules
         plugins.registry.build("llm_backend", "gpt-4o", {"api_key_env": "K"})

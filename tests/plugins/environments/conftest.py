@@ -14,7 +14,7 @@ from safeembodai_core.models import Straight, Turn
 
 @pytest.fixture(scope="session")
 def registry():
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
 
     return load_plugins(environ={}).registry
 

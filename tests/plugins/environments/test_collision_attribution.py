@@ -11,7 +11,7 @@ import pytest
 from safeembodai_core import run_guarded_trial
 from safeembodai_core.loop import Defences
 from safeembodai_core.models import ExecutionResult, Outcome, TrialResult, TrialSpec
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 from safeembodai_core.testing import ReplayBackend, StagedWorld, answer, straight, turn
 
 

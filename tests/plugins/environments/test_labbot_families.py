@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from safeembodai_core.models import Outcome, Straight, Turn
-from safeembodai_core.registry import ComponentOptionsError
+from safeembodai_core.plugin.registry import ComponentOptionsError
 from safeembodai_plugins.environments.pybullet_rooms.labbots import TICK_S, LabbotSwarm
 from safeembodai_plugins.environments.pybullet_rooms.movers import (
     FAMILIES, MIXED, Mover, MoverFamily, disjoint, family, world_report,

@@ -74,7 +74,7 @@ def test_another_process_sees_the_same_trial(make_env):
         "spec = importlib.util.spec_from_file_location('determinism', sys.argv[1])",
         "test = importlib.util.module_from_spec(spec)",
         "spec.loader.exec_module(test)",
-        "from safeembodai_core.plugins import load_plugins",
+        "from safeembodai_core.plugin.manager import load_plugins",
         "env = load_plugins(environ={}).registry.build('environment', 'MO', test.OPTIONS)",
         "print(test.digest(test.record(env, 11)))",
         "env.close()",

@@ -182,7 +182,7 @@ def test_labbots_depend_on_simulated_time_only_not_on_how_commands_are_split():
     import numpy as np
 
     from safeembodai_core.models import Turn
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
 
     registry = load_plugins(environ={}).registry
 

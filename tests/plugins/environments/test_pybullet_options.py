@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from safeembodai_core.registry import ComponentOptionsError
+from safeembodai_core.plugin.registry import ComponentOptionsError
 
 KINDS = ("OF", "SO", "DO", "MO")
 

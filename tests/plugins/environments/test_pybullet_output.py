@@ -52,7 +52,7 @@ def test_silenced_swallows_c_level_writes_even_when_buffered():
 
 
 def test_a_fresh_process_prints_nothing_not_even_the_build_banner():
-    code = ("from safeembodai_core.plugins import load_plugins; "
+    code = ("from safeembodai_core.plugin.manager import load_plugins; "
             "env = load_plugins(environ={}).registry.build('environment', 'SO', {}); env.reset(1); env.close()")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout == "" and done.stderr == ""
@@ -84,7 +84,7 @@ def test_trajectory_picture_shows_room_path_and_outcome(make_env, moves):
 
 
 def test_tiny_scenario_runs_end_to_end_on_MO_and_draws_its_trajectory(tmp_path):
-    from safeembodai_core.runner import ScenarioRunner, trial_spec
+    from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
     from safeembodai_core.testing import inline_plugins
 
     plugins = inline_plugins()

@@ -11,10 +11,10 @@ from safeembodai_plugins.environments.pybullet_rooms.picture import SIZE_PX
 from safeembodai_plugins.environments.topdown import TopDownScene, key_entries, key_height
 
 from safeembodai_core.models import Outcome, TrialSpec
-from safeembodai_core.refs import ComponentRef
-from safeembodai_core.report.captions import caption_lines, captioned
-from safeembodai_core.report.run_info import describe_ref
-from safeembodai_core.runner import ScenarioRunner, trial_spec
+from safeembodai_core.plugin.refs import ComponentRef
+from safeembodai_core.runs.captions import caption_lines, captioned
+from safeembodai_core.scenario.describe import describe_ref
+from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
 from safeembodai_core.testing import answer, inline_plugins, straight, tiny_scenario, turn
 
 ALWAYS = ["robot's path", "start", "robot at the end", "can (target), reach circle"]

@@ -13,7 +13,7 @@ import pytest
 
 from safeembodai_core.errors import ComponentError
 from safeembodai_core.models import ImagePart, Modalities, PromptRequest
-from safeembodai_core.registry import ComponentOptionsError
+from safeembodai_core.plugin.registry import ComponentOptionsError
 from safeembodai_prompts import TEMPLATE_DIR
 from safeembodai_plugins.attackers.library import PAYLOADS
 from safeembodai_plugins.prompting.templates import PromptTemplateError

@@ -11,7 +11,7 @@ import textwrap
 
 import pytest
 
-from safeembodai_core.components import BuildContext
+from safeembodai_core.contracts.components import BuildContext
 from safeembodai_core.errors import StateStoreError
 from safeembodai_core.models import Outcome, StepRecord, TrialResult
 from safeembodai_core.testing import answer, run_tiny_trial, turn

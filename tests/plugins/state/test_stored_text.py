@@ -16,9 +16,10 @@ import pytest
 import yaml
 from pydantic import BaseModel, ConfigDict
 
-from safeembodai_core import hookimpl, redaction
+from safeembodai_core import hookimpl
+from safeembodai_core.trust import redaction
 from safeembodai_core.cli import cli
-from safeembodai_core.components import Attacker, BackendReply, LLMBackend
+from safeembodai_core.contracts.components import Attacker, BackendReply, LLMBackend
 from safeembodai_core.models import (
     Attempt,
     AttackRecord,
@@ -32,7 +33,7 @@ from safeembodai_core.models import (
     TrialSpec,
 )
 from safeembodai_core.testing import answer, run_tiny_trial, straight, turn
-from safeembodai_core.text_safety import SQLITE_MAX_INT, storable, terminal_markup, terminal_text
+from safeembodai_core.trust.text import SQLITE_MAX_INT, storable, terminal_markup, terminal_text
 from safeembodai_plugins.state.sqlite_db import SqliteStateStore
 
 TRIAL = "flatland/arm/condition/0"

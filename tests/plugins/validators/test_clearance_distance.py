@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from safeembodai_core.components import RobotSpec
-from safeembodai_core.registry import ComponentOptionsError
-from safeembodai_core.validation import ValidationContext, validate_plan
+from safeembodai_core.contracts.components import RobotSpec
+from safeembodai_core.plugin.registry import ComponentOptionsError
+from safeembodai_core.validation.context import ValidationContext, validate_plan
 
 from .test_rules import fwd, left, scan
 

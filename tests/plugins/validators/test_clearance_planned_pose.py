@@ -17,9 +17,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from safeembodai_core.components import RobotSpec
+from safeembodai_core.contracts.components import RobotSpec
 from safeembodai_core.models import LidarScan, Straight, Turn
-from safeembodai_core.validation import ValidationContext, validate_plan
+from safeembodai_core.validation.context import ValidationContext, validate_plan
 from safeembodai_plugins.environments.flatland import FlatlandOptions
 from safeembodai_plugins.environments.flatland.world import FlatlandWorld
 from safeembodai_plugins.validators import LidarClearanceOptions

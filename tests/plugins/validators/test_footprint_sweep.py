@@ -9,12 +9,12 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from safeembodai_core.components import RobotSpec
+from safeembodai_core.contracts.components import RobotSpec
 from safeembodai_core.errors import EnvironmentError_
 from safeembodai_core.hookspecs import hookimpl
 from safeembodai_core.models import Outcome, Straight, Turn
 from safeembodai_core.testing import CorridorWorld, answer, run_tiny_trial, straight
-from safeembodai_core.validation import ValidationContext, validate_plan
+from safeembodai_core.validation.context import ValidationContext, validate_plan
 
 from .test_rules import back, context, fwd, left, scan
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from safeembodai_core.models import ControlLimits, LidarScan, Straight, Turn
-from safeembodai_core.validation import ValidationContext, validate_plan
+from safeembodai_core.validation.context import ValidationContext, validate_plan
 
 
 def fwd(d: float) -> Straight:
@@ -143,7 +143,7 @@ def test_malformed_scans_are_refused_with_the_rule_named(rule, name):
 
 
 def test_rule_options_are_checked(plugins):
-    from safeembodai_core.registry import ComponentOptionsError
+    from safeembodai_core.plugin.registry import ComponentOptionsError
 
     with pytest.raises(ComponentOptionsError, match="half_angle_deg"):
         plugins.registry.build("validator", "lidar_clearance", {"half_angle_deg": 120})

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from safeembodai_core.components import RobotSpec
+from safeembodai_core.contracts.components import RobotSpec
 from safeembodai_core.models import LidarScan, Straight, Turn
-from safeembodai_core.validation import ValidationContext, validate_plan
+from safeembodai_core.validation.context import ValidationContext, validate_plan
 from safeembodai_plugins.environments.flatland import FlatlandOptions
 from safeembodai_plugins.environments.flatland.world import FlatlandWorld
 from safeembodai_plugins.validators import FootprintSweepOptions, LidarClearanceOptions

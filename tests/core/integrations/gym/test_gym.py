@@ -21,7 +21,7 @@ from gymnasium.utils.env_checker import check_env  # noqa: E402
 from safeembodai_core import Validator  # noqa: E402
 from safeembodai_core.gym import ENV_IDS, SafeEmbodAIGuard, default_scenario  # noqa: E402
 from safeembodai_core.models import ResponseParseError, Verdict, parse_response  # noqa: E402
-from safeembodai_core.refs import ComponentRef  # noqa: E402
+from safeembodai_core.plugin.refs import ComponentRef  # noqa: E402
 from safeembodai_core.scenario import load_scenario  # noqa: E402
 
 #: Episodes of the random-agent test; docs/gymnasium.md records a run of 200.
@@ -282,8 +282,8 @@ def test_a_fresh_scan_arm_gets_the_loops_verdicts_under_the_guard(repo, index, p
     trials differs). ``per_call``: the room charges every retry's call a think time, the env's world
     too (each step starts at the loop's clock)."""
     from safeembodai_core.gym import SafeEmbodAIEnv
-    from safeembodai_core.plugins import load_plugins
-    from safeembodai_core.runner import ScenarioRunner, trial_spec
+    from safeembodai_core.plugin.manager import load_plugins
+    from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
 
     plugins = load_plugins(environ={})
     charged = ["environments.0.options.think_time_per_call=true"] if per_call else []

@@ -8,7 +8,7 @@ import pytest
 gymnasium = pytest.importorskip("gymnasium", reason='pip install -e ".[gym]"')
 
 from safeembodai_core.gym import SafeEmbodAIEnv, SafeEmbodAIGuard  # noqa: E402
-from safeembodai_core.runner import ScenarioRunner, trial_spec  # noqa: E402
+from safeembodai_core.runs.runner import ScenarioRunner, trial_spec  # noqa: E402
 from safeembodai_core.scenario import load_scenario  # noqa: E402
 from safeembodai_core.testing import answer, inline_plugins, straight, tiny_scenario, turn  # noqa: E402
 

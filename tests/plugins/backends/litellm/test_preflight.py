@@ -10,9 +10,9 @@ import yaml
 from fake_openai import FakeOpenAI, Status
 from safeembodai_core import hookimpl
 from safeembodai_core.cli import main
-from safeembodai_core.components import BackendReply
-from safeembodai_core.plugins import load_plugins
-from safeembodai_core.runner import PreflightError, preflight
+from safeembodai_core.contracts.components import BackendReply
+from safeembodai_core.plugin.manager import load_plugins
+from safeembodai_core.runs.runner import PreflightError, preflight
 from safeembodai_core.scenario import parse_scenario
 from safeembodai_core.testing import answer, turn
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 import safeembodai_core.loop.guarded_step as guarded_step
-from safeembodai_core.runner import ScenarioRunner, trial_spec
+from safeembodai_core.runs.runner import ScenarioRunner, trial_spec
 from safeembodai_core.scenario import load_scenario
 from safeembodai_core.testing import inline_plugins, tiny_scenario
 

@@ -6,7 +6,7 @@ import pytest
 import yaml
 
 from safeembodai_core.models import Outcome
-from safeembodai_core.runner import ScenarioRunner
+from safeembodai_core.runs.runner import ScenarioRunner
 from safeembodai_core.scenario import parse_scenario
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from safeembodai_core.errors import BackendError
-from safeembodai_core.plugins import load_plugins
+from safeembodai_core.plugin.manager import load_plugins
 
 
 def test_it_says_who_drove_and_never_answers_a_prompt():

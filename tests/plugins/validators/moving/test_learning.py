@@ -144,7 +144,7 @@ def test_the_shipped_options_of_the_moving_arm_name_nothing_of_the_labbots():
     of the rooms' Labbots; it learns them, or assumes its own priors."""
     import yaml
 
-    from safeembodai_core.world_private import private_fields
+    from safeembodai_core.trust.world_private import private_fields
 
     scenario = yaml.safe_load((Path(__file__).resolve().parents[4] / "scenarios" / "movers.yaml").read_text())
     [rule_ref] = [v for v in scenario["arms"]["moving"]["validators"] if isinstance(v, dict)]

@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from safeembodai_core.models import Pose, Straight, Turn
-from safeembodai_core.validation import PastScan, ValidationContext, validate_plan
+from safeembodai_core.validation.context import PastScan, ValidationContext, validate_plan
 from safeembodai_plugins.validators import MovingObstaclesOptions
 from safeembodai_plugins.validators.moving import MovingObstaclesRule
 
@@ -179,7 +179,7 @@ def _body_at(plan, pose: Pose, when: float, options: MovingObstaclesOptions) -> 
 
 @functools.cache
 def _shipped(path: str = "scenarios/dynamic.yaml", arm: str = "told") -> dict:
-    from safeembodai_core.plugins import load_plugins
+    from safeembodai_core.plugin.manager import load_plugins
     from safeembodai_core.scenario import load_scenario
 
     root = Path(__file__).resolve().parents[4]
