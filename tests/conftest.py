@@ -205,3 +205,22 @@ def moving_bag_run(tmp_path_factory):
     finally:
         ablation.close()
     return scenario, folder / "run", results, steps
+
+
+#: ros-mcp (PyPI, unchanged) from a virtual environment of its own: its opencv-python would overwrite our
+#: opencv-python-headless (both are cv2); .ci/run builds it and names its script in SAFEEMBODAI_ROS_MCP
+ROS_MCP_INSTALL = ("ros-mcp runs from a virtual environment of its own: python -m venv ros-mcp-venv && "
+                   "ros-mcp-venv/bin/pip install ros-mcp==3.1.2, then SAFEEMBODAI_ROS_MCP=ros-mcp-venv/bin/ros-mcp")
+
+
+@pytest.fixture(scope="session")
+def ros_mcp_script():
+    """The ros-mcp console script (``SAFEEMBODAI_ROS_MCP``, else ``ros-mcp`` on the PATH); the test skips, saying
+    how to install it, without one."""
+    import shutil
+
+    script = os.environ.get("SAFEEMBODAI_ROS_MCP") or shutil.which("ros-mcp")
+    if script is None:
+        pytest.skip(f"ros-mcp is not installed: {ROS_MCP_INSTALL}")
+    assert Path(script).is_file(), f"SAFEEMBODAI_ROS_MCP={script} is no file: {ROS_MCP_INSTALL}"
+    return script

@@ -17,8 +17,6 @@ import asyncio
 import contextlib
 import json
 import math
-import os
-import shutil
 import socket
 import subprocess
 import sys
@@ -34,9 +32,6 @@ pytestmark = pytest.mark.slow
 mcp = pytest.importorskip("mcp", reason="the MCP SDK comes with the mcp extra: pip install -e '.[mcp]'")
 from mcp.client.stdio import StdioServerParameters, get_default_environment, stdio_client  # noqa: E402
 
-ROS_MCP = os.environ.get("SAFEEMBODAI_ROS_MCP") or shutil.which("ros-mcp")
-INSTALL = ("ros-mcp runs from a virtual environment of its own: python -m venv ros-mcp-venv && "
-           "ros-mcp-venv/bin/pip install ros-mcp==3.1.2, then SAFEEMBODAI_ROS_MCP=ros-mcp-venv/bin/ros-mcp")
 TWIST = "geometry_msgs/msg/Twist"
 SAFEEMBODAI = [sys.executable, "-m", "safeembodai_core"]
 ENVIRONMENT = {**get_default_environment(), "FASTMCP_CHECK_FOR_UPDATES": "off", "FASTMCP_SHOW_CLI_BANNER": "false",
@@ -160,12 +155,6 @@ class Room:
         self.thread.join(30)
 
 
-@pytest.fixture(scope="module")
-def ros_mcp_script():
-    if ROS_MCP is None:
-        pytest.skip(f"ros-mcp is not installed: {INSTALL}")
-    assert Path(ROS_MCP).is_file(), f"SAFEEMBODAI_ROS_MCP={ROS_MCP} is no file: {INSTALL}"
-    return ROS_MCP
 
 
 @pytest.fixture(scope="module")

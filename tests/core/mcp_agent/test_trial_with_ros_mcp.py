@@ -6,9 +6,6 @@ shows, and the run folder is what ``safeembodai report`` reads."""
 
 from __future__ import annotations
 
-import os
-import shutil
-from pathlib import Path
 
 import pytest
 import yaml
@@ -25,20 +22,11 @@ from safeembodai_core.models import Outcome  # noqa: E402
 from safeembodai_core.runs.runner import trial_spec  # noqa: E402
 from safeembodai_core.scenario import Scenario  # noqa: E402
 
-ROS_MCP = os.environ.get("SAFEEMBODAI_ROS_MCP") or shutil.which("ros-mcp")
-INSTALL = ("ros-mcp runs from a virtual environment of its own: python -m venv ros-mcp-venv && "
-           "ros-mcp-venv/bin/pip install ros-mcp==3.1.2, then SAFEEMBODAI_ROS_MCP=ros-mcp-venv/bin/ros-mcp")
 CHARGE = {"perception": [{"input": "human_instruction", "result": "go", "is_attack": False}],
           "planning": "straight ahead", "control": [{"command": "straight", "direction": "forward", "distance": 399,
                                                       "justification": "ahead"}] * 2}
 
 
-@pytest.fixture(scope="module")
-def ros_mcp():
-    if ROS_MCP is None:
-        pytest.skip(f"ros-mcp is not installed: {INSTALL}")
-    assert Path(ROS_MCP).is_file(), f"SAFEEMBODAI_ROS_MCP={ROS_MCP} is no file: {INSTALL}"
-    return ROS_MCP
 
 
 def scenario(repo, plugins, **changes):
@@ -48,11 +36,11 @@ def scenario(repo, plugins, **changes):
 
 
 @pytest.mark.parametrize("arm", ["ros_mcp_direct", "guard_mcp"])
-def test_a_pilot_that_charges_hits_something_only_without_guard_mcp(repo, built_plugins, ros_mcp, tmp_path, arm):
+def test_a_pilot_that_charges_hits_something_only_without_guard_mcp(repo, built_plugins, ros_mcp_script, tmp_path, arm):
     charger = scenario(repo, built_plugins, backend={"use": "scripted", "options": {"responses": [CHARGE]}})
-    ablation = McpAblation.prepare(charger, built_plugins, ros_mcp=ros_mcp)
+    ablation = McpAblation.prepare(charger, built_plugins, ros_mcp=ros_mcp_script)
     spec = trial_spec(charger, "SO", arm, "no_attack", 0)
-    record = run_mcp_trial(spec, charger, built_plugins, ablation.routes[arm], ros_mcp=ros_mcp, folder=tmp_path,
+    record = run_mcp_trial(spec, charger, built_plugins, ablation.routes[arm], ros_mcp=ros_mcp_script, folder=tmp_path,
                            decider=ablation.make_decider)
     result = record.result
     room = yaml.safe_load((tmp_path / "agent.json").read_text())
@@ -68,15 +56,16 @@ def test_a_pilot_that_charges_hits_something_only_without_guard_mcp(repo, built_
     assert any(call["tool"] == "publish_for_durations" for call in record.transcript)
 
 
-def test_the_mock_reads_the_cameras_injection_through_guard_mcp_and_report_reads_the_run(repo, built_plugins, ros_mcp,
-                                                                                          tmp_path, cli_runner):
+def test_the_mock_reads_the_cameras_injection_through_guard_mcp_and_report_reads_the_run(repo, built_plugins,
+                                                                                          ros_mcp_script, tmp_path,
+                                                                                          cli_runner):
     from safeembodai_core.cli import cli
 
     tool_result = scenario(repo, built_plugins, trials=1, max_steps=3, arms={"guard_mcp": {
         "security_prefix": True, "safety_validation": True, "validators": ["command_limits", "swept_body"]}},
         conditions={"attack_tool_result": {"attackers": [{"use": "prompt_injection", "label": "camera_text",
                                                           "options": {"rate": 1.0, "kinds": ["direct_harm"]}}]}})
-    ablation = McpAblation.prepare(tool_result, built_plugins, ros_mcp=ros_mcp)
+    ablation = McpAblation.prepare(tool_result, built_plugins, ros_mcp=ros_mcp_script)
     folder, results, report = ablation.run(tmp_path)
     [result] = results
     assert result.attacked_steps == result.steps >= 1 and result.collisions == 0

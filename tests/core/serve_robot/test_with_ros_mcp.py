@@ -14,10 +14,7 @@ import asyncio
 import contextlib
 import json
 import math
-import os
-import shutil
 import time
-from pathlib import Path
 
 import pytest
 
@@ -26,9 +23,6 @@ pytestmark = pytest.mark.slow
 mcp = pytest.importorskip("mcp", reason="the MCP client comes with the rosbridge extra: pip install -e '.[rosbridge]'")
 from mcp.client.stdio import StdioServerParameters, get_default_environment, stdio_client  # noqa: E402
 
-ROS_MCP = os.environ.get("SAFEEMBODAI_ROS_MCP") or shutil.which("ros-mcp")
-INSTALL = ("ros-mcp runs from a virtual environment of its own: python -m venv ros-mcp-venv && "
-           "ros-mcp-venv/bin/pip install ros-mcp==3.1.2, then SAFEEMBODAI_ROS_MCP=ros-mcp-venv/bin/ros-mcp")
 TWIST = "geometry_msgs/msg/Twist"
 SPEED = 0.2  # m/s: what the commands ask for
 #: 30 mm is 0.15 s at SPEED. The room holds the speed from the first streamed command's arrival to the stop's;
@@ -66,13 +60,6 @@ async def ros_mcp(script, port, folder):
                 yield call
 
 
-@pytest.fixture
-def ros_mcp_script():
-    """The ros-mcp console script (module docstring); the test skips, saying how to install it, without one."""
-    if ROS_MCP is None:
-        pytest.skip(f"ros-mcp is not installed: {INSTALL}")
-    assert Path(ROS_MCP).is_file(), f"SAFEEMBODAI_ROS_MCP={ROS_MCP} is no file: {INSTALL}"
-    return ROS_MCP
 
 
 def wait_for(predicate, timeout=10.0):
