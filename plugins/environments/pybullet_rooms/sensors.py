@@ -8,7 +8,9 @@ visibility, and the Labbots' distance sensors.
 * Camera: an RGB ``uint8`` image (TinyRenderer, shadows off) from :data:`CAMERA_HEIGHT_MM` just
   in front of the robot, looking along the heading; ``camera_fov_deg`` is the horizontal field.
   A ball wholly outside the field is left out of the rendering (made transparent for it, which
-  TinyRenderer skips): it shows no pixel, and its textured mesh is most of a picture's cost.
+  TinyRenderer skips): it shows no pixel, and its textured mesh is most of a picture's cost. A
+  picture already drawn in this process from the same room, view and poses comes from
+  :mod:`.picture_cache` (the same pixels).
 * Visibility (ground truth, never shown to the LLM): the can is in view when one of three
   points across it, three quarters up, lies inside the camera's frustum and a ray from the
   camera reaches it before anything else, or when the lens is within 10 mm of the can's
@@ -24,12 +26,15 @@ The shortcuts change no reading: tests compare each with the reading made withou
 
 from __future__ import annotations
 
+import json
 import math
+import threading
 from operator import itemgetter
 from typing import cast
 
 import numpy as np
 
+from . import picture_cache
 from .options import CAN_RADIUS_MM, _Labbots
 from .scene import CAN_HEIGHT_MM, OBSTACLE_GROUP, ROBOT_GROUP, Scene, _m
 
@@ -48,6 +53,9 @@ _HIDDEN_RGBA = (1.0, 1.0, 1.0, 0.0)
 #: A Labbot's sensor ray passing farther than this from every body is not cast: it reads nothing
 #: (far beyond any ray-cast tolerance, and beyond a ball's section at the rays' height).
 RAY_SLACK_MM = 20.0
+#: Each room build's options and camera (JSON) by a small number, for the picture cache's keys.
+_ROOM_NUMBERS: dict[str, int] = {}
+_ROOM_NUMBERS_LOCK = threading.Lock()
 
 
 class Sensors:
@@ -63,6 +71,13 @@ class Sensors:
         self.vfov_deg = math.degrees(2 * math.atan(math.tan(math.radians(o.camera_fov_deg / 2)) / aspect))
         self.projection = self.p.computeProjectionMatrixFOV(self.vfov_deg, aspect, _NEAR_M, _FAR_M,
                                                             physicsClientId=scene.client)
+        # every body of the client, built with the scene (nothing is added later), for the picture keys
+        self._bodies = [self.p.getBodyUniqueId(i, physicsClientId=scene.client)
+                        for i in range(self.p.getNumBodies(physicsClientId=scene.client))]
+        room = json.dumps([o.model_dump(mode="json"), o.camera_width, o.camera_height, list(self.projection)])
+        with _ROOM_NUMBERS_LOCK:
+            number = _ROOM_NUMBERS.setdefault(room, len(_ROOM_NUMBERS))
+        self._room_key = number.to_bytes(8, "little")
 
     def lidar(self, xy: np.ndarray, heading_deg: float) -> np.ndarray:
         o = self.o
@@ -91,8 +106,14 @@ class Sensors:
         o, p, client = self.o, self.p, self.scene.client
         self.scene.flush()
         eye, forward = self.camera_pose(xy, heading_deg)
-        view = p.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), (0.0, 0.0, 1.0), physicsClientId=client)
         hidden = self.balls_out_of_view(xy, heading_deg)
+        pictures = picture_cache.PICTURES
+        key = self.picture_key(eye, forward, hidden) if pictures.enabled else None
+        if key is not None:
+            kept = pictures.get(key)
+            if kept is not None:
+                return kept
+        view = p.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), (0.0, 0.0, 1.0), physicsClientId=client)
         for ball in hidden:  # TinyRenderer skips a fully transparent shape: none of its triangles is processed
             p.changeVisualShape(ball, -1, rgbaColor=_HIDDEN_RGBA, physicsClientId=client)
         try:
@@ -103,7 +124,23 @@ class Sensors:
             for ball in hidden:
                 p.changeVisualShape(ball, -1, rgbaColor=self._ball_rgba[ball], physicsClientId=client)
         pixels = np.asarray(rgba, dtype=np.uint8).reshape(o.camera_height, o.camera_width, 4)
-        return np.ascontiguousarray(pixels[..., :3])
+        picture = np.ascontiguousarray(pixels[..., :3])
+        if key is not None:
+            pictures.put(key, picture)
+        return picture
+
+    def picture_key(self, eye: np.ndarray, forward: np.ndarray, hidden: list[int]) -> bytes:
+        """What the picture from ``eye`` looking along ``forward`` is drawn from, as bytes (see
+        :mod:`.picture_cache`): the room as built, the balls left out, the view, and the position and
+        orientation of every body as Bullet holds them (call after :meth:`.scene.Scene.flush`)."""
+        p, client = self.p, self.scene.client
+        numbers = [*eye.tolist(), *forward.tolist()]
+        for body in self._bodies:
+            position, orientation = p.getBasePositionAndOrientation(body, physicsClientId=client)
+            numbers += position
+            numbers += orientation
+        return b"".join((self._room_key, len(hidden).to_bytes(4, "little"), np.array(hidden, dtype=np.int64).tobytes(),
+                         np.array(numbers, dtype=np.float64).tobytes()))
 
     def balls_out_of_view(self, xy: np.ndarray, heading_deg: float) -> list[int]:
         """The balls wholly outside the camera's view from this pose, by :data:`VIEW_SLACK_MM` at

@@ -12,6 +12,15 @@ import pytest
 from safeembodai_core.models import Straight, Turn
 
 
+@pytest.fixture
+def no_picture_cache(monkeypatch):
+    """The camera draws every picture itself (no process-wide picture cache): for tests of the
+    rendering's own determinism, which a picture served from the cache would answer by itself."""
+    from safeembodai_plugins.environments.pybullet_rooms import picture_cache
+
+    monkeypatch.setattr(picture_cache, "PICTURES", picture_cache.PictureCache(max_bytes=0))
+
+
 @pytest.fixture(scope="session")
 def registry():
     from safeembodai_core.plugin.manager import load_plugins

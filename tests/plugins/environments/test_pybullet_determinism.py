@@ -1,5 +1,6 @@
 """Determinism: the same seed and commands give bit-identical worlds, scans, images and paths,
-whatever ran before, in one process (separate physics clients) or in another."""
+whatever ran before, in one process (separate physics clients) or in another. Every picture is
+drawn here (no picture cache): the rendering's own determinism is what is tested."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ COMMANDS = [
     Straight(command="straight", direction="backward", distance=200.0),
 ] * 2
 OPTIONS = {"think_time_s": 1.5}
+pytestmark = pytest.mark.usefixtures("no_picture_cache")
 
 
 def record(env, seed: int) -> list:
