@@ -17,6 +17,13 @@ every earlier step stays. Writers in other processes wait up to ``timeout_s`` fo
 Re-recording a step replaces it: the loop writes a step with an accepted plan twice, before
 execution (``status`` ``executing``) and after (``done``), each in its own transaction.
 
+Under the lock only SQL runs: records are serialised into their rows before it is taken (issue
+51: with 64 trials in threads, every other thread holding the GIL while the lock-holder waits to
+get it back made the lock the step's longest wait). The store remembers what it wrote itself: a
+trial it began holds no rows but the ones it recorded since, so a step's first write deletes
+nothing, and the previous step's record (``reference_state``) is read back from the text it wrote,
+through the same strict reading as a row. A forked or unpickled copy remembers nothing.
+
 What is written: the fields of the records the store is handed and nothing else (no options, no
 environment), as :func:`~safeembodai_core.trust.text.storable` copies -- secrets redacted, lone
 surrogates replaced, integers within SQLite's range -- so what an answer holds cannot make a
@@ -114,18 +121,26 @@ class SqliteStateStore(StateStore):
         self._conn: sqlite3.Connection | None = None
         self._pid = -1
         self._lock = threading.Lock()
+        self._forget_own_writes()
         self._connection()  # fail now, naming the file, not at the first step
+
+    def _forget_own_writes(self) -> None:
+        """What this object (in this process) wrote, see the module docstring: per trial it began,
+        the steps it has recorded since; per trial, its last recorded step's number and JSON."""
+        self._began: dict[str, set[int]] = {}
+        self._last_step: dict[str, tuple[int, str]] = {}
 
     # -- connection and errors ------------------------------------------------------------------
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        state.update(_conn=None, _pid=-1, _lock=None)
+        state.update(_conn=None, _pid=-1, _lock=None, _began={}, _last_step={})
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
         self._lock = threading.Lock()
+        self._forget_own_writes()
 
     def _error(self, doing: str, error: BaseException) -> StateStoreError:
         text = str(error)
@@ -144,6 +159,7 @@ class SqliteStateStore(StateStore):
             return self._conn
         if self._conn is not None:  # inherited through fork: never use or close the parent's handle
             _INHERITED.append(self._conn)
+            self._forget_own_writes()  # the parent's writes, not this process's
         self._conn = None
         try:
             if self.readonly:
@@ -316,41 +332,62 @@ class SqliteStateStore(StateStore):
     # -- StateStore ---------------------------------------------------------------------------
 
     def begin_trial(self, spec: TrialSpec) -> None:
+        row = (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index, spec.seed,
+               spec.model_dump_json())
+
         def work(conn: sqlite3.Connection) -> None:
             for table in _PER_STEP_TABLES:
                 conn.execute(f"DELETE FROM {table} WHERE trial_id = ?", (spec.trial_id,))
-            conn.execute(
-                "INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'running', NULL, NULL, ?, NULL)",
-                (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index,
-                 spec.seed, spec.model_dump_json()),
-            )
+            conn.execute("INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'running', NULL, NULL, ?, NULL)",
+                         row)
 
+        self._last_step.pop(spec.trial_id, None)
+        self._began.pop(spec.trial_id, None)
         self._transaction(f"begin trial {spec.trial_id!r}", work)
+        self._began[spec.trial_id] = set()  # no row of the trial but the ones recorded from now on
 
     def record_step(self, record: StepRecord) -> None:
         record = storable(record)
-        self._transaction(f"record step {record.step} of trial {record.trial_id!r}",
-                          lambda conn: self._insert_step(conn, record))
-
-    def _insert_step(self, conn: sqlite3.Connection, record: StepRecord) -> None:
         key = (record.trial_id, record.step)
-        for table in _PER_STEP_TABLES:
-            conn.execute(f"DELETE FROM {table} WHERE trial_id = ? AND step = ?", key)
+        text = record.model_dump_json()
         usage = record.usage
-        conn.execute("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)", key + (
-            int(record.accepted), int(bool(record.attacks)), int(record.flagged_attack),
-            usage.prompt_tokens, usage.completion_tokens, record.model_dump_json()))
-        for attempt in record.attempts:
-            planning = attempt.response.planning if attempt.response is not None else None
-            conn.execute("INSERT INTO attempts VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", key + (
-                attempt.index, int(attempt.accepted), attempt.parse_error, planning,
-                attempt.usage.prompt_tokens, attempt.usage.completion_tokens, attempt.latency_s))
-            conn.executemany("INSERT INTO verdicts VALUES (?, ?, ?, ?, ?, ?, ?)", [
-                key + (attempt.index, v.signal_index, v.rule, int(v.valid), v.reason) for v in attempt.verdicts])
-        conn.executemany("INSERT INTO attacks VALUES (?, ?, ?, ?, ?, ?)", [
-            key + (a.attacker, a.channel, a.kind, a.payload) for a in record.attacks])
+        step_row = key + (int(record.accepted), int(bool(record.attacks)), int(record.flagged_attack),
+                          usage.prompt_tokens, usage.completion_tokens, text)
+        attempts = [key + (a.index, int(a.accepted), a.parse_error,
+                           a.response.planning if a.response is not None else None,
+                           a.usage.prompt_tokens, a.usage.completion_tokens, a.latency_s) for a in record.attempts]
+        verdicts = [key + (a.index, v.signal_index, v.rule, int(v.valid), v.reason)
+                    for a in record.attempts for v in a.verdicts]
+        attacks = [key + (a.attacker, a.channel, a.kind, a.payload) for a in record.attacks]
+        recorded = self._began.get(record.trial_id)
+        replaces = recorded is None or record.step in recorded  # else the step has no row to replace
+
+        def work(conn: sqlite3.Connection) -> None:
+            if replaces:
+                for table in _PER_STEP_TABLES:
+                    conn.execute(f"DELETE FROM {table} WHERE trial_id = ? AND step = ?", key)
+            conn.execute("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)", step_row)
+            if attempts:
+                conn.executemany("INSERT INTO attempts VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", attempts)
+            if verdicts:
+                conn.executemany("INSERT INTO verdicts VALUES (?, ?, ?, ?, ?, ?, ?)", verdicts)
+            if attacks:
+                conn.executemany("INSERT INTO attacks VALUES (?, ?, ?, ?, ?, ?)", attacks)
+
+        try:
+            self._transaction(f"record step {record.step} of trial {record.trial_id!r}", work)
+        except BaseException:
+            self._began.pop(record.trial_id, None)  # what the file holds is no longer known here
+            self._last_step.pop(record.trial_id, None)
+            raise
+        if recorded is not None:
+            recorded.add(record.step)
+        self._last_step[record.trial_id] = (record.step, text)
 
     def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
+        last = self._last_step.get(trial_id)
+        if last is not None and last[0] == step - 1:  # the text this object wrote, read as a row is
+            return self._step_row(trial_id, step - 1, last[1]).to_reference()
         rows = self._query("read the reference state",
                            "SELECT record FROM steps WHERE trial_id = ? AND step = ?", (trial_id, step - 1))
         return self._step_row(trial_id, step - 1, rows[0][0]).to_reference() if rows else None
@@ -358,15 +395,15 @@ class SqliteStateStore(StateStore):
     def end_trial(self, result: TrialResult) -> None:
         result = storable(result)
         spec = result.spec
+        row = (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index, spec.seed,
+               result.outcome.value, result.steps, spec.model_dump_json(), result.model_dump_json())
 
         def work(conn: sqlite3.Connection) -> None:
-            conn.execute(
-                "INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'finished', ?, ?, ?, ?)",
-                (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index,
-                 spec.seed, result.outcome.value, result.steps, spec.model_dump_json(), result.model_dump_json()),
-            )
+            conn.execute("INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'finished', ?, ?, ?, ?)", row)
 
         self._transaction(f"end trial {spec.trial_id!r}", work)
+        self._began.pop(spec.trial_id, None)
+        self._last_step.pop(spec.trial_id, None)
 
     def steps(self, trial_id: str) -> list[StepRecord]:
         return list(self.iter_steps(trial_id))

@@ -103,13 +103,16 @@ CRASH = textwrap.dedent("""
     store.begin_trial(spec)
     for step in (1, 2):
         store.record_step(StepRecord(trial_id="t", step=step, instruction=f"step {step}"))
-    write = SqliteStateStore._insert_step
+    transaction = SqliteStateStore._transaction
 
-    def write_then_die(self, conn, record):
-        write(self, conn, record)  # every row of the step is written, the commit never comes
-        os._exit(17)
+    def write_then_die(self, doing, work):
+        def rows_then_exit(conn):
+            work(conn)  # every row of the step is written, the commit never comes
+            os._exit(17)
 
-    SqliteStateStore._insert_step = write_then_die
+        transaction(self, doing, rows_then_exit)
+
+    SqliteStateStore._transaction = write_then_die
     store.record_step(StepRecord(trial_id="t", step=3, instruction="step 3"))
 """)
 
@@ -219,3 +222,71 @@ def test_many_processes_can_create_the_same_new_file_at_once(tmp_path):
         for worker in workers:
             worker.join()
     assert errors == []
+
+
+# -- what the store remembers of its own writes (issue 51) ----------------------------------------
+
+def statements(store: SqliteStateStore) -> list[str]:
+    """Every SQL statement the store's connection runs from now on (its first words)."""
+    seen: list[str] = []
+    store._connection().set_trace_callback(lambda sql: seen.append(" ".join(sql.split()[:3])))
+    return seen
+
+
+def test_a_steps_first_write_after_its_trial_began_deletes_nothing_and_a_rewrite_replaces(tmp_path):
+    store = SqliteStateStore(tmp_path / "own.sqlite")
+    store.begin_trial(SPEC)
+    seen = statements(store)
+    store.record_step(make_step(1))
+    assert not [s for s in seen if s.startswith("DELETE")]  # the trial it began has no row of step 1 yet
+    seen.clear()
+    store.record_step(make_step(1, distance=250.0).model_copy(update={"attempts": make_step(1).attempts[:1]}))
+    assert len([s for s in seen if s.startswith("DELETE")]) == 4  # the step again: every table's rows replaced
+    rows = sqlite3.connect(tmp_path / "own.sqlite").execute("SELECT COUNT(*) FROM attempts").fetchone()[0]
+    assert rows == 1 and store.steps(SPEC.trial_id)[0].executed[1].signal.distance == 250.0
+
+
+def test_a_store_that_did_not_begin_the_trial_replaces_what_another_wrote(tmp_path):
+    path = tmp_path / "two.sqlite"
+    first = SqliteStateStore(path)
+    first.begin_trial(SPEC)
+    first.record_step(make_step(1))
+    second = SqliteStateStore(path)  # began nothing: it cannot know what the file holds
+    second.record_step(make_step(1).model_copy(update={"attempts": [], "attacks": []}))
+    conn = sqlite3.connect(path)
+    assert [conn.execute(f"SELECT COUNT(*) FROM {table}").fetchone()[0]
+            for table in ("steps", "attempts", "verdicts", "attacks")] == [1, 0, 0, 0]
+    copy = pickle.loads(pickle.dumps(first))  # a copy in another process remembers nothing either
+    assert copy._began == {} and copy._last_step == {}
+
+
+def test_the_previous_step_is_read_back_from_the_text_written_as_the_file_holds_it(tmp_path):
+    path = tmp_path / "reference.sqlite"
+    writer = SqliteStateStore(path)
+    writer.begin_trial(SPEC)
+    writer.record_step(make_step(1))
+    writer.record_step(make_step(2, distance=333.0))
+    seen = statements(writer)
+    remembered = writer.reference_state(SPEC.trial_id, 3)
+    assert not seen  # no query: the text this store wrote
+    assert remembered == SqliteStateStore(path, readonly=True).reference_state(SPEC.trial_id, 3)
+    assert remembered.step == 2
+    assert writer.reference_state(SPEC.trial_id, 2).step == 1  # an older step: read from the file
+    assert seen
+
+
+def test_a_write_that_failed_leaves_the_store_replacing_again(tmp_path, monkeypatch):
+    store = SqliteStateStore(tmp_path / "failed.sqlite")
+    store.begin_trial(SPEC)
+
+    def fail(doing, work):
+        raise StateStoreError("disk full")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(store, "_transaction", fail)
+        with pytest.raises(StateStoreError):
+            store.record_step(make_step(1))
+    seen = statements(store)
+    store.record_step(make_step(1))
+    assert len([s for s in seen if s.startswith("DELETE")]) == 4  # what the file holds is unknown again
+    assert store.reference_state(SPEC.trial_id, 2).step == 1
