@@ -80,6 +80,8 @@ def _group_usage(pgid: int) -> tuple[float, float]:
 
 def _cpu_at(samples: list[tuple[float, float, float]], moment: float) -> tuple[float, float]:
     """The run's and the stand-in's CPU seconds at ``moment``, interpolated between the samples."""
+    if samples and moment < samples[0][0]:
+        return samples[0][1], samples[0][2]
     for (t0, run0, own0), (t1, run1, own1) in zip(samples, samples[1:]):
         if t0 <= moment <= t1:
             share = (moment - t0) / (t1 - t0) if t1 > t0 else 0.0
@@ -87,12 +89,13 @@ def _cpu_at(samples: list[tuple[float, float, float]], moment: float) -> tuple[f
     return (samples[-1][1], samples[-1][2]) if samples else (float("nan"), float("nan"))
 
 
-def _calls_per_trial(out: str) -> list[int]:
-    """How many calls each trial of the run made (its steps' attempts), read from the run's store."""
+def _calls_per_trial(out: str, earlier: set[Path]) -> list[int]:
+    """How many calls each trial of the run made (its steps' attempts), read from the store of the run
+    folder it created under ``out`` (``earlier``: the folders there before it started)."""
     from safeembodai_plugins.state.sqlite_db import SqliteStateStore
 
     counts = []
-    for store_path in Path(out).glob("*/results.sqlite"):
+    for store_path in sorted(set(Path(out).glob("*/results.sqlite")) - earlier):
         store = SqliteStateStore(store_path, readonly=True)
         try:
             for trial in store.trials():
@@ -119,7 +122,8 @@ def workload_bound(counts: list[int], slots: int, latency: float) -> tuple[float
     every call lasts ``latency``, a trial's calls follow each other at once, the slots open evenly
     over the first ``latency`` (no waves in step) and a slot takes the next trial the moment it is
     free (trials in the store's order). With as many slots as trials, the longest trial bounds the
-    whole run, and trials that end early leave their slots empty."""
+    whole run, and trials that end early leave their slots empty. With fewer slots it is an estimate:
+    the greedy order is not the scenario's dispatch order, nor the best one."""
     slots = max(1, slots)
     free = [k * latency / slots for k in range(slots)]
     stamps: list[float] = []
@@ -148,6 +152,7 @@ def run_setting(server: FakeOpenAI, scenario: Path, setting: list[str], latency:
 
     with tempfile.TemporaryDirectory(prefix="paid-api-") as scratch:
         out = str(keep / "-".join(setting).replace("--", "").replace(" ", "") if keep else scratch)
+        earlier = set(Path(out).glob("*/results.sqlite"))
         started = time.monotonic()
         process = subprocess.Popen([sys.executable, "-m", "safeembodai_core", "ablate", str(scenario), "--out", out,
                                     "--no-report", "--no-cache", *setting], stdout=subprocess.DEVNULL,
@@ -171,7 +176,7 @@ def run_setting(server: FakeOpenAI, scenario: Path, setting: list[str], latency:
         stderr = process.stderr.read() if process.stderr else ""
         if process.returncode != 0:
             raise SystemExit(f"{' '.join(setting)} failed ({process.returncode}): {stderr[-2000:]}")
-        bound_whole, bound_steady = workload_bound(_calls_per_trial(out), _in_flight(setting), latency)
+        bound_whole, bound_steady = workload_bound(_calls_per_trial(out, earlier), _in_flight(setting), latency)
     while seen < len(recorded):
         stamps.append(time.monotonic())
         seen += 1
@@ -218,7 +223,8 @@ def main() -> None:
         print(f"{args.scenario}.yaml, {args.trials} trials per cell of at most {args.max_steps} steps, every call "
               f"answered after {args.latency:g} s; {os.cpu_count()} cores")
         print(f"{'setting':32} {'calls':>6} {'wall s':>7} {'first call s':>12} {'peak/asked':>10} "
-              f"{'mean':>6} {'calls/s':>8} {'ideal':>6} {'of ideal':>8} {'steady':>7} {'of ideal':>8} {'peak MB':>8}")
+              f"{'mean':>6} {'calls/s':>8} {'ideal':>6} {'of ideal':>8} {'steady':>7} {'of ideal':>8} {'peak MB':>8} "
+              f"{'CPU ms/call':>11} {'stand-in':>8} {'bound whole':>11} {'steady':>6} {'of bound':>8} {'steady':>6}")
         for setting in args.setting or SETTINGS:
             row = run_setting(server, scenario, shlex.split(setting), args.latency, args.keep)
             threading.Event().wait(1.0)  # let the stand-in's sockets settle between runs

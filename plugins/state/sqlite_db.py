@@ -22,7 +22,10 @@ Under the lock only SQL runs: records are serialised into their rows before it i
 get it back made the lock the step's longest wait). The store remembers what it wrote itself: a
 trial it began holds no rows but the ones it recorded since, so a step's first write deletes
 nothing, and the previous step's record (``reference_state``) is read back from the text it wrote,
-through the same strict reading as a row. A forked or unpickled copy remembers nothing.
+through the same strict reading as a row. A forked or unpickled copy remembers nothing. This
+assumes what a run guarantees: one writer per trial (its lock, and each trial on one worker);
+another writer's rows for a trial this store began are not seen, and a step it then writes first
+fails loudly on the steps table's key rather than leaving two.
 
 What is written: the fields of the records the store is handed and nothing else (no options, no
 environment), as :func:`~safeembodai_core.trust.text.storable` copies -- secrets redacted, lone
@@ -129,12 +132,27 @@ class SqliteStateStore(StateStore):
         the steps it has recorded since; per trial, its last recorded step's number and JSON."""
         self._began: dict[str, set[int]] = {}
         self._last_step: dict[str, tuple[int, str]] = {}
+        self._writes_pid = os.getpid()
+
+    def _own_writes(self) -> tuple[dict[str, set[int]], dict[str, tuple[int, str]]]:
+        """What this object wrote in this process; nothing in a forked child (it has not written yet)."""
+        if self._writes_pid != os.getpid():
+            self._forget_own_writes()
+        return self._began, self._last_step
+
+    def _serialised(self, doing: str, make: Callable[[], Any]) -> Any:
+        """``make()``, the rows a write will hold, built before the lock; a record that cannot be
+        serialised is an error naming the file, as a failed write is."""
+        try:
+            return make()
+        except (OverflowError, ValueError) as error:  # pydantic's serialisation errors are ValueErrors
+            raise self._error(doing, error) from None
 
     # -- connection and errors ------------------------------------------------------------------
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        state.update(_conn=None, _pid=-1, _lock=None, _began={}, _last_step={})
+        state.update(_conn=None, _pid=-1, _lock=None, _began={}, _last_step={}, _writes_pid=-1)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -159,7 +177,6 @@ class SqliteStateStore(StateStore):
             return self._conn
         if self._conn is not None:  # inherited through fork: never use or close the parent's handle
             _INHERITED.append(self._conn)
-            self._forget_own_writes()  # the parent's writes, not this process's
         self._conn = None
         try:
             if self.readonly:
@@ -332,8 +349,9 @@ class SqliteStateStore(StateStore):
     # -- StateStore ---------------------------------------------------------------------------
 
     def begin_trial(self, spec: TrialSpec) -> None:
-        row = (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index, spec.seed,
-               spec.model_dump_json())
+        doing = f"begin trial {spec.trial_id!r}"
+        row = self._serialised(doing, lambda: (spec.trial_id, spec.scenario, spec.environment, spec.arm,
+                                               spec.condition, spec.index, spec.seed, spec.model_dump_json()))
 
         def work(conn: sqlite3.Connection) -> None:
             for table in _PER_STEP_TABLES:
@@ -341,15 +359,17 @@ class SqliteStateStore(StateStore):
             conn.execute("INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'running', NULL, NULL, ?, NULL)",
                          row)
 
-        self._last_step.pop(spec.trial_id, None)
-        self._began.pop(spec.trial_id, None)
-        self._transaction(f"begin trial {spec.trial_id!r}", work)
-        self._began[spec.trial_id] = set()  # no row of the trial but the ones recorded from now on
+        began, last_step = self._own_writes()
+        last_step.pop(spec.trial_id, None)
+        began.pop(spec.trial_id, None)
+        self._transaction(doing, work)
+        began[spec.trial_id] = set()  # no row of the trial but the ones recorded from now on
 
     def record_step(self, record: StepRecord) -> None:
         record = storable(record)
+        doing = f"record step {record.step} of trial {record.trial_id!r}"
         key = (record.trial_id, record.step)
-        text = record.model_dump_json()
+        text = self._serialised(doing, record.model_dump_json)
         usage = record.usage
         step_row = key + (int(record.accepted), int(bool(record.attacks)), int(record.flagged_attack),
                           usage.prompt_tokens, usage.completion_tokens, text)
@@ -359,7 +379,8 @@ class SqliteStateStore(StateStore):
         verdicts = [key + (a.index, v.signal_index, v.rule, int(v.valid), v.reason)
                     for a in record.attempts for v in a.verdicts]
         attacks = [key + (a.attacker, a.channel, a.kind, a.payload) for a in record.attacks]
-        recorded = self._began.get(record.trial_id)
+        began, last_step = self._own_writes()
+        recorded = began.get(record.trial_id)
         replaces = recorded is None or record.step in recorded  # else the step has no row to replace
 
         def work(conn: sqlite3.Connection) -> None:
@@ -375,17 +396,17 @@ class SqliteStateStore(StateStore):
                 conn.executemany("INSERT INTO attacks VALUES (?, ?, ?, ?, ?, ?)", attacks)
 
         try:
-            self._transaction(f"record step {record.step} of trial {record.trial_id!r}", work)
+            self._transaction(doing, work)
         except BaseException:
-            self._began.pop(record.trial_id, None)  # what the file holds is no longer known here
-            self._last_step.pop(record.trial_id, None)
+            began.pop(record.trial_id, None)  # what the file holds is no longer known here
+            last_step.pop(record.trial_id, None)
             raise
         if recorded is not None:
             recorded.add(record.step)
-        self._last_step[record.trial_id] = (record.step, text)
+        last_step[record.trial_id] = (record.step, text)
 
     def reference_state(self, trial_id: str, step: int) -> ReferenceState | None:
-        last = self._last_step.get(trial_id)
+        last = self._own_writes()[1].get(trial_id)
         if last is not None and last[0] == step - 1:  # the text this object wrote, read as a row is
             return self._step_row(trial_id, step - 1, last[1]).to_reference()
         rows = self._query("read the reference state",
@@ -395,15 +416,18 @@ class SqliteStateStore(StateStore):
     def end_trial(self, result: TrialResult) -> None:
         result = storable(result)
         spec = result.spec
-        row = (spec.trial_id, spec.scenario, spec.environment, spec.arm, spec.condition, spec.index, spec.seed,
-               result.outcome.value, result.steps, spec.model_dump_json(), result.model_dump_json())
+        doing = f"end trial {spec.trial_id!r}"
+        row = self._serialised(doing, lambda: (spec.trial_id, spec.scenario, spec.environment, spec.arm,
+                                               spec.condition, spec.index, spec.seed, result.outcome.value,
+                                               result.steps, spec.model_dump_json(), result.model_dump_json()))
 
         def work(conn: sqlite3.Connection) -> None:
             conn.execute("INSERT OR REPLACE INTO trials VALUES (?, ?, ?, ?, ?, ?, ?, 'finished', ?, ?, ?, ?)", row)
 
-        self._transaction(f"end trial {spec.trial_id!r}", work)
-        self._began.pop(spec.trial_id, None)
-        self._last_step.pop(spec.trial_id, None)
+        self._transaction(doing, work)
+        began, last_step = self._own_writes()
+        began.pop(spec.trial_id, None)
+        last_step.pop(spec.trial_id, None)
 
     def steps(self, trial_id: str) -> list[StepRecord]:
         return list(self.iter_steps(trial_id))

@@ -290,3 +290,37 @@ def test_a_write_that_failed_leaves_the_store_replacing_again(tmp_path, monkeypa
     store.record_step(make_step(1))
     assert len([s for s in seen if s.startswith("DELETE")]) == 4  # what the file holds is unknown again
     assert store.reference_state(SPEC.trial_id, 2).step == 1
+
+
+def test_a_forked_child_remembers_none_of_its_parents_writes(tmp_path):
+    path = tmp_path / "forked.sqlite"
+    store = SqliteStateStore(path)
+    store.begin_trial(SPEC)
+    store.record_step(make_step(1))
+    fork = multiprocessing.get_context("fork")
+    reader, writer = fork.Pipe(duplex=False)
+    go = fork.Event()
+    child = fork.Process(target=_child_writes_step_2, args=(store, go, writer))
+    child.start()  # the child's copy remembers the trial begun and step 1 recorded
+    store.record_step(make_step(2))  # the parent's step 2, after the fork: the child's copy cannot know it
+    go.set()
+    child.join(60)
+    assert child.exitcode == 0 and reader.recv() == "replaced"
+    assert [r.executed[1].signal.distance for r in SqliteStateStore(path, readonly=True).steps(SPEC.trial_id)] == \
+        [100.0, 222.0]
+
+
+def _child_writes_step_2(store: SqliteStateStore, go, done) -> None:
+    go.wait(60)
+    try:  # trusting the parent's memory, the child would skip the DELETEs and collide with the parent's row
+        store.record_step(make_step(2, distance=222.0))
+    except StateStoreError as error:
+        done.send(str(error))
+        return
+    done.send("replaced")
+
+
+def test_a_record_that_cannot_be_serialised_is_an_error_naming_the_file(tmp_path):
+    store = SqliteStateStore(tmp_path / "surrogate.sqlite")
+    with pytest.raises(StateStoreError, match=r"surrogate\.sqlite.*cannot begin trial"):
+        store.begin_trial(SPEC.model_copy(update={"trial_id": "e/a/c/\ud800"}))
